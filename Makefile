@@ -1,0 +1,44 @@
+# The two commands a user needs are `make demo` and `make test`; everything else supports them.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+
+$(STAMP): pyproject.toml setup.py constraints.txt
+	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install --disable-pip-version-check -q --upgrade pip
+	@$(PY) -m pip install --disable-pip-version-check --progress-bar off -q -c constraints.txt -e '.[robot,test]'
+	@touch $(STAMP)
+
+venv: $(STAMP)
+
+# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok and helm
+# from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
+control-plane:
+	@bash hack/build-control-plane.sh >/dev/null
+
+demo: venv control-plane
+	@$(VENV)/bin/coral dev-cluster demo
+
+test: venv control-plane
+	@echo "==> ruff"
+	@$(VENV)/bin/ruff check .
+	@echo "==> pytest"
+	@$(PY) -m pytest
+
+lint: venv
+	@$(VENV)/bin/ruff check .
+
+test-kind: venv
+	@command -v kind >/dev/null || { echo "kind is not installed"; exit 1; }
+	kind create cluster --name coral --config tests/kind/cluster.yaml
+	KUBECONFIG=$$(mktemp) && kind get kubeconfig --name coral > $$KUBECONFIG && KUBECONFIG=$$KUBECONFIG $(PY) -m pytest; rc=$$?; kind delete cluster --name coral; exit $$rc
+
+bench: bench-bt bench-calls bench-slam bench-fleet
+
+bench-bt bench-calls bench-slam bench-fleet: venv
+	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f; else echo "$$f: not written yet"; fi

@@ -1,0 +1,5 @@
+"""Allows `python -m coral`, the same as the `coral` console script."""
+
+from coral.cli import main
+
+main()

@@ -1,0 +1,1 @@
+"""Reference Coral drivers (each folder holds one driver and its Dockerfile)."""

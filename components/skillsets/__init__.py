@@ -1,0 +1,1 @@
+"""Reference Coral skillsets (each folder holds one skillset and its Dockerfile)."""

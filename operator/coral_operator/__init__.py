@@ -1,0 +1,1 @@
+"""Control-plane side of Coral on Kubernetes: API models, planning, status and kopf handlers."""
