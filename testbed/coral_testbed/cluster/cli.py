@@ -1,0 +1,182 @@
+"""`coral dev-cluster`: run the local control plane by hand (up, down, status, robots, demo).
+
+Thin verbs over `controlplane` and `client.Cluster`; registered in `coral.cli.VERBS`. Progress goes
+to stderr and the kubeconfig path to stdout, so `export KUBECONFIG=$(coral dev-cluster up)` works.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from coral_testbed.cluster import binaries, controlplane, demo
+from coral_testbed.cluster.client import Cluster
+
+
+def _say(line: str) -> None:
+    click.echo(f"==> {line}", err=True)
+
+
+def _parse_labels(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> dict[str, str]:
+    labels = {}
+    for value in values:
+        key, sep, label_value = value.partition("=")
+        if not sep or not key:
+            raise click.BadParameter(f"{value!r} is not KEY=VALUE", ctx=ctx, param=param)
+        labels[key] = label_value
+    return labels
+
+
+def dir_option(command: Callable[..., Any]) -> Callable[..., Any]:
+    """The state-folder option shared by every verb."""
+
+    @click.option(
+        "--dir",
+        "state_dir",
+        type=click.Path(file_okay=False, path_type=Path),
+        default=controlplane.default_state_dir,
+        show_default="~/.cache/coral-on-kubernetes/dev-cluster",
+        help="Folder holding the control plane's certificates, data, logs and state.",
+    )
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        return command(*args, **kwargs)
+
+    return wrapper
+
+
+def _running_cluster(state_dir: Path) -> Cluster:
+    return Cluster.from_dev_cluster(state_dir)
+
+
+def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return command(*args, **kwargs)
+        except (controlplane.ControlPlaneError, binaries.BinariesMissing, ValueError) as error:
+            raise click.ClickException(str(error)) from error
+
+    return wrapper
+
+
+@click.group("dev-cluster")
+def dev_cluster() -> None:
+    """A local Kubernetes control plane with kwok robots (etcd, kube-apiserver, controllers, kwok)."""
+
+
+@dev_cluster.command()
+@dir_option
+@click.option("--robots", "count", type=click.IntRange(min=0), default=0, help="Robot Nodes to create.")
+@click.option(
+    "--robot-prefix", default="robot-", show_default=True, help="Robots are named PREFIX1..PREFIXN."
+)
+@click.option(
+    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
+)
+@_fail_on_errors
+def up(state_dir: Path, count: int, robot_prefix: str, labels: dict[str, str]) -> None:
+    """Start the control plane in the background; print the kubeconfig path once the API is healthy."""
+    try:
+        state = controlplane.start(state_dir, progress=_say)
+    except controlplane.AlreadyRunning as running:
+        _say(str(running))
+        state = controlplane.load_state(state_dir.resolve())  # type: ignore[assignment]
+    if count:
+        names = [f"{robot_prefix}{i}" for i in range(1, count + 1)]
+        _say(f"Creating robots {', '.join(names)}")
+        cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True)
+        cluster.add_robots(names, labels)
+    click.echo(str(state.kubeconfig))
+
+
+@dev_cluster.command()
+@dir_option
+@_fail_on_errors
+def down(state_dir: Path) -> None:
+    """Stop every process the control plane started."""
+    stopped = controlplane.stop(state_dir, progress=_say)
+    _say(f"Stopped {len(stopped)} processes" if stopped else f"Nothing was running from {state_dir}")
+
+
+@dev_cluster.command()
+@dir_option
+@_fail_on_errors
+def status(state_dir: Path) -> None:
+    """Show each component's pid and health, and the kubeconfig path; exit 1 unless all are healthy."""
+    report = controlplane.status(state_dir)
+    if not report["components"]:
+        click.echo(f"not running (state folder {report['state_dir']})")
+        raise SystemExit(1)
+    for row in report["components"]:
+        health = "healthy" if row["healthy"] else ("unhealthy" if row["alive"] else "stopped")
+        click.echo(f"{row['name']:<24} pid {row['pid']:<8} {health:<10} {row['log']}")
+    click.echo(f"server      {report['server']}")
+    click.echo(f"kubeconfig  {report['kubeconfig']}")
+    if not report["healthy"]:
+        raise SystemExit(1)
+
+
+@dev_cluster.group()
+def robots() -> None:
+    """Create, remove and fail simulated robots (kwok Nodes labelled coral.dev/robot=NAME)."""
+
+
+@robots.command("add")
+@dir_option
+@click.argument("names", nargs=-1, required=True)
+@click.option(
+    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
+)
+@_fail_on_errors
+def add_robots(state_dir: Path, names: tuple[str, ...], labels: dict[str, str]) -> None:
+    """Create robots (or add labels to existing ones) and wait until they are Ready."""
+    _running_cluster(state_dir).add_robots(list(names), labels)
+
+
+@robots.command("remove")
+@dir_option
+@click.argument("names", nargs=-1, required=True)
+@_fail_on_errors
+def remove_robots(state_dir: Path, names: tuple[str, ...]) -> None:
+    """Delete robots' Nodes."""
+    _running_cluster(state_dir).remove_robots(list(names))
+
+
+@robots.command("ready")
+@dir_option
+@click.argument("name")
+@click.option("--not-ready", is_flag=True, help="Make the robot report Ready=False instead.")
+@_fail_on_errors
+def robot_ready(state_dir: Path, name: str, not_ready: bool) -> None:
+    """Make a robot report Ready (or NotReady with --not-ready) and wait until its Node shows it."""
+    _running_cluster(state_dir).set_robot_ready(name, not not_ready)
+
+
+@robots.command("offline")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_offline(state_dir: Path, name: str) -> None:
+    """Take a robot off the network: its lease lapses and it turns Ready=Unknown (about 30 s)."""
+    _running_cluster(state_dir).set_robot_reachable(name, False)
+
+
+@robots.command("online")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_online(state_dir: Path, name: str) -> None:
+    """Bring an offline robot back: kwok renews its lease and it reports Ready again."""
+    _running_cluster(state_dir).set_robot_reachable(name, True)
+
+
+@dev_cluster.command("demo")
+@_fail_on_errors
+def demo_command() -> None:
+    """Start a throwaway control plane, schedule a pod onto a robot, show it Running, stop everything."""
+    demo.run(echo=click.echo)

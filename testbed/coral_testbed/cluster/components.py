@@ -1,0 +1,172 @@
+"""Command lines of the control-plane components, built from one `Layout` (pure functions).
+
+`controlplane.start` runs them in this order: etcd, kube-apiserver, then kube-controller-manager,
+kube-scheduler and kwok. Everything listens on 127.0.0.1 on ports chosen free at start, so several
+control planes (a developer's and a test session's) can run side by side.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from coral_testbed.cluster import pki as pki_module
+
+SERVICE_CIDR = "10.96.0.0/16"
+# kwok hands out pod IPs from this CIDR starting at its address, so it starts at .1. It avoids
+# kind's pod subnet (10.244.0.0/16), where kwok also runs in `make test-kind`.
+POD_CIDR = "10.250.0.1/16"
+SERVICE_ACCOUNT_ISSUER = "https://kubernetes.default.svc.cluster.local"
+# kwok manages Nodes carrying this label with the "online" value. A label rather than an annotation:
+# kwok watches labels server-side, so changing the value (robot offline) makes it let go of the
+# Node and stop renewing its lease; it filters annotations only as they arrive.
+KWOK_LABEL = "coral.dev/simulation"
+KWOK_ONLINE = "online"
+KWOK_OFFLINE = "offline"
+
+
+@dataclass(frozen=True)
+class Ports:
+    etcd_client: int
+    etcd_peer: int
+    apiserver: int
+    controller_manager: int
+    scheduler: int
+    kwok: int
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Everything a component's command line depends on."""
+
+    state_dir: Path
+    bin_dir: Path
+    ports: Ports
+
+    @property
+    def pki(self) -> pki_module.Pki:
+        return pki_module.Pki(self.state_dir / "pki")
+
+    @property
+    def logs_dir(self) -> Path:
+        return self.state_dir / "logs"
+
+    @property
+    def server(self) -> str:
+        return f"https://127.0.0.1:{self.ports.apiserver}"
+
+    @property
+    def admin_kubeconfig(self) -> Path:
+        return self.state_dir / "kubeconfig"
+
+    def kubeconfig_for(self, identity: str) -> Path:
+        return self.admin_kubeconfig if identity == "admin" else self.state_dir / f"{identity}.kubeconfig"
+
+    @property
+    def kwok_config(self) -> Path:
+        return self.state_dir / "kwok.yaml"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"state_dir": str(self.state_dir), "bin_dir": str(self.bin_dir), "ports": asdict(self.ports)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Layout:
+        return cls(Path(data["state_dir"]), Path(data["bin_dir"]), Ports(**data["ports"]))
+
+
+def build_etcd(layout: Layout) -> list[str]:
+    client = f"http://127.0.0.1:{layout.ports.etcd_client}"
+    peer = f"http://127.0.0.1:{layout.ports.etcd_peer}"
+    return [
+        str(layout.bin_dir / "etcd"),
+        "--name=coral-dev",
+        f"--data-dir={layout.state_dir / 'etcd'}",
+        f"--listen-client-urls={client}",
+        f"--advertise-client-urls={client}",
+        f"--listen-peer-urls={peer}",
+        f"--initial-advertise-peer-urls={peer}",
+        f"--initial-cluster=coral-dev={peer}",
+        # A throwaway store: fsync-free writes keep start-up and tests fast on a shared disk.
+        "--unsafe-no-fsync=true",
+        "--quota-backend-bytes=2147483648",
+        "--log-level=warn",
+    ]
+
+
+def build_apiserver(layout: Layout) -> list[str]:
+    pki = layout.pki
+    return [
+        str(layout.bin_dir / "kube-apiserver"),
+        f"--etcd-servers=http://127.0.0.1:{layout.ports.etcd_client}",
+        "--bind-address=127.0.0.1",
+        "--advertise-address=127.0.0.1",
+        f"--secure-port={layout.ports.apiserver}",
+        f"--tls-cert-file={pki.server_cert}",
+        f"--tls-private-key-file={pki.server_key}",
+        f"--client-ca-file={pki.ca_cert}",
+        f"--service-account-key-file={pki.sa_pub}",
+        f"--service-account-signing-key-file={pki.sa_key}",
+        f"--service-account-issuer={SERVICE_ACCOUNT_ISSUER}",
+        "--authorization-mode=Node,RBAC",
+        f"--service-cluster-ip-range={SERVICE_CIDR}",
+        "--allow-privileged=true",
+        # Endpoints may not hold a loopback address, so the `kubernetes` Service gets none.
+        "--endpoint-reconciler-type=none",
+        "--profiling=false",
+        "--v=1",
+    ]
+
+
+def build_controller_manager(layout: Layout) -> list[str]:
+    pki = layout.pki
+    return [
+        str(layout.bin_dir / "kube-controller-manager"),
+        f"--kubeconfig={layout.kubeconfig_for('controller-manager')}",
+        "--bind-address=127.0.0.1",
+        f"--secure-port={layout.ports.controller_manager}",
+        f"--cert-dir={layout.state_dir / 'controller-manager-certs'}",
+        "--controllers=*",
+        "--leader-elect=false",
+        # An offline robot (lease unrenewed) turns Ready=Unknown after this; kwok renews every 10 s,
+        # so 30 s leaves two missed renewals of slack while keeping offline tests short.
+        "--node-monitor-grace-period=30s",
+        # Each controller acts as its own ServiceAccount, as in production clusters.
+        "--use-service-account-credentials=true",
+        f"--service-account-private-key-file={pki.sa_key}",
+        f"--root-ca-file={pki.ca_cert}",
+        f"--cluster-signing-cert-file={pki.ca_cert}",
+        f"--cluster-signing-key-file={pki.ca_key}",
+        f"--service-cluster-ip-range={SERVICE_CIDR}",
+        "--profiling=false",
+        "--v=1",
+    ]
+
+
+def build_scheduler(layout: Layout) -> list[str]:
+    return [
+        str(layout.bin_dir / "kube-scheduler"),
+        f"--kubeconfig={layout.kubeconfig_for('scheduler')}",
+        "--bind-address=127.0.0.1",
+        f"--secure-port={layout.ports.scheduler}",
+        f"--cert-dir={layout.state_dir / 'scheduler-certs'}",
+        "--leader-elect=false",
+        "--profiling=false",
+        "--v=1",
+    ]
+
+
+def build_kwok(layout: Layout, kubeconfig: Path | None = None) -> list[str]:
+    """kwok as the controller of robot Nodes; `kubeconfig` points it at another cluster if given."""
+    return [
+        str(layout.bin_dir / "kwok"),
+        f"--config={layout.kwok_config}",
+        f"--kubeconfig={kubeconfig or layout.admin_kubeconfig}",
+        "--manage-all-nodes=false",
+        f"--manage-nodes-with-label-selector={KWOK_LABEL}={KWOK_ONLINE}",
+        "--node-lease-duration-seconds=40",
+        f"--server-address=127.0.0.1:{layout.ports.kwok}",
+        "--node-ip=127.0.0.1",
+        f"--node-port={layout.ports.kwok}",
+        f"--cidr={POD_CIDR}",
+    ]

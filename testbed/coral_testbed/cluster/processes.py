@@ -1,0 +1,114 @@
+"""Starting and stopping the control plane's processes, each in its own process group.
+
+Used by `controlplane` (start, stop, status). A process is recorded by pid plus its kernel start
+time, so a later `down` never signals an unrelated process that reused the pid.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+_PR_SET_PDEATHSIG = 1
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """A started component: enough to find, check and stop it again from another process."""
+
+    name: str
+    pid: int
+    start_time: str
+    log: Path
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "pid": self.pid, "start_time": self.start_time, "log": str(self.log)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Recorded:
+        return cls(data["name"], int(data["pid"]), str(data["start_time"]), Path(data["log"]))
+
+
+def process_start_time(pid: int) -> str | None:
+    """Field 22 of /proc/<pid>/stat (start time in clock ticks since boot), None if gone or a zombie."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    # The command name may hold spaces and parentheses; fields after it are plain.
+    fields = stat[stat.rindex(")") + 2 :].split()
+    if fields[0] == "Z":
+        return None
+    return fields[19]
+
+
+def is_alive(process: Recorded) -> bool:
+    return process_start_time(process.pid) == process.start_time
+
+
+def _die_with_parent() -> None:
+    # Ask the kernel to SIGTERM the child when the starting process dies (test sessions only),
+    # so a killed pytest never leaves a control plane behind.
+    libc = ctypes.CDLL("libc.so.6", use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def spawn(
+    name: str, argv: list[str], log: Path, env: dict[str, str] | None = None, die_with_parent: bool = False
+) -> Recorded:
+    """Starts `argv` in a new session with stdout and stderr appended to `log`."""
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("ab") as sink:
+        child = subprocess.Popen(
+            argv,
+            stdin=subprocess.DEVNULL,
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+            env=env,
+            start_new_session=True,
+            preexec_fn=_die_with_parent if die_with_parent else None,
+        )
+    start_time = process_start_time(child.pid)
+    # A child that already exited still has a start time until reaped; if not, it died instantly.
+    return Recorded(name, child.pid, start_time or "gone", log)
+
+
+def _reap(pid: int) -> None:
+    # Children of this Python process must be waited for, or they linger as zombies.
+    try:
+        os.waitpid(pid, os.WNOHANG)
+    except ChildProcessError:
+        pass
+
+
+def stop(process: Recorded, timeout: float = 15.0) -> None:
+    """SIGTERMs the process group, SIGKILLs it after `timeout`, returns once the process is gone."""
+    if not is_alive(process):
+        _reap(process.pid)
+        return
+    for sig, grace in ((signal.SIGTERM, timeout), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            pass
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            _reap(process.pid)
+            if not is_alive(process):
+                return
+            time.sleep(0.05)
+    raise RuntimeError(f"{process.name} (pid {process.pid}) survived SIGKILL")
+
+
+def log_tail(path: Path, lines: int = 25) -> str:
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return "(no log)"
+    return "\n".join(text.splitlines()[-lines:])

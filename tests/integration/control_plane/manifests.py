@@ -1,0 +1,26 @@
+"""Manifests shared by the control-plane acceptance tests."""
+
+from __future__ import annotations
+
+import yaml
+
+ROBOT_TOLERATIONS = [
+    {"key": "node.kubernetes.io/unreachable", "operator": "Exists", "effect": "NoExecute"},
+    {"key": "node.kubernetes.io/not-ready", "operator": "Exists", "effect": "NoExecute"},
+]
+
+
+def robot_pod(name: str, robot: str, tolerations: list[dict[str, object]] | None = None) -> str:
+    """A Pod pinned to `robot` by nodeSelector, as YAML for `kubectl apply -f -`."""
+    return yaml.safe_dump(
+        {
+            "apiVersion": "v1",
+            "kind": "Pod",
+            "metadata": {"name": name},
+            "spec": {
+                "nodeSelector": {"coral.dev/robot": robot},
+                "tolerations": ROBOT_TOLERATIONS if tolerations is None else tolerations,
+                "containers": [{"name": "main", "image": "registry.k8s.io/pause:3.10"}],
+            },
+        }
+    )
