@@ -1,0 +1,1 @@
+"""Node classes: the base lifecycle (base.py) and BT.CPP's built-in controls, decorators and actions."""

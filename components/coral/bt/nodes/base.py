@@ -1,0 +1,301 @@
+"""Base node classes: BT.CPP's executeTick/halt lifecycle on top of py_trees behaviours.
+
+Every node is a `py_trees.behaviour.Behaviour` (so py_trees display tooling works), but ticking goes
+through the lean `execute_tick()` below instead of py_trees' generator tick: pre-conditions, `tick()`,
+post-conditions, then the status change reported to the tree's observer. Built by the builder.
+"""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import py_trees
+from py_trees import common
+
+from coral.bt.blackboard import Blackboard
+from coral.bt.errors import BTError, BTRuntimeError, ScriptError
+from coral.bt.nodes.port_access import PortAccess
+from coral.bt.ports import PortSpec
+from coral.bt.scripting import ScriptEnv
+from coral.bt.scripting.values import truthy
+from coral.bt.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, NodeKind, Status
+
+if TYPE_CHECKING:
+    from coral.bt.runtime import Runtime
+
+_PY_TREES_STATUS = {
+    IDLE: common.Status.INVALID,
+    RUNNING: common.Status.RUNNING,
+    SUCCESS: common.Status.SUCCESS,
+    FAILURE: common.Status.FAILURE,
+    SKIPPED: common.Status.INVALID,
+}
+Script = Callable[[ScriptEnv], Any]
+
+
+class NodeConfig:
+    """What the builder hands to a node constructor."""
+
+    def __init__(
+        self,
+        node_id: str,
+        uid: int,
+        path: str,
+        board: Blackboard,
+        runtime: Runtime,
+        ports: dict[str, str],
+        specs: dict[str, PortSpec],
+        file: str = "",
+        line: int = 0,
+    ) -> None:
+        self.node_id = node_id
+        self.uid = uid
+        self.path = path
+        self.board = board
+        self.runtime = runtime
+        self.ports = ports
+        self.specs = specs
+        self.file = file
+        self.line = line
+
+
+class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
+    """Base of every node. Subclasses implement `tick()` (BT.CPP semantics) and maybe `halt()`."""
+
+    KIND: NodeKind = NodeKind.ACTION
+    PORTS: list[PortSpec] = []
+    SYNC_ONLY = False
+
+    def __init__(self, name: str, config: NodeConfig) -> None:
+        # Behaviour.__init__ is not called: it starts py_trees' generator tick, which we replace.
+        self.id = uuid.uuid4()
+        self.name = name
+        self.blackboards = []
+        self.qualified_name = f"{self.__class__.__qualname__}/{name}"
+        self.iterator = iter(())
+        self.parent = None
+        self.children: list[TreeNode] = []
+        self.feedback_message = ""
+        self.blackbox_level = common.BlackBoxLevel.NOT_A_BLACKBOX
+        self._logger: logging.Logger | None = None
+        self.node_id = config.node_id
+        self.uid = config.uid
+        self.path = config.path
+        self.board = config.board
+        self.rt = config.runtime
+        self.ports = config.ports
+        self.port_specs = config.specs
+        self.file = config.file
+        self.line = config.line
+        self._status: int = IDLE
+        self.last_result: int = IDLE
+        self._pre: list[tuple[int, Script]] | None = None
+        self._post: dict[str, Script] | None = None
+        self._env = ScriptEnv(config.board, config.runtime.enums)
+        self._port_cache: dict[str, tuple[str | None, Any, str]] = {}
+
+    # py_trees compatibility -------------------------------------------------------------
+    @property
+    def logger(self) -> logging.Logger:  # type: ignore[override]
+        if self._logger is None:
+            self._logger = logging.getLogger(f"coral.bt.{self.name}")
+        return self._logger
+
+    @logger.setter
+    def logger(self, value: logging.Logger) -> None:
+        self._logger = value
+
+    @property
+    def status(self) -> common.Status:  # type: ignore[override]
+        return _PY_TREES_STATUS[self._status]
+
+    @status.setter
+    def status(self, value: common.Status) -> None:
+        # py_trees code may assign its own statuses; the BT status stays authoritative.
+        pass
+
+    @property
+    def bt_status(self) -> Status:
+        return Status(self._status)
+
+    @property
+    def context(self) -> object:
+        return self.rt.context
+
+    def update(self) -> common.Status:
+        """py_trees entry point: one BT.CPP-style tick of this node."""
+        return _PY_TREES_STATUS[self.execute_tick()]
+
+    # lifecycle --------------------------------------------------------------------------
+    def tick(self) -> int:  # type: ignore[override]
+        raise NotImplementedError
+
+    def halt(self) -> None:
+        self.reset_status()
+
+    def execute_tick(self) -> int:
+        try:
+            if self._pre is not None:
+                st = self._check_pre()
+                if st is None:
+                    st = self.tick()
+            else:
+                st = self.tick()
+            if st <= RUNNING and (st == IDLE or self.SYNC_ONLY):
+                if st == IDLE:
+                    raise BTRuntimeError(
+                        f"{self.node_id} returned IDLE, which a tick may never return", node_path=self.path
+                    )
+                raise BTRuntimeError(
+                    f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
+                )
+            if self._post is not None and (st == SUCCESS or st == FAILURE):
+                self._run_post(st)
+        except BTError as err:
+            if err.node_path is None and err.file is None:
+                err.node_path = self.path
+            raise
+        except Exception as err:  # noqa: BLE001 - a plugin's error is attributed to its node path
+            raise BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path) from err
+        if st != SKIPPED:
+            prev = self._status
+            if prev != st:
+                self._status = st
+                if st >= SUCCESS:
+                    self.last_result = st
+                obs = self.rt.observer
+                if obs is not None:
+                    obs(self, prev, st)
+        return st
+
+    def set_status(self, st: int) -> None:
+        prev = self._status
+        if prev != st:
+            self._status = st
+            if st == SUCCESS or st == FAILURE:
+                self.last_result = st
+            obs = self.rt.observer
+            if obs is not None:
+                obs(self, prev, st)
+
+    def reset_status(self) -> None:
+        prev = self._status
+        if prev != IDLE:
+            self._status = IDLE
+            obs = self.rt.observer
+            if obs is not None:
+                obs(self, prev, IDLE)
+
+    def halt_node(self) -> None:
+        self.halt()
+        if self._post is not None:
+            script = self._post.get("_onHalted")
+            if script is not None:
+                self._run_script(script, "_onHalted")
+
+    def emit_wake_up(self) -> None:
+        self.rt.wake_up()
+
+    def wake_up(self) -> None:
+        self.rt.wake_up()
+
+    # pre/post conditions -----------------------------------------------------------------
+    def _run_script(self, script: Script, attr: str) -> Any:
+        try:
+            return script(self._env)
+        except ScriptError as err:
+            raise BTRuntimeError(f"error in script {attr}: {err.message}", node_path=self.path) from None
+
+    def _check_pre(self) -> int | None:
+        status = self._status
+        for kind, script in self._pre or ():
+            if status == IDLE or status == SKIPPED:
+                result = truthy(self._run_script(script, _PRE_NAMES[kind]))
+                if result:
+                    if kind == 0:
+                        return FAILURE
+                    if kind == 1:
+                        return SUCCESS
+                    if kind == 2:
+                        return SKIPPED
+                elif kind == 3:
+                    return SKIPPED
+            elif status == RUNNING and kind == 3:
+                if not truthy(self._run_script(script, "_while")):
+                    self.halt_node()
+                    return SKIPPED
+        return None
+
+    def _run_post(self, st: int) -> None:
+        post = self._post or {}
+        key = "_onSuccess" if st == SUCCESS else "_onFailure"
+        script = post.get(key)
+        if script is not None:
+            self._run_script(script, key)
+        script = post.get("_post")
+        if script is not None:
+            self._run_script(script, "_post")
+
+
+_PRE_NAMES = {0: "_failureIf", 1: "_successIf", 2: "_skipIf", 3: "_while"}
+
+
+class LeafNode(TreeNode):
+    KIND = NodeKind.ACTION
+
+
+class ControlNode(TreeNode):
+    KIND = NodeKind.CONTROL
+
+    def halt(self) -> None:
+        self.reset_children()
+        self.reset_status()
+
+    def reset_children(self) -> None:
+        for child in self.children:
+            if child._status == RUNNING:
+                child.halt_node()
+            child.reset_status()
+
+    def halt_child(self, index: int) -> None:
+        child = self.children[index]
+        if child._status == RUNNING:
+            child.halt_node()
+        child.reset_status()
+
+    def halt_children_from(self, first: int) -> None:
+        for i in range(first, len(self.children)):
+            self.halt_child(i)
+
+
+class DecoratorNode(TreeNode):
+    KIND = NodeKind.DECORATOR
+
+    @property
+    def child(self) -> TreeNode:
+        return self.children[0]
+
+    @property
+    def decorated(self) -> TreeNode:
+        return self.children[0]
+
+    def execute_tick(self) -> int:
+        st = TreeNode.execute_tick(self)
+        child = self.children[0]
+        cs = child._status
+        if cs == SUCCESS or cs == FAILURE:
+            child.reset_status()
+        return st
+
+    def halt(self) -> None:
+        self.reset_child()
+        self.reset_status()
+
+    def reset_child(self) -> None:
+        child = self.children[0]
+        if child._status == RUNNING:
+            child.halt_node()
+        child.reset_status()

@@ -1,0 +1,97 @@
+"""Port access for nodes: `get_input`/`require_input`/`set_output` with BT.CPP's remapping rules
+(`{key}`, `{=}`, literals converted to the declared port type, defaults from the port spec)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from coral.bt.blackboard import EMPTY
+from coral.bt.errors import BTRuntimeError, ScriptError
+from coral.bt.ports import blackboard_key, coerce_value, convert_string, normalize_type
+
+if TYPE_CHECKING:
+    from coral.bt.blackboard import Blackboard
+    from coral.bt.ports import PortSpec
+    from coral.bt.runtime import Runtime
+
+MISSING: Any = object()
+
+
+class PortAccess:
+    """Mixin of TreeNode; expects ports, port_specs, board, rt, path and _port_cache attributes."""
+
+    ports: dict[str, str]
+    port_specs: dict[str, PortSpec]
+    board: Blackboard
+    rt: Runtime
+    path: str
+    _port_cache: dict[str, tuple[str | None, Any, str]]
+
+    def _port(self, name: str) -> tuple[str | None, Any, str]:
+        cached = self._port_cache.get(name)
+        if cached is not None:
+            return cached
+        spec = self.port_specs.get(name)
+        raw = self.ports.get(name)
+        if raw is None and spec is not None:
+            raw = spec.default
+        type_name = normalize_type(spec.type) if spec is not None else "any"
+        if raw is None:
+            result: tuple[str | None, Any, str] = (None, MISSING, type_name)
+        else:
+            key = blackboard_key(raw)
+            if key == "=":
+                key = name
+            if key is not None:
+                result = (key, None, type_name)
+            else:
+                try:
+                    value = convert_string(raw, type_name, self.rt.enums)
+                except ValueError as err:
+                    raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+                result = (None, value, type_name)
+        self._port_cache[name] = result
+        return result
+
+    def has_port_value(self, name: str) -> bool:
+        return self._port(name)[1] is not MISSING
+
+    def get_input(self, name: str, default: Any = None) -> Any:
+        """The port value converted to the port type, or `default` when absent/uninitialised."""
+        key, value, type_name = self._port(name)
+        if key is None:
+            return default if value is MISSING else value
+        entry = self.board.get_entry(key)
+        if entry is None or entry.value is EMPTY:
+            return default
+        if type_name == "any":
+            return entry.value
+        try:
+            return coerce_value(entry.value, type_name, self.rt.enums)
+        except ValueError as err:
+            raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+
+    def require_input(self, name: str) -> Any:
+        value = self.get_input(name, MISSING)
+        if value is MISSING:
+            key = self._port(name)[0]
+            detail = f"blackboard entry [{key}] is not set" if key else "no value and no default"
+            raise BTRuntimeError(f"missing input port [{name}]: {detail}", node_path=self.path)
+        return value
+
+    def set_output(self, name: str, value: Any) -> None:
+        raw = self.ports.get(name)
+        spec = self.port_specs.get(name)
+        if raw is None and spec is not None:
+            raw = spec.default
+        key = blackboard_key(raw) if raw is not None else None
+        if key == "=":
+            key = name
+        if key is None:
+            raise BTRuntimeError(
+                f"output port [{name}] is not remapped to a blackboard entry", node_path=self.path
+            )
+        try:
+            self.board.set(key, value)
+        except ScriptError as err:
+            raise BTRuntimeError(err.message, node_path=self.path) from None

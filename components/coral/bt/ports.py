@@ -1,0 +1,174 @@
+"""Port specifications and BT.CPP's literal conversions (convertFromString) for port values.
+
+Used by the registry (declared ports), the builder (literal checks at load time), nodes'
+get_input and the blackboard (converting strings written to typed entries).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from coral.bt.status import PortDirection, parse_status
+
+
+@dataclass
+class PortSpec:
+    name: str
+    direction: PortDirection = PortDirection.INPUT
+    type: str = "any"
+    default: str | None = None
+    description: str = ""
+
+
+_INT = {
+    "int",
+    "int32",
+    "int64",
+    "long",
+    "unsigned",
+    "unsigned int",
+    "uint",
+    "uint32",
+    "uint64",
+    "size_t",
+    "int32_t",
+    "int64_t",
+    "uint32_t",
+    "uint64_t",
+    "unsigned long",
+    "short",
+}
+_FLOAT = {"double", "float"}
+_STRING = {"string", "std::string", "str", "script"}
+_BOOL = {"bool"}
+_STATUS = {"nodestatus", "bt::nodestatus", "status"}
+
+
+def normalize_type(type_name: str) -> str:
+    """Maps C++/Python spellings onto: any, string, int, double, bool, NodeStatus, list:<elem>, or itself."""
+    t = (type_name or "any").strip()
+    low = t.lower()
+    if low in ("", "any", "bt::any", "anytypeallowed", "object"):
+        return "any"
+    if low in _STRING:
+        return "string"
+    if low in _INT:
+        return "int"
+    if low in _FLOAT:
+        return "double"
+    if low in _BOOL:
+        return "bool"
+    if low in _STATUS:
+        return "NodeStatus"
+    for prefix in ("std::vector<", "vector<", "std::deque<", "bt::sharedqueue<", "sharedqueue<", "list["):
+        if low.startswith(prefix):
+            inner = t[len(prefix) :].rstrip(">]")
+            return "list:" + normalize_type(inner)
+    return t
+
+
+def is_typed(norm: str) -> bool:
+    return norm not in ("any", "string")
+
+
+def convert_bool(text: str) -> bool:
+    s = text.strip()
+    if s in ("1", "true", "TRUE", "True"):
+        return True
+    if s in ("0", "false", "FALSE", "False"):
+        return False
+    raise ValueError(f"invalid bool conversion of '{text}'")
+
+
+def convert_int(text: str, enums: Mapping[str, int] | None = None) -> int:
+    s = text.strip()
+    if enums and s in enums:
+        return int(enums[s])
+    try:
+        return int(s, 0) if s.lower().startswith(("0x", "-0x")) else int(s)
+    except ValueError:
+        raise ValueError(f"cannot convert '{text}' to int") from None
+
+
+def convert_double(text: str) -> float:
+    try:
+        return float(text.strip())
+    except ValueError:
+        raise ValueError(f"cannot convert '{text}' to double") from None
+
+
+def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
+    """Converts a literal string to `type_name` (already normalized); raises ValueError."""
+    if type_name == "any" or type_name == "string":
+        return text
+    if type_name == "int":
+        return convert_int(text, enums)
+    if type_name == "double":
+        if enums and text.strip() in enums:
+            return float(enums[text.strip()])
+        return convert_double(text)
+    if type_name == "bool":
+        return convert_bool(text)
+    if type_name == "NodeStatus":
+        return parse_status(text)
+    if type_name.startswith("list:"):
+        elem = type_name[5:]
+        if text.startswith("json:"):
+            data = json.loads(text[5:])
+            if not isinstance(data, list):
+                raise ValueError(f"json literal '{text}' is not a list")
+            return data
+        if text == "":
+            return []
+        return [convert_string(part, elem, enums) for part in text.split(";")]
+    if enums and text.strip() in enums:
+        return enums[text.strip()]
+    if ";" in text:
+        return [_auto_number(p) for p in text.split(";")]
+    return text
+
+
+def _auto_number(part: str) -> Any:
+    try:
+        return int(part)
+    except ValueError:
+        try:
+            return float(part)
+        except ValueError:
+            return part
+
+
+def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
+    """Makes a stored value fit a typed port (strings are parsed, integral doubles become ints)."""
+    if type_name == "any":
+        return value
+    if isinstance(value, str):
+        return convert_string(value, type_name, enums)
+    if type_name == "int":
+        if isinstance(value, bool):
+            return int(value)
+        if isinstance(value, float):
+            if value != int(value):
+                raise ValueError(f"cannot convert {value} to int without losing precision")
+            return int(value)
+        return value
+    if type_name == "double" and isinstance(value, (int, bool)):
+        return float(value)
+    if type_name == "bool" and isinstance(value, (int, float)):
+        return value != 0
+    if type_name == "string" and isinstance(value, (int, float)):
+        return repr(value) if isinstance(value, float) else str(value)
+    return value
+
+
+def blackboard_key(raw: str) -> str | None:
+    """Returns the key of a `{key}` pointer (trimmed), or None for a literal. `{=}`/`=` return '='."""
+    s = raw.strip()
+    if s == "=":
+        return "="
+    if len(s) >= 3 and s[0] == "{" and s[-1] == "}":
+        return s[1:-1].strip()
+    return None

@@ -1,0 +1,267 @@
+"""Differential harness: runs the same XML with scripted stubs in real BT.CPP (behaviortreepy) and in
+coral.bt, returning per-tick root statuses and the per-node transition stream of each engine.
+
+BT.CPP's transitions come from its own FileLogger (.btlog, format "BTCPP4-FileLogger2": header, uint32
+XML length, the instantiated tree as XML with `_uid`s, uint64 start time, then 9-byte records of
+6-byte relative microseconds, uint16 uid, uint8 new status).
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import behaviortreepy as btpy
+import coral.bt as bt
+from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
+from coral.bt.nodes.base import DecoratorNode
+
+BTCPP_STATUS = {
+    btpy.NodeStatus.IDLE: 0,
+    btpy.NodeStatus.RUNNING: 1,
+    btpy.NodeStatus.SUCCESS: 2,
+    btpy.NodeStatus.FAILURE: 3,
+    btpy.NodeStatus.SKIPPED: 4,
+}
+TO_BTCPP = {v: k for k, v in BTCPP_STATUS.items()}
+ERROR = "ERROR"
+
+
+def bundled_btcpp_version() -> str:
+    """The BT.CPP release compiled into behaviortreepy, read from the version string in the binary."""
+    import glob
+    import re
+
+    so = glob.glob(os.path.join(os.path.dirname(btpy.__file__), "_behaviortreepy*.so"))[0]
+    with open(so, "rb") as fh:
+        data = fh.read()
+    found = re.findall(rb"\x00(4\.\d+\.\d+)\x00", data)
+    return found[0].decode() if found else "unknown"
+
+
+@dataclass
+class Outcomes:
+    """Scripted results per stub instance name; each call takes the next one, cycling."""
+
+    scripts: dict[str, list[int]]
+    cursor: dict[str, int] = field(default_factory=dict)
+    halts: list[str] = field(default_factory=list)
+
+    def next(self, name: str) -> int:
+        seq = self.scripts.get(name) or [2]
+        i = self.cursor.get(name, 0)
+        self.cursor[name] = i + 1
+        return seq[i % len(seq)]
+
+
+@dataclass
+class Run:
+    verdict: str  # "LOADED", "REJECT" or "TICKERR"
+    statuses: list[object]
+    transitions: list[tuple[int, int]]
+    error: str = ""
+
+
+# ----------------------------------------------------------------------------------------- BT.CPP
+def _read_btlog(path: str) -> list[tuple[int, int]]:
+    with open(path, "rb") as fh:
+        data = fh.read()
+    header = b"BTCPP4-FileLogger2"
+    assert data.startswith(header), "unexpected .btlog header"
+    # One byte after the magic string, then the uint32 length of the XML description.
+    (xml_len,) = struct.unpack_from("<I", data, len(header) + 1)
+    offset = len(header) + 1 + 4 + xml_len + 8
+    out = []
+    while offset + 9 <= len(data):
+        uid, status = struct.unpack_from("<HB", data, offset + 6)
+        out.append((uid, status & 0x0F))
+        offset += 9
+    return out
+
+
+def run_btcpp(
+    xml_text: str | None,
+    outcomes: Outcomes,
+    ticks: int,
+    *,
+    mode: str = "exactly_once",
+    file: str | None = None,
+    main_tree: str | None = None,
+    leaf_ids: tuple[str, ...] = ("Leaf",),
+    cond_ids: tuple[str, ...] = ("Cond",),
+    deco_ids: tuple[str, ...] = (),
+    int_vars: dict[str, int] | None = None,
+    log_transitions: bool = True,
+    batch: list[_Pending] | None = None,
+) -> Run:
+    factory = btpy.BehaviorTreeFactory()
+
+    def on_start(node: btpy.TreeNode) -> btpy.NodeStatus:
+        return TO_BTCPP[outcomes.next(node.name())]
+
+    def on_halted(node: btpy.TreeNode) -> None:
+        outcomes.halts.append(node.name())
+
+    for leaf in leaf_ids:
+        factory.register_simple_stateful_action(leaf, on_start, on_start, on_halted)
+    for cond in cond_ids:
+        factory.register_simple_condition(cond, on_start)
+    for deco in deco_ids:
+        factory.register_simple_decorator(deco, lambda status, node: status)
+    board = None
+    if int_vars:
+        board = btpy.Blackboard.create()
+        for k, v in int_vars.items():
+            board.set_int(k, v)
+    try:
+        if main_tree is not None:
+            if file is not None:
+                # behaviortreepy cannot convert a path argument; the text suffices (no includes there).
+                factory.register_behavior_tree_from_text(Path(file).read_text(encoding="utf-8"))
+            else:
+                factory.register_behavior_tree_from_text(xml_text or "")
+            tree = factory.create_tree(main_tree, board)
+        elif file is not None:
+            tree = factory.create_tree_from_file(file, board)
+        else:
+            tree = factory.create_tree_from_text(xml_text or "", board)
+    except Exception as err:  # noqa: BLE001 - any load failure is the REJECT verdict
+        return Run("REJECT", [], [], str(err))
+    fd, log_path = tempfile.mkstemp(suffix=".btlog")
+    os.close(fd)
+    logger = btpy.FileLogger(tree, log_path) if log_transitions else None
+    statuses: list[object] = []
+    verdict, error = "LOADED", ""
+    tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
+    for _ in range(ticks):
+        try:
+            statuses.append(BTCPP_STATUS[tick()])
+        except Exception as err:  # noqa: BLE001 - a tick exception is compared as a verdict
+            statuses.append(ERROR)
+            verdict, error = "TICKERR", str(err)
+            break
+    run = Run(verdict, statuses, [], error)
+    pending = _Pending(logger, tree, log_path, run)
+    if batch is not None:
+        batch.append(pending)
+    else:
+        finish_batch([pending])
+    return run
+
+
+@dataclass
+class _Pending:
+    logger: object
+    tree: object
+    path: str
+    run: Run
+
+
+def finish_batch(batch: list[_Pending], settle_s: float = 0.03, deadline_s: float = 5.0) -> None:
+    """Collects the transitions of loggers that are still alive.
+
+    The FileLogger's writer thread drains its queue on a 10 ms cycle and its destructor drops whatever
+    is still queued, so the files are read only after their sizes stopped changing for settle_s.
+    """
+    import time
+
+    end = time.monotonic() + deadline_s
+    sizes = None
+    while time.monotonic() < end:
+        current = [os.path.getsize(p.path) for p in batch]
+        if current == sizes:
+            break
+        sizes = current
+        time.sleep(settle_s)  # polling the files' sizes: the writer thread gives no completion signal
+    for p in batch:
+        if p.logger is not None:
+            p.logger = None  # destroys the C++ logger, closing the file
+            p.run.transitions = _read_btlog(p.path)
+        p.tree = None
+        os.unlink(p.path)
+    batch.clear()
+
+
+# ----------------------------------------------------------------------------------------- coral.bt
+def stub_registry(
+    outcomes: Outcomes,
+    leaf_ids: tuple[str, ...] = ("Leaf",),
+    cond_ids: tuple[str, ...] = ("Cond",),
+    deco_ids: tuple[str, ...] = (),
+    sync_leaf_ids: tuple[str, ...] = (),
+) -> bt.NodeRegistry:
+    registry = bt.NodeRegistry.with_builtins()
+
+    class Leaf(StatefulAction):
+        def on_start(self) -> bt.Status:
+            return bt.Status(outcomes.next(self.name))
+
+        def on_running(self) -> bt.Status:
+            return bt.Status(outcomes.next(self.name))
+
+        def on_halted(self) -> None:
+            outcomes.halts.append(self.name)
+
+    class Cond(ConditionNode):
+        def tick(self) -> bt.Status:
+            return bt.Status(outcomes.next(self.name))
+
+    class Sync(SyncAction):
+        def tick(self) -> bt.Status:
+            return bt.Status(outcomes.next(self.name))
+
+    class PassThrough(DecoratorNode):
+        def tick(self) -> int:
+            return self.children[0].execute_tick()
+
+    for leaf in leaf_ids:
+        registry.register(leaf, Leaf)
+    for cond in cond_ids:
+        registry.register(cond, Cond)
+    for sync in sync_leaf_ids:
+        registry.register(sync, Sync)
+    for deco in deco_ids:
+        registry.register(deco, PassThrough)
+    return registry
+
+
+def run_coral(
+    xml_text: str | None,
+    outcomes: Outcomes,
+    ticks: int,
+    *,
+    mode: str = "exactly_once",
+    file: str | None = None,
+    main_tree: str | None = None,
+    registry: bt.NodeRegistry | None = None,
+    int_vars: dict[str, int] | None = None,
+    prepare: Callable[[bt.Tree], None] | None = None,
+) -> Run:
+    registry = registry or stub_registry(outcomes)
+    transitions: list[tuple[int, int]] = []
+    try:
+        if file is not None:
+            doc = bt.load_tree_file(file, registry, main_tree=main_tree)
+        else:
+            doc = bt.load_tree_text(xml_text or "", registry, main_tree=main_tree)
+        tree = doc.build(registry, blackboard=dict(int_vars or {}))
+    except bt.BTLoadError as err:
+        return Run("REJECT", [], [], str(err))
+    tree.add_transition_listener(lambda t: transitions.append((t.uid, int(t.status))))
+    if prepare is not None:
+        prepare(tree)
+    tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
+    statuses: list[object] = []
+    verdict, error = "LOADED", ""
+    for _ in range(ticks):
+        try:
+            statuses.append(int(tick()))
+        except bt.BTRuntimeError as err:
+            statuses.append(ERROR)
+            verdict, error = "TICKERR", str(err)
+            break
+    return Run(verdict, statuses, transitions, error)

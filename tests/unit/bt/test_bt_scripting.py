@@ -1,0 +1,61 @@
+"""The scripting language: values, precedence, non-short-circuit logic, enums, assignment rules."""
+
+from __future__ import annotations
+
+import pytest
+from coral.bt.blackboard import Blackboard
+from coral.bt.errors import ScriptError
+from coral.bt.scripting import ScriptEnv, compile_script
+
+CASES = [
+    ("arithmetic is done in double", "a:=5; b:=2; a/b", 2.5),
+    ("precedence of * over +", "1 + 2 * 3", 7.0),
+    ("chained comparisons", "1 < 2 < 3", 1.0),
+    ("chained comparisons fail pairwise", "3 > 2 > 2", 0.0),
+    ("string concatenation with ..", "'x' .. 5", "x5"),
+    ("string plus string", "'a' + 'b'", "ab"),
+    ("ternary", "2 > 1 ? 'yes' : 'no'", "yes"),
+    ("hex literal", "0x10 + 1", 17.0),
+    ("bitwise", "6 & 3", 2.0),
+    ("unary not", "!false", 1.0),
+    ("enums resolve before variables", "RED == 1", 1.0),
+    ("string compared with an enum name", "'BLUE' == BLUE", 1.0),
+    ("compound assignment", "x := 1; x += 2; x", 3.0),
+    ("string compound assignment", "s := 'a'; s += 'b'; s", "ab"),
+    ("repeated semicolons", "x := 1;; x", 1),
+    ("epsilon equality", "0.1 + 0.2 == 0.3", 1.0),
+]
+
+
+def run(code: str) -> object:
+    return compile_script(code)(ScriptEnv(Blackboard(), {"RED": 1, "BLUE": 2}))
+
+
+@pytest.mark.parametrize(("title", "code", "expected"), CASES, ids=[c[0] for c in CASES])
+def test_script_value(title: str, code: str, expected: object) -> None:
+    assert run(code) == expected
+
+
+@pytest.mark.parametrize(
+    ("code", "message"),
+    [
+        ("false && missing == 1", "Variable not found: missing"),
+        ("y = 3", "use ':='"),
+        ("1 +", "unexpected end"),
+        ("3foo", "malformed number"),
+        ("65.", "malformed number"),
+        ("'open", "unterminated string"),
+        ("a := 1 / 0", "division by zero"),
+        ("1 = 2", "needs a variable"),
+    ],
+)
+def test_script_errors_are_clear(code: str, message: str) -> None:
+    with pytest.raises(ScriptError, match=message.replace("(", r"\(")):
+        run(code)
+
+
+def test_root_blackboard_is_reached_with_at() -> None:
+    root = Blackboard()
+    child = Blackboard(parent=root)
+    compile_script("@g := 3; local := @g * 2")(ScriptEnv(child, {}))
+    assert root.get("g") == 3 and child.get("local") == 6.0 and not root.has("local")
