@@ -1,0 +1,1 @@
+"""Synthetic LiDAR data: indoor scenes, a spinning multi-beam sensor, ROS 2 bags with ground truth."""

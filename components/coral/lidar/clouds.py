@@ -1,0 +1,94 @@
+"""PointCloud2 payloads <-> numpy, independent of which message library carries them.
+
+The generator writes clouds with rosbags types, the bag player republishes them with rclpy types
+and the SLAM skillset reads rclpy messages: all three agree on the layout through these helpers.
+Field datatypes follow sensor_msgs/PointField (INT8=1 ... FLOAT64=8).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+DATATYPES: dict[int, np.dtype[Any]] = {
+    1: np.dtype(np.int8),
+    2: np.dtype(np.uint8),
+    3: np.dtype(np.int16),
+    4: np.dtype(np.uint16),
+    5: np.dtype(np.int32),
+    6: np.dtype(np.uint32),
+    7: np.dtype(np.float32),
+    8: np.dtype(np.float64),
+}
+FLOAT32 = 7
+TIME_FIELDS = ("t", "time", "timestamp", "timestamps")
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    name: str
+    offset: int
+    datatype: int
+    count: int = 1
+
+
+XYZT_FIELDS = (
+    FieldSpec("x", 0, FLOAT32),
+    FieldSpec("y", 4, FLOAT32),
+    FieldSpec("z", 8, FLOAT32),
+    FieldSpec("t", 12, FLOAT32),
+)
+XYZT_POINT_STEP = 16
+
+
+def encode_xyzt(points: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Packs (N, 3) points and (N,) per-point times into the XYZT_FIELDS layout, as uint8 bytes."""
+    record = np.empty(len(points), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("t", "<f4")])
+    record["x"], record["y"], record["z"] = points[:, 0], points[:, 1], points[:, 2]
+    record["t"] = times
+    return record.view(np.uint8).reshape(-1)
+
+
+def decode(
+    fields: list[Any],
+    data: bytes | np.ndarray | Any,
+    point_step: int,
+    width: int,
+    height: int,
+    is_bigendian: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """(N, 3) float64 points and per-point times (float64, or None when the cloud has none).
+
+    `fields` are any objects with name/offset/datatype/count attributes (rosbags or rclpy PointField).
+
+    Raises:
+        ValueError: the cloud lacks x, y or z, uses an unknown datatype, or its data is too short.
+    """
+    names, formats, offsets = [], [], []
+    for field in fields:
+        if field.datatype not in DATATYPES:
+            raise ValueError(f"field {field.name!r} has unknown PointField datatype {field.datatype}")
+        dtype = DATATYPES[field.datatype].newbyteorder(">" if is_bigendian else "<")
+        names.append(field.name)
+        formats.append(dtype if field.count <= 1 else (dtype, (field.count,)))
+        offsets.append(field.offset)
+    missing = {"x", "y", "z"} - set(names)
+    if missing:
+        raise ValueError(f"point cloud has no field(s) {sorted(missing)}")
+    count = width * height
+    buffer = np.frombuffer(memoryview(data) if not isinstance(data, np.ndarray) else data, dtype=np.uint8)
+    if buffer.size < count * point_step:
+        raise ValueError(f"point cloud data holds {buffer.size} bytes, expected {count * point_step}")
+    layout = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
+    records = buffer[: count * point_step].view(layout)
+    points = np.column_stack([records["x"], records["y"], records["z"]]).astype(np.float64)
+    time_name = next((n for n in TIME_FIELDS if n in names), None)
+    times = records[time_name].astype(np.float64) if time_name else None
+    return points, times
+
+
+def native_bigendian() -> bool:
+    return sys.byteorder == "big"

@@ -1,0 +1,1 @@
+"""Local runtime: `coral run` and friends, running a Coral project as local processes."""

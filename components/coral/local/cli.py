@@ -1,0 +1,201 @@
+"""Thin `coral` verbs of the local runtime: run, ps, stop, logs, validate, verify, nodes-model.
+
+Each verb parses its options and calls one function of `coral.local.running`, `coral.local.state`
+or `coral.local.checking`; registered in `coral.cli.VERBS`.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from coral.local import state
+
+TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
+
+
+@click.command("run")
+@TARGET
+@click.option("--handle", default=None, help="Name of this instance (default: <project>-<random>).")
+@click.option("--group", default=None, help="Group for `coral stop --group` (default: the project name).")
+@click.option(
+    "--output",
+    "output_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=None,
+    help="Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).",
+)
+@click.option("--detach", "-d", is_flag=True, help="Run in the background; print the handle.")
+@click.option(
+    "--live/--no-live", default=None, help="Live tree view (default: on when stdout is a terminal)."
+)
+@click.option(
+    "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
+)
+def run_command(
+    target: Path,
+    handle: str | None,
+    group: str | None,
+    output_dir: Path | None,
+    detach: bool,
+    live: bool | None,
+    env_pairs: tuple[str, ...],
+) -> None:
+    """Run a Coral project (compose file, tree, parameters) as local processes."""
+    from coral.local import compose, running
+
+    extra_env = dict(pair.split("=", 1) for pair in env_pairs if "=" in pair)
+    if detach:
+        if env_pairs:
+            raise click.UsageError("--env cannot be combined with --detach; export the variables instead")
+        try:
+            print(running.start_detached(target, handle=handle, group=group, output_dir=output_dir))
+        except (compose.ComposeError, RuntimeError) as err:
+            raise click.ClickException(str(err)) from err
+        return
+    sys.exit(
+        running.run_project(
+            target, handle=handle, group=group, output_dir=output_dir, live=live, extra_env=extra_env
+        )
+    )
+
+
+@click.command("ps")
+@click.option("--all", "-a", "everything", is_flag=True, help="Include finished runs.")
+def ps_command(everything: bool) -> None:
+    """List Coral runs on this machine and their components."""
+    runs = [r for r in state.load_runs() if everything or r.state != "finished"]
+    if not runs:
+        click.echo("no runs" if everything else "no running instances (use -a for finished ones)")
+        return
+    click.echo(f"{'HANDLE':<28} {'GROUP':<16} {'STATE':<10} {'AGE':>7}  COMPONENTS")
+    for run in runs:
+        age = f"{time.time() - run.started_at:.0f}s"
+        parts = ", ".join(
+            f"{c.name}({c.role[0]}):{c.state}" + (f"/{c.exit_code}" if c.exit_code is not None else "")
+            for c in run.components
+        )
+        state_text = run.state if run.exit_code is None else f"{run.state}({run.exit_code})"
+        click.echo(f"{run.handle:<28} {run.group:<16} {state_text:<10} {age:>7}  {parts}")
+
+
+@click.command("stop")
+@click.option("--handle", default=None, help="Stop the run with this handle.")
+@click.option("--group", default=None, help="Stop every run of this group.")
+@click.option("--all", "everything", is_flag=True, help="Stop every run.")
+@click.option("--timeout", default=30.0, show_default=True, help="Seconds to wait for each run to end.")
+def stop_command(handle: str | None, group: str | None, everything: bool, timeout: float) -> None:
+    """Stop runs: components end in reverse order (executors, skillsets, drivers)."""
+    if sum(bool(x) for x in (handle, group, everything)) != 1:
+        raise click.UsageError("give exactly one of --handle, --group, --all")
+    selected = state.select_runs(state.load_runs(), handle=handle, group=group, everything=everything)
+    # A supervisor that was killed cannot stop its components: end their process groups here.
+    for run in selected:
+        for orphan in state.orphaned_components(run):
+            click.echo(f"{run.handle}: killing {orphan.name} (pid {orphan.pid}) left by a dead supervisor")
+            state.kill_group(orphan.pid)
+    runs = [r for r in selected if r.state != "finished"]
+    if not runs and not selected:
+        raise click.ClickException("no matching run")
+    if not runs:
+        return
+    for run in runs:
+        try:
+            os.kill(run.supervisor_pid, signal.SIGINT)
+        except ProcessLookupError:
+            continue
+    deadline = time.monotonic() + timeout
+    pending = list(runs)
+    while pending and time.monotonic() < deadline:
+        pending = [r for r in pending if state.pid_alive(r.supervisor_pid)]
+        time.sleep(0.1)  # polling the supervisors' pids, bounded by the deadline
+    for run in runs:
+        click.echo(f"{run.handle}: {'still stopping' if run in pending else 'stopped'}")
+    if pending:
+        sys.exit(1)
+
+
+@click.command("logs")
+@click.argument("handle")
+@click.argument("services", nargs=-1)
+@click.option("--follow", "-f", is_flag=True, help="Keep printing new lines until the run ends.")
+def logs_command(handle: str, services: tuple[str, ...], follow: bool) -> None:
+    """Print the logs of a run's components (all, or the SERVICES named)."""
+    runs = state.select_runs(state.load_runs(), handle=handle, group=None, everything=False)
+    if not runs:
+        raise click.ClickException(f"no run with handle {handle}")
+    run = runs[0]
+    names = list(services) or [c.name for c in run.components]
+    unknown = sorted(set(names) - {c.name for c in run.components})
+    if unknown:
+        raise click.ClickException(f"run {handle} has no component(s) {unknown}")
+    offsets = dict.fromkeys(names, 0)
+    while True:
+        for name in names:
+            path = run.folder / f"{name}.log"
+            if not path.exists():
+                continue
+            with path.open("rb") as handle_:
+                handle_.seek(offsets[name])
+                for raw in handle_:
+                    click.echo(f"{name} | {raw.decode('utf-8', errors='replace').rstrip()}")
+                offsets[name] = handle_.tell()
+        if not follow or not state.pid_alive(run.supervisor_pid):
+            return
+        time.sleep(0.2)  # tailing files: no event to wait on
+
+
+@click.command("validate")
+@TARGET
+def validate_command(target: Path) -> None:
+    """Check a project's tree against its components' manifests, its parameters and compose file."""
+    from coral.local import checking
+
+    report = checking.validate(target)
+    for warning in report.warnings:
+        click.echo(f"warning: {warning}", err=True)
+    for problem in report.problems:
+        click.echo(problem, err=True)
+    if report.problems:
+        sys.exit(1)
+    click.echo(f"{target}: valid")
+
+
+@click.command("verify")
+@click.argument("component")
+def verify_command(component: str) -> None:
+    """Check that COMPONENT (image name, entry-point name or module:Class) exports a valid manifest."""
+    from coral.local import checking
+
+    result = checking.verify_component(component)
+    for problem in result.problems:
+        click.echo(problem, err=True)
+    if not result.ok:
+        sys.exit(1)
+    behaviors = [b.id for b in result.manifest.behaviors]  # type: ignore[attr-defined]
+    click.echo(
+        f"{component}: valid {result.manifest.component.kind} {result.component!r} "  # type: ignore[attr-defined]
+        f"exporting {len(behaviors)} behavior(s): {', '.join(behaviors) or '-'}"
+    )
+
+
+@click.command("nodes-model")
+@click.argument("target", required=False, type=click.Path(exists=True, path_type=Path))
+@click.option("--component", "references", multiple=True, help="Image name or module:Class (repeatable).")
+def nodes_model_command(target: Path | None, references: tuple[str, ...]) -> None:
+    """Print the <TreeNodesModel> (Groot2 palette) of a project's components or of named ones."""
+    from coral.local import checking
+
+    if target is None and not references:
+        raise click.UsageError("give a project folder/compose file or at least one --component")
+    xml, problems = checking.nodes_model(target, list(references))
+    for problem in problems:
+        click.echo(problem, err=True)
+    click.echo(xml)
+    if problems:
+        sys.exit(1)

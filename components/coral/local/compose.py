@@ -1,0 +1,349 @@
+"""Parses a Coral compose file (Docker Compose syntax) into a `Project` the local runtime can run.
+
+What Coral reads from compose (everything else, e.g. `network_mode`, `volumes`, is accepted and
+ignored on one machine):
+
+- `name`: project name (default: the folder's name).
+- `services.<name>.profiles`: exactly one of `drivers`, `skillsets`, `executors` gives the role.
+- `services.<name>.image`: looked up as an installed component (see `coral.local.components`).
+- `services.<name>.environment`: mapping or `KEY=VALUE` list, with `${VAR}`, `${VAR:-default}`,
+  `${VAR-default}`, `${VAR:?message}` interpolation (from the environment, then `.env` beside the file).
+- `services.<name>.x-coral`: `command` (argv list or string, run instead of the image's component;
+  placeholders `{plugins}`, `{params}`, `{tree}`, `{name}`, `{output}`, `{python}`), `transient`
+  (a driver that may exit 0 and count as done), `ready_timeout_s`, `main_tree` / `rate` (executors).
+- top-level `x-coral`: `tree` and `params` (paths relative to the file; defaults: the only `*.xml`
+  and `params.yaml` beside it), `ready_timeout_s` (default 60), `on_timeout` (`block` or `proceed`),
+  `main_tree`, `rate`.
+
+Every problem raises `ComposeError` naming the file and line. Called by `coral.local.running`
+and `coral.local.validating`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
+COMPOSE_NAMES = ("compose.yaml", "compose.yml", "docker-compose.yaml", "docker-compose.yml")
+SERVICE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_VARIABLE = re.compile(
+    r"\$(?:(\$)|\{([A-Za-z_][A-Za-z0-9_]*)(?:(:?[-?])([^}]*))?\}|([A-Za-z_][A-Za-z0-9_]*))"
+)
+SERVICE_EXTENSION_KEYS = {"command", "transient", "ready_timeout_s", "main_tree", "rate", "component"}
+TOP_EXTENSION_KEYS = {"tree", "params", "ready_timeout_s", "on_timeout", "main_tree", "rate"}
+
+
+class ComposeError(ValueError):
+    """A compose file Coral cannot run; `str()` reads `file:line: message`."""
+
+    def __init__(self, file: Path, line: int | None, message: str) -> None:
+        self.file, self.line, self.message = file, line, message
+        super().__init__(f"{file}:{line}: {message}" if line else f"{file}: {message}")
+
+
+@dataclass
+class Service:
+    name: str
+    role: str  # driver | skillset | executor
+    line: int
+    image: str | None = None
+    command: list[str] | None = None
+    component: str | None = None
+    environment: dict[str, str] = field(default_factory=dict)
+    transient: bool = False
+    ready_timeout_s: float | None = None
+    main_tree: str | None = None
+    rate: float | None = None
+
+
+@dataclass
+class Project:
+    name: str
+    file: Path
+    services: list[Service]
+    tree: Path | None
+    params: Path | None
+    ready_timeout_s: float = 60.0
+    on_timeout: str = "block"
+    main_tree: str | None = None
+    rate: float | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def root(self) -> Path:
+        return self.file.parent
+
+    def by_role(self, role: str) -> list[Service]:
+        return [s for s in self.services if s.role == role]
+
+
+def find_compose_file(target: Path) -> Path:
+    """`target` itself when it is a file, else the compose file inside the folder."""
+    if target.is_file():
+        return target
+    if not target.is_dir():
+        raise ComposeError(target, None, "no such file or folder")
+    for name in COMPOSE_NAMES:
+        if (target / name).is_file():
+            return target / name
+    raise ComposeError(target, None, f"no compose file in the folder (looked for {', '.join(COMPOSE_NAMES)})")
+
+
+def read_dotenv(folder: Path) -> dict[str, str]:
+    path = folder / ".env"
+    values: dict[str, str] = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            line = line.strip()
+            if line and not line.startswith("#") and "=" in line:
+                key, _, value = line.partition("=")
+                values[key.strip()] = value.strip().strip("'\"")
+    return values
+
+
+def interpolate(text: str, env: dict[str, str], file: Path, line: int) -> str:
+    """Compose-style variable substitution; `${VAR:?msg}` with VAR unset raises ComposeError."""
+
+    def substitute(match: re.Match[str]) -> str:
+        if match.group(1):
+            return "$"
+        name = match.group(2) or match.group(5)
+        operator, argument = match.group(3), match.group(4) or ""
+        value = env.get(name)
+        empty = value is None or (operator is not None and operator.startswith(":") and value == "")
+        if operator in (":-", "-") and (value is None if operator == "-" else empty):
+            return argument
+        if operator in (":?", "?") and (value is None if operator == "?" else empty):
+            raise ComposeError(file, line, f"variable {name} is required: {argument or 'not set'}")
+        return value or ""
+
+    return _VARIABLE.sub(substitute, text)
+
+
+def _line(node: yaml.Node) -> int:
+    return node.start_mark.line + 1
+
+
+def _mapping(node: yaml.Node, file: Path, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+    if not isinstance(node, yaml.MappingNode):
+        raise ComposeError(file, _line(node), f"{what} must be a mapping")
+    return {str(k.value): (k, v) for k, v in node.value}
+
+
+def _scalar(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> str:
+    if not isinstance(node, yaml.ScalarNode):
+        raise ComposeError(file, _line(node), f"{what} must be a single value")
+    return interpolate(str(node.value), env, file, _line(node))
+
+
+def _number(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> float:
+    text = _scalar(node, file, what, env)
+    try:
+        return float(text)
+    except ValueError:
+        raise ComposeError(file, _line(node), f"{what} must be a number, not {text!r}") from None
+
+
+def _boolean(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> bool:
+    text = _scalar(node, file, what, env).lower()
+    if text in ("true", "yes", "on", "1"):
+        return True
+    if text in ("false", "no", "off", "0"):
+        return False
+    raise ComposeError(file, _line(node), f"{what} must be true or false, not {text!r}")
+
+
+def _strings(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> list[str]:
+    if isinstance(node, yaml.ScalarNode):
+        return [interpolate(str(node.value), env, file, _line(node))]
+    if not isinstance(node, yaml.SequenceNode):
+        raise ComposeError(file, _line(node), f"{what} must be a list")
+    return [_scalar(item, file, what, env) for item in node.value]
+
+
+def _environment(node: yaml.Node, file: Path, env: dict[str, str]) -> dict[str, str]:
+    values: dict[str, str] = {}
+    if isinstance(node, yaml.SequenceNode):
+        for item in node.value:
+            key, sep, value = _scalar(item, file, "environment entry", env).partition("=")
+            values[key] = value if sep else env.get(key, "")
+        return values
+    for key, (_, value_node) in _mapping(node, file, "environment").items():
+        values[key] = "" if value_node.tag.endswith(":null") else _scalar(value_node, file, key, env)
+    return values
+
+
+def _service(name: str, key: yaml.Node, node: yaml.Node, file: Path, env: dict[str, str]) -> Service:
+    if not SERVICE_NAME_RE.match(name):
+        raise ComposeError(
+            file,
+            _line(key),
+            f"service name {name!r} must match {SERVICE_NAME_RE.pattern} "
+            "(it becomes the component's ROS node name)",
+        )
+    fields = _mapping(node, file, f"service {name}")
+    profiles = _strings(fields["profiles"][1], file, "profiles", env) if "profiles" in fields else []
+    roles = sorted({ROLES[p] for p in profiles if p in ROLES})
+    if len(roles) != 1:
+        raise ComposeError(
+            file,
+            _line(fields["profiles"][0] if "profiles" in fields else key),
+            f"service {name} needs exactly one of the profiles {', '.join(ROLES)}"
+            f" (found {profiles or 'none'})",
+        )
+    service = Service(name=name, role=roles[0], line=_line(key))
+    if "image" in fields:
+        service.image = _scalar(fields["image"][1], file, "image", env)
+    if "environment" in fields:
+        service.environment = _environment(fields["environment"][1], file, env)
+    if "x-coral" in fields:
+        extension = _mapping(fields["x-coral"][1], file, f"service {name} x-coral")
+        for option, (option_key, _value) in extension.items():
+            if option not in SERVICE_EXTENSION_KEYS:
+                raise ComposeError(
+                    file,
+                    _line(option_key),
+                    f"unknown x-coral option {option!r} in service {name} "
+                    f"(known: {', '.join(sorted(SERVICE_EXTENSION_KEYS))})",
+                )
+        if "command" in extension:
+            node_ = extension["command"][1]
+            service.command = (
+                _scalar(node_, file, "command", env).split()
+                if isinstance(node_, yaml.ScalarNode)
+                else _strings(node_, file, "command", env)
+            )
+        if "component" in extension:
+            service.component = _scalar(extension["component"][1], file, "component", env)
+        if "transient" in extension:
+            service.transient = _boolean(extension["transient"][1], file, "transient", env)
+            if service.transient and service.role != "driver":
+                raise ComposeError(file, _line(extension["transient"][0]), "only drivers can be transient")
+        if "ready_timeout_s" in extension:
+            service.ready_timeout_s = _number(extension["ready_timeout_s"][1], file, "ready_timeout_s", env)
+        if "main_tree" in extension:
+            service.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
+        if "rate" in extension:
+            service.rate = _number(extension["rate"][1], file, "rate", env)
+    if service.image is None and service.command is None and service.role != "executor":
+        raise ComposeError(file, service.line, f"service {name} needs an image or an x-coral command")
+    return service
+
+
+_REQUIRED = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*):?\?")
+
+
+def _placeholders_for_required(
+    text: str, env: dict[str, str], file: Path
+) -> tuple[dict[str, str], list[str]]:
+    """Values standing in for unset required variables, and a warning (file:line) for each."""
+    values: dict[str, str] = {}
+    warnings: list[str] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        for name in _REQUIRED.findall(line):
+            if not env.get(name) and name not in values:
+                values[name] = f"<{name}>"
+                warnings.append(
+                    f"{file}:{number}: variable {name} is not set (required when the project runs)"
+                )
+    return values, warnings
+
+
+def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient: bool = False) -> Project:
+    """Reads and checks a compose file; raises ComposeError (file:line) on the first problem.
+
+    `lenient` (for validation) lets unset required variables pass as placeholders, with warnings.
+    """
+    file = Path(file).resolve()
+    try:
+        text = file.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ComposeError(file, None, f"cannot read: {err.strerror}") from err
+    env = {**read_dotenv(file.parent), **(os.environ if environ is None else environ)}
+    warnings: list[str] = []
+    if lenient:
+        placeholders, warnings = _placeholders_for_required(text, env, file)
+        env.update(placeholders)
+    try:
+        root = yaml.compose(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        raise ComposeError(
+            file, mark.line + 1 if mark else None, f"invalid YAML: {getattr(err, 'problem', err)}"
+        ) from err
+    if root is None:
+        raise ComposeError(file, None, "the file is empty")
+    top = _mapping(root, file, "a compose file")
+    if "services" not in top:
+        raise ComposeError(file, 1, "no 'services' section")
+    services = [
+        _service(name, key, node, file, env)
+        for name, (key, node) in _mapping(top["services"][1], file, "services").items()
+    ]
+    project = Project(
+        name=_scalar(top["name"][1], file, "name", env) if "name" in top else file.parent.name,
+        file=file,
+        services=services,
+        tree=None,
+        params=None,
+        warnings=warnings,
+    )
+    extension = _mapping(top["x-coral"][1], file, "x-coral") if "x-coral" in top else {}
+    for option, (option_key, _) in extension.items():
+        if option not in TOP_EXTENSION_KEYS:
+            raise ComposeError(
+                file,
+                _line(option_key),
+                f"unknown x-coral option {option!r} (known: {', '.join(sorted(TOP_EXTENSION_KEYS))})",
+            )
+    if "tree" in extension:
+        project.tree = file.parent / _scalar(extension["tree"][1], file, "tree", env)
+    else:
+        trees = sorted(file.parent.glob("*.xml"))
+        project.tree = trees[0] if len(trees) == 1 else None
+    if "params" in extension:
+        project.params = file.parent / _scalar(extension["params"][1], file, "params", env)
+    elif (file.parent / "params.yaml").is_file():
+        project.params = file.parent / "params.yaml"
+    if "ready_timeout_s" in extension:
+        project.ready_timeout_s = _number(extension["ready_timeout_s"][1], file, "ready_timeout_s", env)
+    if "on_timeout" in extension:
+        project.on_timeout = _scalar(extension["on_timeout"][1], file, "on_timeout", env).lower()
+        if project.on_timeout not in ("block", "proceed"):
+            raise ComposeError(file, _line(extension["on_timeout"][0]), "on_timeout must be block or proceed")
+    if "main_tree" in extension:
+        project.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
+    if "rate" in extension:
+        project.rate = _number(extension["rate"][1], file, "rate", env)
+    if project.by_role("executor") and project.tree is None:
+        raise ComposeError(
+            file, None, "executors need a tree: set x-coral.tree or keep exactly one *.xml beside the file"
+        )
+    for path, what in ((project.tree, "tree"), (project.params, "params")):
+        if path is not None and not path.is_file():
+            line = _line(extension[what][0]) if what in extension else None
+            raise ComposeError(file, line, f"{what} file {path} does not exist")
+    return project
+
+
+def line_of_service(project: Project, name: str) -> int:
+    return next((s.line for s in project.services if s.name == name), 0)
+
+
+def as_dict(project: Project) -> dict[str, Any]:
+    return {
+        "name": project.name,
+        "file": str(project.file),
+        "tree": str(project.tree) if project.tree else None,
+        "params": str(project.params) if project.params else None,
+        "services": [
+            {"name": s.name, "role": s.role, "image": s.image, "transient": s.transient}
+            for s in project.services
+        ],
+    }

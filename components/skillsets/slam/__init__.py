@@ -1,0 +1,1 @@
+"""SLAM skillset: KISS-ICP LiDAR odometry and mapping, exported as behaviors."""

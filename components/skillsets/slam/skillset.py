@@ -1,0 +1,326 @@
+"""The SLAM skillset's ROS 2 node: queues LiDAR scans and serves the behaviors in `behaviors`.
+
+Run with `python -m coral_skillsets.slam --plugins DIR [--params FILE]`. Parameters (node `slam`):
+points_topic; end_of_data_topic (std_msgs/String JSON {"done", "published": {topic: count}} from
+the bag player: the data ended once that many scans arrived); queue_size; scan_wait_s;
+lookahead (scans registered ahead of the tree's requests, default 8); scans_per_call (most
+registered scans one ProcessScan hands out, default 1); map_path (relative paths resolve against
+$CORAL_OUTPUT_DIR, else the working directory); max_range, min_range, deskew, voxel_size
+(0: max_range/100), min_points, max_threads (KISS-ICP's; 0: all cores). Scans are queued from the
+moment the node starts, so none is lost before the tree enables localization; a worker thread
+registers them while localization is enabled, at most `lookahead` ahead of the `ProcessScan`
+requests that hand out the results, so the tree paces the work without waiting on it.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import math
+import os
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from coral.lidar import clouds
+from coral.sdk import CancelToken, Skillset
+from coral_skillsets.slam import behaviors
+from coral_skillsets.slam.core import MapFileError, ScanRejected, SlamConfig, SlamCore
+from nav_msgs.srv import LoadMap
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+
+
+def output_path(value: str) -> Path:
+    path = Path(os.path.expanduser(value))
+    if path.is_absolute():
+        return path
+    return Path(os.environ.get("CORAL_OUTPUT_DIR", ".")) / path
+
+
+class SlamSkillset(Skillset):
+    NAME = "slam"
+    BEHAVIORS = [
+        behaviors.EnableLocalization,
+        behaviors.DisableLocalization,
+        behaviors.ProcessScan,
+        behaviors.GetMappingDisplacement,
+        behaviors.SaveMap,
+        behaviors.LoadMap,
+        behaviors.GetCurrentMap,
+        behaviors.IsDataExhausted,
+        behaviors.IsStopRequested,
+    ]
+
+    def on_start(self) -> None:
+        voxel = float(self.param("voxel_size", 0.0))
+        self.core = SlamCore(
+            SlamConfig(
+                max_range=float(self.param("max_range", 40.0)),
+                min_range=float(self.param("min_range", 0.3)),
+                deskew=bool(self.param("deskew", True)),
+                voxel_size=voxel if voxel > 0 else None,
+                min_points=int(self.param("min_points", 100)),
+                max_threads=int(self.param("max_threads", 0)),
+            )
+        )
+        self.map_path = str(self.param("map_path", "slam_map.ply"))
+        self.scan_wait_s = float(self.param("scan_wait_s", 1.0))
+        queue_size = int(self.param("queue_size", 2000))
+        self.points_topic = str(self.param("points_topic", "/lidar/points"))
+        self.queue: collections.deque[PointCloud2] = collections.deque(maxlen=queue_size)
+        self.arrived = threading.Condition()
+        self.enabled = False
+        self.source_done = False
+        self.expected = 0
+        self.received = 0
+        self.first_arrival: float | None = None
+        self.first_registration: float | None = None
+        self.last_delivered_at: float | None = None
+        self.delivered = 0
+        self.lookahead = max(1, int(self.param("lookahead", 8)))
+        self.scans_per_call = max(1, int(self.param("scans_per_call", 1)))
+        self.results: collections.deque[tuple[bool, dict[str, Any]]] = collections.deque()
+        self.registering = False
+        self.worker_stop = threading.Event()
+        self.failed_scans = 0
+        self.dropped = 0
+        self.busy_s = 0.0
+        reliable = QoSProfile(
+            depth=queue_size, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
+        )
+        self.create_subscription(PointCloud2, self.points_topic, self.on_scan, reliable)
+        latched = QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        self.create_subscription(
+            String, str(self.param("end_of_data_topic", "/bag_player/done")), self.on_end, latched
+        )
+        self.status_publisher = self.create_publisher(String, "~/status", latched)
+        self.create_timer(0.2, self.publish_status)
+        self.create_cancellable_service(SetBool, "~/set_localization", self.serve_set_localization)
+        self.create_cancellable_service(Trigger, "~/process_scan", self.serve_process_scan)
+        self.create_cancellable_service(Trigger, "~/displacement", self.serve_displacement)
+        self.create_cancellable_service(Trigger, "~/mark_displacement", self.serve_mark_displacement)
+        self.create_cancellable_service(Trigger, "~/save_map", self.serve_save_map)
+        self.create_cancellable_service(LoadMap, "~/load_map", self.serve_load_map)
+        self.create_cancellable_service(Trigger, "~/map_info", self.serve_map_info)
+        self.worker = threading.Thread(target=self._work, name="slam-registration", daemon=True)
+        self.worker.start()
+
+    # Data in.
+    def on_scan(self, message: PointCloud2) -> None:
+        with self.arrived:
+            if len(self.queue) == self.queue.maxlen:
+                self.dropped += 1
+                if self.dropped == 1:
+                    self.get_logger().warning(
+                        f"Scan queue full ({self.queue.maxlen}): dropping the oldest scans (raise queue_size)"
+                    )
+            self.queue.append(message)
+            self.received += 1
+            if self.first_arrival is None:
+                self.first_arrival = time.monotonic()
+            self.arrived.notify_all()
+
+    def on_end(self, message: String) -> None:
+        try:
+            signal = json.loads(message.data)
+            done, published = bool(signal["done"]), dict(signal.get("published", {}))
+        except (ValueError, KeyError, TypeError, AttributeError):
+            self.get_logger().warning(f"Ignored a malformed end-of-data message: {message.data!r}")
+            return
+        if not done:
+            return
+        with self.arrived:
+            self.source_done = True
+            self.expected = int(published.get(self.points_topic, 0))
+            self.arrived.notify_all()
+        self.get_logger().info(
+            f"End of data: {self.expected} scan(s) published, {self.received} received so far"
+        )
+        self.publish_status()
+
+    @property
+    def end_of_data(self) -> bool:
+        """The source finished and every scan it published has arrived (call with `arrived` held)."""
+        return self.source_done and self.received >= self.expected
+
+    def status(self) -> dict[str, Any]:
+        with self.arrived:
+            queued, ready, busy = len(self.queue), len(self.results), self.registering
+            ended = self.end_of_data
+        return {
+            "enabled": self.enabled,
+            "received": self.received,
+            "queued": queued,
+            "processed": self.core.scans_processed,
+            "delivered": self.delivered,
+            "failed": self.failed_scans,
+            "dropped": self.dropped,
+            "end_of_data": ended,
+            "exhausted": ended and queued == 0 and ready == 0 and not busy,
+            "active_s": (self.last_delivered_at - self.first_registration)
+            if self.first_registration and self.last_delivered_at
+            else 0.0,
+        }
+
+    def publish_status(self) -> None:
+        self.status_publisher.publish(String(data=json.dumps(self.status())))
+
+    # Registration: a worker registers up to `lookahead` scans ahead of the tree's requests, so
+    # KISS-ICP works while the executor round-trips; the tree still paces it (no requests, no work).
+    def _work(self) -> None:
+        while not self.worker_stop.is_set():
+            with self.arrived:
+                while not (self.enabled and self.queue and len(self.results) < self.lookahead):
+                    if self.worker_stop.is_set():
+                        return
+                    self.arrived.wait(0.1)
+                message = self.queue.popleft()
+                self.registering = True
+                if self.first_registration is None:
+                    self.first_registration = time.monotonic()
+            outcome = self.register(message)
+            with self.arrived:
+                self.results.append(outcome)
+                self.registering = False
+                self.arrived.notify_all()
+
+    def register(self, message: PointCloud2) -> tuple[bool, dict[str, Any]]:
+        stamp_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        try:
+            points, times = clouds.decode(
+                message.fields,
+                message.data,
+                message.point_step,
+                message.width,
+                message.height,
+                message.is_bigendian,
+            )
+            started = time.perf_counter()
+            result = self.core.process(points, times, stamp_ns)
+            self.busy_s += time.perf_counter() - started
+        except (ScanRejected, ValueError) as err:
+            self.failed_scans += 1
+            self.get_logger().warning(f"Rejected scan stamped {stamp_ns}: {err}")
+            return False, {"error": f"scan rejected: {err}", "stamp_ns": stamp_ns}
+        pose = result.pose
+        yaw = math.atan2(float(pose[1, 0]), float(pose[0, 0]))
+        return True, {
+            "scans": self.core.scans_processed,
+            "pose": [float(pose[0, 3]), float(pose[1, 3]), float(pose[2, 3]), yaw],
+            "dropped": result.dropped,
+            "stamp_ns": stamp_ns,
+        }
+
+    # Services.
+    def serve_set_localization(self, request: Any, response: Any, token: CancelToken) -> Any:
+        with self.arrived:
+            self.enabled = bool(request.data)
+            self.arrived.notify_all()
+        response.success, response.message = True, json.dumps({"enabled": self.enabled})
+        self.get_logger().info(f"Localization {'enabled' if self.enabled else 'disabled'}")
+        return response
+
+    def _next_result(self, token: CancelToken) -> tuple[bool, dict[str, Any]]:
+        deadline = time.monotonic() + self.scan_wait_s
+        with self.arrived:
+            while not self.results:
+                if self.end_of_data and not self.queue and not self.registering:
+                    return False, {"error": "no more data"}
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or token.cancelled:
+                    return False, {"error": f"no scan within {self.scan_wait_s:g} s"}
+                self.arrived.wait(min(remaining, 0.05))
+            return self.results.popleft()
+
+    def serve_process_scan(self, request: Any, response: Any, token: CancelToken) -> Any:
+        """Hands out the next registered scan, plus those already registered behind it (up to
+        `scans_per_call`), so one behavior call can cover a burst of scans."""
+        if not self.enabled:
+            response.success, response.message = False, json.dumps({"error": "localization is disabled"})
+            return response
+        success, payload = self._next_result(token)
+        taken = 1 if success else 0
+        with self.arrived:
+            while success and taken < self.scans_per_call and self.results and self.results[0][0]:
+                payload = self.results.popleft()[1]
+                taken += 1
+            self.arrived.notify_all()
+        payload["taken"] = taken
+        response.success, response.message = success, json.dumps(payload)
+        if success:
+            self.delivered += taken
+            self.last_delivered_at = time.monotonic()
+            self.publish_status()
+        return response
+
+    def serve_displacement(self, request: Any, response: Any, token: CancelToken) -> Any:
+        linear, angular = self.core.displacement()
+        response.success, response.message = True, json.dumps({"linear": linear, "angular": angular})
+        return response
+
+    def serve_mark_displacement(self, request: Any, response: Any, token: CancelToken) -> Any:
+        self.core.mark_displacement()
+        response.success, response.message = True, "{}"
+        return response
+
+    def serve_save_map(self, request: Any, response: Any, token: CancelToken) -> Any:
+        path = output_path(self.map_path)
+        try:
+            points = self.core.save_map(path)
+        except MapFileError as err:
+            response.success, response.message = False, json.dumps({"error": str(err)})
+            return response
+        # Throughput figures for benchmarks: active_s runs from the first registration to the last
+        # scan handed to the tree, so it excludes start-up (processes, discovery, StartSLAM) and
+        # the mission's closing steps, as KISS-ICP's own figure excludes its start-up.
+        stats = {**self.status(), "registering_s": self.busy_s, "map_points": points}
+        path.with_suffix(".stats.json").write_text(json.dumps(stats, indent=2) + "\n")
+        self.get_logger().info(
+            f"Saved map of {points} points and {self.core.scans_processed} poses to {path}"
+        )
+        response.success = True
+        response.message = json.dumps(
+            {"path": str(path), "points": points, "scans": self.core.scans_processed}
+        )
+        return response
+
+    def serve_load_map(self, request: Any, response: Any, token: CancelToken) -> Any:
+        path = output_path(request.map_url or self.map_path)
+        try:
+            points = self.core.load_map(path)
+        except MapFileError as err:
+            self.get_logger().error(str(err))
+            response.result = (
+                LoadMap.Response.RESULT_MAP_DOES_NOT_EXIST
+                if not path.exists()
+                else LoadMap.Response.RESULT_INVALID_MAP_DATA
+            )
+            return response
+        self.get_logger().info(f"Loaded map of {points} points from {path}")
+        response.result = LoadMap.Response.RESULT_SUCCESS
+        return response
+
+    def serve_map_info(self, request: Any, response: Any, token: CancelToken) -> Any:
+        response.success = True
+        response.message = json.dumps(
+            {
+                "local_points": len(self.core.local_map()),
+                "global_points": len(self.core.global_map()),
+            }
+        )
+        return response
+
+    def on_stop(self) -> None:
+        self.worker_stop.set()
+        self.worker.join(timeout=10.0)
+        status = self.status()
+        self.get_logger().info(
+            f"SLAM stopping: {status['processed']} scan(s) processed, {status['failed']} rejected, "
+            f"{status['queued']} still queued; {self.busy_s:.2f} s registering"
+        )

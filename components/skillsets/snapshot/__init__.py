@@ -1,0 +1,1 @@
+"""Snapshot skillset: the latest or time-synchronised messages of configured topics, saved on request."""

@@ -1,0 +1,108 @@
+"""Compose files as Coral reads them: roles from profiles, x-coral fields, interpolation, file:line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from coral.local.compose import ComposeError, find_compose_file, interpolate, parse_compose
+
+EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
+
+
+def _project(tmp_path: Path, text: str, **files: str) -> Path:
+    (tmp_path / "compose.yaml").write_text(text)
+    (tmp_path / "tree.xml").write_text("<root BTCPP_format='4'/>")
+    for name, content in files.items():
+        (tmp_path / name).write_text(content)
+    return tmp_path / "compose.yaml"
+
+
+def test_the_example_parses_into_drivers_skillsets_and_executors() -> None:
+    project = parse_compose(find_compose_file(EXAMPLE), {"CORAL_BAG": "/bags/x"})
+    roles = {s.name: s.role for s in project.services}
+    assert roles == {
+        "bag_player": "driver",
+        "slam": "skillset",
+        "snapshot": "skillset",
+        "executor": "executor",
+    }
+    player = project.by_role("driver")[0]
+    assert player.transient and player.environment == {"CORAL_BAG": "/bags/x"}
+    assert player.image == "coral/bag-player:0.1.0"
+    assert project.tree == EXAMPLE / "tree.xml" and project.params == EXAMPLE / "params.yaml"
+    assert project.by_role("executor")[0].rate == 20
+
+
+def test_a_required_variable_that_is_unset_is_reported_with_its_line() -> None:
+    with pytest.raises(ComposeError, match=r"compose.yaml:18: variable CORAL_BAG is required: set CORAL_BAG"):
+        parse_compose(find_compose_file(EXAMPLE), {})
+
+
+@pytest.mark.parametrize(
+    ("text", "env", "expected"),
+    [
+        ("${A}", {"A": "1"}, "1"),
+        ("${A:-x}", {"A": ""}, "x"),
+        ("${A-x}", {"A": ""}, ""),
+        ("${A-x}", {}, "x"),
+        ("$A/$$B", {"A": "a"}, "a/$B"),
+        ("${MISSING}", {}, ""),
+    ],
+)
+def test_variables_are_interpolated_as_compose_does(text: str, env: dict[str, str], expected: str) -> None:
+    assert interpolate(text, env, Path("f"), 1) == expected
+
+
+def test_a_service_without_a_coral_profile_is_named_with_its_line(tmp_path: Path) -> None:
+    file = _project(tmp_path, "services:\n  a:\n    image: x\n    profiles: [tools]\n")
+    with pytest.raises(ComposeError, match=r"compose.yaml:4: service a needs exactly one of the profiles"):
+        parse_compose(file, {})
+
+
+def test_an_unknown_x_coral_option_is_named_with_its_line(tmp_path: Path) -> None:
+    file = _project(
+        tmp_path,
+        "services:\n  a:\n    image: x\n    profiles: [drivers]\n    x-coral:\n"
+        "      transient: true\n      restart: always\n",
+    )
+    with pytest.raises(ComposeError, match=r"compose.yaml:7: unknown x-coral option 'restart' in service a"):
+        parse_compose(file, {})
+
+
+def test_only_drivers_may_be_transient(tmp_path: Path) -> None:
+    file = _project(
+        tmp_path,
+        "services:\n  s:\n    image: x\n    profiles: [skillsets]\n    x-coral:\n      transient: true\n",
+    )
+    with pytest.raises(ComposeError, match=r"compose.yaml:6: only drivers can be transient"):
+        parse_compose(file, {})
+
+
+def test_invalid_yaml_is_reported_with_its_line(tmp_path: Path) -> None:
+    file = _project(tmp_path, "services:\n  a:\n    image: [x\n")
+    with pytest.raises(ComposeError, match=r"compose.yaml:4: invalid YAML"):
+        parse_compose(file, {})
+
+
+def test_environment_lists_commands_and_dotenv_values_are_read(tmp_path: Path) -> None:
+    file = _project(
+        tmp_path,
+        'services:\n  d:\n    profiles: [drivers]\n    environment: [A=1, "B=${FROM_DOTENV}"]\n'
+        "    x-coral:\n      command: ['{python}', '-m', 'thing', '--plugins', '{plugins}']\n",
+        **{".env": "FROM_DOTENV=hello\n"},
+    )
+    service = parse_compose(file, {}).services[0]
+    assert service.environment == {"A": "1", "B": "hello"}
+    assert service.command == ["{python}", "-m", "thing", "--plugins", "{plugins}"]
+
+
+def test_a_missing_tree_file_is_reported(tmp_path: Path) -> None:
+    file = _project(tmp_path, "x-coral:\n  tree: other.xml\nservices:\n  e:\n    profiles: [executors]\n")
+    with pytest.raises(ComposeError, match=r"compose.yaml:2: tree file .*other.xml does not exist"):
+        parse_compose(file, {})
+
+
+def test_a_folder_without_a_compose_file_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ComposeError, match="no compose file"):
+        find_compose_file(tmp_path)

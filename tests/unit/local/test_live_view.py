@@ -1,0 +1,88 @@
+"""The live tree view folds executor status records; off a terminal it prints plain progress lines."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+from coral.local.console import Console, StatusTail, TreeView, outline_of
+
+
+def _records() -> list[dict[str, object]]:
+    return [
+        {"event": "transition", "path": "Main", "node_id": "Sequence", "status": "RUNNING"},
+        {"event": "transition", "path": "Main/ProcessScan", "node_id": "ProcessScan", "status": "RUNNING"},
+        {"event": "status", "root": "RUNNING", "tick_count": 7, "active_path": "Main/ProcessScan"},
+        {"event": "transition", "path": "Main/ProcessScan", "node_id": "ProcessScan", "status": "SUCCESS"},
+        {"event": "finished", "root": "SUCCESS", "exit_code": 0, "tick_count": 9},
+    ]
+
+
+def test_the_view_shows_each_node_with_its_latest_status_indented_by_depth() -> None:
+    view = TreeView()
+    for record in _records():
+        view.apply(record)
+    lines = view.lines(colour=False)
+    assert lines[0] == "tree SUCCESS  ticks 9"
+    assert lines[1].split() == ["Sequence", "RUNNING"]
+    assert lines[2].startswith("▶   ProcessScan") and lines[2].split()[-1] == "SUCCESS"
+
+
+def test_off_a_terminal_progress_lines_are_printed_when_the_root_status_changes() -> None:
+    stream = io.StringIO()
+    console = Console(stream, live=False, colour=False, progress_interval_s=3600)
+    console.register("coral")
+    view = TreeView()
+    for record in _records():
+        view.apply(record)
+        console.show(view)
+    lines = stream.getvalue().splitlines()
+    assert lines == [
+        "coral | tree IDLE ticks=0",
+        "coral | tree RUNNING ticks=7 active=Main/ProcessScan",
+        "coral | tree SUCCESS ticks=9 active=Main/ProcessScan",
+    ]
+    assert "\x1b[" not in stream.getvalue()
+
+
+def test_component_lines_are_prefixed_with_the_component_name() -> None:
+    stream = io.StringIO()
+    console = Console(stream, live=False, colour=False)
+    for name in ("slam", "bag_player"):
+        console.register(name)
+    console.log("slam", "Component slam ready\n")
+    assert stream.getvalue() == "slam       | Component slam ready\n"
+
+
+def test_the_status_tail_reads_only_complete_new_lines(tmp_path: Path) -> None:
+    path = tmp_path / "status.jsonl"
+    tail = StatusTail(path)
+    assert tail.read() == []
+    path.write_text(json.dumps({"event": "a"}) + "\n" + '{"event": "b"')
+    assert tail.read() == [{"event": "a"}]
+    with path.open("a") as handle:
+        handle.write("}\n")
+    assert tail.read() == [{"event": "b"}]
+
+
+def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
+    tree = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam" / "tree.xml"
+    outline = outline_of(tree)
+    assert outline[1] == (0, "Sequence")
+    assert outline[2] == (1, "SubTree") and outline[4] == (3, "EnableLocalization")
+    assert outline[14] == (4, "SubTree") and outline[16] == (6, "ProcessScan")
+    view = TreeView(outline=outline)
+    view.apply(
+        {
+            "event": "transition",
+            "path": "IterateSLAM::14/ProcessScan::16",
+            "node_id": "ProcessScan",
+            "status": "RUNNING",
+        }
+    )
+    view.apply({"event": "transition", "path": "IterateSLAM::14", "node_id": "SubTree", "status": "RUNNING"})
+    assert view.lines(colour=False)[1:] == [
+        f"  {'  ' * 4}{'SubTree IterateSLAM':<28} RUNNING",
+        f"  {'  ' * 6}{'ProcessScan':<28} RUNNING",
+    ]
