@@ -1,0 +1,147 @@
+"""Benchmark: round trip of a behavior call into a skillset versus a raw rclpy service call.
+
+Run by `make bench-calls` (part of `make bench`). Starts the example skillset as a real process,
+then, in this process and against the same `~/count` service (no work delay):
+  - raw: an rclpy client on a node spun by a background SingleThreadedExecutor, one call at a
+    time, from `call_async` to the next `call_async`;
+  - behavior: the executor's own machinery (ExecutorContext, plugin discovery and isolated
+    loading, TickLoop at 10 Hz with wake-ups) running `<Repeat><Count/></Repeat>`; one sample is
+    the time between consecutive starts of `Count`, i.e. request, response, wake-up, tick.
+Rounds alternate so machine load hits both alike. Prints BENCH lines (DESIGN section 8).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+CALLS_PER_ROUND = 300
+ROUNDS = 3
+WARMUP = 30
+TARGET_RATIO = 1.5
+TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main"><Repeat num_cycles="{cycles}"><Count count="{{c}}"/></Repeat></BehaviorTree>
+</root>"""
+
+
+def _claim_domain() -> int:
+    """A ROS domain no test or other benchmark holds (same lock folder as the test fixture)."""
+    lock_dir = Path(tempfile.gettempdir()) / "coral-ros-domains"
+    lock_dir.mkdir(parents=True, exist_ok=True)
+    for domain in range(101, 0, -1):
+        fd = os.open(lock_dir / f"{domain}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            continue
+        return domain  # the descriptor stays open (and the lock held) until this process exits
+    raise RuntimeError("no free ROS domain")
+
+
+def _start_skillset(plugins: Path) -> subprocess.Popen[bytes]:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "coral_skillsets.examples", "--plugins", str(plugins)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while not (plugins / "examples" / "ready").exists():
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise RuntimeError("the example skillset did not become ready")
+        time.sleep(0.05)
+    return process
+
+
+def _raw_round(context: Any, calls: int) -> list[float]:
+    from std_srvs.srv import Trigger
+
+    client = context.service_client(Trigger, "/examples/count")
+    if not client.wait_for_service(timeout_sec=30):
+        raise RuntimeError("service /examples/count not found")
+    done = threading.Event()
+    starts: list[float] = []
+    for _ in range(calls + 1):
+        done.clear()
+        starts.append(time.perf_counter())
+        future = client.call_async(Trigger.Request())
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(10):
+            raise RuntimeError("raw call timed out")
+    return [b - a for a, b in zip(starts, starts[1:], strict=False)]
+
+
+def _behavior_round(context: Any, plugins: Path, calls: int) -> list[float]:
+    from coral import bt, coordination
+    from coral.executor import plugins_phase, sinks
+    from coral.executor.ticking import TickLoop
+    from coral.plugins import compat
+
+    document = bt.load_tree_text(TREE.format(cycles=calls + 1))
+    registry = bt.NodeRegistry.with_builtins()
+    coordination.register(registry)
+    state = plugins_phase.PluginState(used=document.node_types_used(), builtin_ids=set(registry.node_ids()))
+    plugins_phase.refresh(state, registry, plugins, compat.current_ros_distro())
+    tree = document.build(registry, context=context)
+    context.wake_up = tree.wake_up
+    starts: list[float] = []
+
+    def on_transition(transition: Any) -> None:
+        if transition.node_id == "Count" and transition.status == bt.Status.RUNNING:
+            starts.append(time.perf_counter())
+
+    tree.add_transition_listener(on_transition)
+    loop = TickLoop(tree, context, sinks.SinkFanout([]), state, rate_hz=10.0)
+    if loop.run(threading.Event(), lambda: 4) != 0:
+        raise RuntimeError("the benchmark tree did not succeed")
+    return [b - a for a, b in zip(starts, starts[1:], strict=False)]
+
+
+def main() -> int:
+    os.environ["ROS_DOMAIN_ID"] = str(_claim_domain())
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    from coral.executor.context import ExecutorContext
+
+    with tempfile.TemporaryDirectory() as folder:
+        plugins = Path(folder) / "plugins"
+        skillset = _start_skillset(plugins)
+        context = ExecutorContext(node_name="bench_calls", hostname="bench")
+        try:
+            _raw_round(context, WARMUP)
+            _behavior_round(context, plugins, WARMUP)
+            raw: list[float] = []
+            behavior: list[float] = []
+            for _ in range(ROUNDS):
+                raw += _raw_round(context, CALLS_PER_ROUND)
+                behavior += _behavior_round(context, plugins, CALLS_PER_ROUND)
+        finally:
+            context.shutdown()
+            skillset.terminate()
+            skillset.wait(timeout=10)
+    raw_ms = statistics.median(raw) * 1000
+    behavior_ms = statistics.median(behavior) * 1000
+    ratio = behavior_ms / raw_ms
+    ok = "ok" if ratio <= TARGET_RATIO else "miss"
+    print(f"BENCH name=raw_rclpy_service_call_median value={raw_ms:.3f} unit=ms target=>0 result=ok")
+    print(
+        f"BENCH name=behavior_call_roundtrip_median value={behavior_ms:.3f} unit=ms "
+        f"target=<={raw_ms * TARGET_RATIO:.3f} result={ok}"
+    )
+    print(
+        f"BENCH name=behavior_call_vs_raw_ratio value={ratio:.3f} unit=x target=<={TARGET_RATIO} result={ok}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

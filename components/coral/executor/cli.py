@@ -1,0 +1,108 @@
+"""The `coral executor` verb (also `python -m coral.executor`): run one behavior tree."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+
+@click.command("executor")
+@click.option(
+    "--tree",
+    "tree",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="BT.CPP v4 XML tree file.",
+)
+@click.option(
+    "--plugins",
+    "plugins",
+    required=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Plugin location the components export into.",
+)
+@click.option(
+    "--params",
+    "params",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="ROS parameters YAML (applied to the executor's node).",
+)
+@click.option(
+    "--rate",
+    "rate_hz",
+    type=click.FloatRange(min=0.1),
+    default=10.0,
+    show_default=True,
+    help="Tick rate in Hz (wake-ups tick at once in between).",
+)
+@click.option(
+    "--status-jsonl",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Append status records to this JSON-lines file.",
+)
+@click.option("--main-tree", default=None, help="ID of the tree to run (default: the file's main tree).")
+@click.option(
+    "--hostname",
+    default=None,
+    help="This executor's name for remote triggers (default: CORAL_HOSTNAME or the host name).",
+)
+@click.option("--name", "node_name", default="coral_executor", show_default=True, help="ROS node name.")
+@click.option(
+    "--status-topic", default="/coral/tree_status", show_default=True, help="ROS topic for status records."
+)
+@click.option(
+    "--sink", "extra_sinks", multiple=True, metavar="MODULE:FACTORY", help="Extra status sink (repeatable)."
+)
+@click.option(
+    "--wait-timeout",
+    "wait_timeout_s",
+    type=float,
+    default=None,
+    help="Give up (exit 5) when node types are still missing after this many seconds.",
+)
+@click.option(
+    "--liveness-wait",
+    "liveness_wait_s",
+    type=float,
+    default=10.0,
+    show_default=True,
+    help="Before the first tick, wait up to this long to hear every component in use alive.",
+)
+@click.option("-v", "--verbose", is_flag=True, help="Print every node transition on the terminal.")
+def executor_command(
+    tree: Path,
+    plugins: Path,
+    params: Path | None,
+    rate_hz: float,
+    status_jsonl: Path | None,
+    main_tree: str | None,
+    hostname: str | None,
+    node_name: str,
+    status_topic: str,
+    extra_sinks: tuple[str, ...],
+    wait_timeout_s: float | None,
+    liveness_wait_s: float,
+    verbose: bool,
+) -> None:
+    """Run a behavior tree with the behaviors the running components exported."""
+    from coral.executor import running
+
+    options = running.ExecutorOptions(
+        tree=tree,
+        plugins=plugins,
+        params=params,
+        rate_hz=rate_hz,
+        status_jsonl=status_jsonl,
+        main_tree=main_tree,
+        node_name=node_name,
+        status_topic=status_topic,
+        extra_sinks=list(extra_sinks),
+        wait_timeout_s=wait_timeout_s,
+        liveness_wait_s=liveness_wait_s,
+        verbose=verbose,
+    )
+    if hostname:
+        options.hostname = hostname
+    sys.exit(running.run_executor(options))

@@ -1,0 +1,66 @@
+"""Liveness of the components whose behaviors an executor loaded, from their heartbeats.
+
+Pure state with an injected clock: the ROS subscription (in `context`) feeds `observe`, the tick
+loop asks `failure` (behavior calls fail fast) and `degraded` (the `LibraryDegraded` condition).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from coral.sdk import topics
+
+
+@dataclass
+class _Seen:
+    last_beat: float
+    stopping: bool
+
+
+class HealthMonitor:
+    """Remembers each component's last heartbeat; a component is degraded once it was seen alive
+    and then fell silent for `timeout_s` or announced it is stopping. Never-seen components are
+    not degraded: their calls wait for the service within their own timeout instead.
+    """
+
+    def __init__(self, clock: Callable[[], float], timeout_s: float = topics.HEARTBEAT_TIMEOUT_S) -> None:
+        self._clock = clock
+        self._timeout_s = timeout_s
+        self._seen: dict[str, _Seen] = {}
+        self._lock = threading.Lock()
+
+    def observe(self, heartbeat: topics.Heartbeat) -> None:
+        with self._lock:
+            self._seen[heartbeat.component] = _Seen(self._clock(), heartbeat.state == "stopping")
+
+    def failure(self, component: str) -> str | None:
+        """Why calls into `component` must fail now, or None while it looks alive (or was never seen)."""
+        with self._lock:
+            seen = self._seen.get(component)
+        if seen is None:
+            return None
+        if seen.stopping:
+            return "it shut down"
+        silent_s = self._clock() - seen.last_beat
+        if silent_s > self._timeout_s:
+            return f"no heartbeat for {silent_s:.1f} s"
+        return None
+
+    def state(self, component: str) -> str:
+        """`unknown` (no heartbeat yet), `alive`, or `degraded`."""
+        with self._lock:
+            seen = component in self._seen
+        if not seen:
+            return "unknown"
+        return "alive" if self.failure(component) is None else "degraded"
+
+    def degraded(self, components: Iterable[str]) -> dict[str, str]:
+        """Component name -> reason, for each of `components` that is currently degraded."""
+        reasons: dict[str, str] = {}
+        for component in sorted(set(components)):
+            reason = self.failure(component)
+            if reason is not None:
+                reasons[component] = reason
+        return reasons

@@ -1,0 +1,229 @@
+"""The executor process: load a tree, wait for its node types, tick it, report status, halt cleanly.
+
+Called by `python -m coral.executor` and `coral executor` (`coral.executor.cli`). Exit codes:
+0 tree SUCCESS, 1 tree FAILURE, 2 bad input (tree, parameters), 3 error while ticking (a
+behavior raised), 4 internal error, 5 node types still missing after `--wait-timeout`,
+128+N stopped by signal N (the tree is halted first).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from coral.executor import plugins_phase, records, sinks
+from coral.executor.ticking import TickLoop
+
+EXIT_SUCCESS = 0
+EXIT_FAILURE = 1
+EXIT_BAD_INPUT = 2
+EXIT_TICK_ERROR = 3
+EXIT_INTERNAL = 4
+EXIT_WAIT_TIMEOUT = 5
+
+
+@dataclass
+class ExecutorOptions:
+    tree: Path
+    plugins: Path
+    params: Path | None = None
+    rate_hz: float = 10.0
+    status_jsonl: Path | None = None
+    main_tree: str | None = None
+    hostname: str = field(default_factory=lambda: os.environ.get("CORAL_HOSTNAME") or socket.gethostname())
+    node_name: str = "coral_executor"
+    status_topic: str = "/coral/tree_status"
+    extra_sinks: list[str] = field(default_factory=list)
+    wait_timeout_s: float | None = None
+    liveness_wait_s: float = 10.0
+    verbose: bool = False
+
+
+class _Stop:
+    """Signal bookkeeping: which signal asked us to stop, and whom to wake."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.signum = 0
+        self.wake: Any = None
+
+    def install(self) -> None:
+        def handle(signum: int, _frame: FrameType | None) -> None:
+            self.signum = signum
+            self.event.set()
+            if self.wake is not None:
+                self.wake()
+
+        signal.signal(signal.SIGINT, handle)
+        signal.signal(signal.SIGTERM, handle)
+
+
+def _emit(fanout: sinks.SinkFanout, event: str, **fields: Any) -> None:
+    fanout.emit({"ts": time.time(), "event": event, **fields})
+
+
+def _build_sinks(options: ExecutorOptions) -> sinks.SinkFanout:
+    fanout = sinks.SinkFanout([sinks.TerminalSink(verbose=options.verbose)])
+    if options.status_jsonl is not None:
+        fanout.add(sinks.JsonLinesSink(options.status_jsonl))
+    for target in options.extra_sinks:
+        fanout.add(sinks.load_sink(target, {"hostname": options.hostname, "tree": str(options.tree)}))
+    return fanout
+
+
+def run_executor(options: ExecutorOptions) -> int:
+    from coral import bt
+    from coral.sdk import params
+
+    try:
+        fanout = _build_sinks(options)
+    except (OSError, ValueError) as err:
+        print(f"error: {err}")
+        return EXIT_BAD_INPUT
+    stop = _Stop()
+    stop.install()
+    _emit(
+        fanout,
+        "started",
+        tree=str(options.tree),
+        plugins=str(options.plugins),
+        hostname=options.hostname,
+        pid=os.getpid(),
+        main_tree=options.main_tree,
+    )
+    try:
+        if options.params is not None:
+            params.validate_file(options.params)
+        document = bt.load_tree_file(options.tree, None, main_tree=options.main_tree)
+    except (bt.BTError, params.ParamsError) as err:
+        _emit(fanout, "error", message=str(err))
+        _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+        fanout.close()
+        return EXIT_BAD_INPUT
+    try:
+        return _run_with_ros(options, document, fanout, stop)
+    except Exception as err:  # noqa: BLE001 - must not read as a tree FAILURE (exit 1)
+        _emit(fanout, "error", message=f"{type(err).__name__}: {err}")
+        _emit(fanout, "finished", root="ERROR", exit_code=EXIT_INTERNAL, tick_count=0)
+        traceback.print_exc()
+        return EXIT_INTERNAL
+    finally:
+        fanout.close()
+
+
+def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFanout, stop: _Stop) -> int:
+    from coral import bt, coordination
+    from coral.coordination.hub import CoordinationHub
+    from coral.executor.context import ExecutorContext
+    from coral.plugins import compat
+
+    wake = threading.Event()
+    waker: dict[str, Any] = {"tree": None}
+
+    def wake_up() -> None:
+        tree = waker["tree"]
+        if tree is not None:
+            tree.wake_up()
+        wake.set()
+
+    stop.wake = wake_up
+    context = ExecutorContext(
+        node_name=options.node_name, hostname=options.hostname, params_file=options.params, wake_up=wake_up
+    )
+    ros_sink = sinks.RosTopicSink(context.node, options.status_topic)
+    try:
+        fanout.add(ros_sink)
+        context.coordination = CoordinationHub(context.node, options.hostname, wake_up)
+        registry = bt.NodeRegistry.with_builtins()
+        coordination.register(registry)
+        state = plugins_phase.PluginState(
+            used=document.node_types_used(), builtin_ids=set(registry.node_ids())
+        )
+        missing = _wait_for_node_types(
+            options, document, registry, state, fanout, stop, wake, compat.current_ros_distro()
+        )
+        if stop.event.is_set():
+            _emit(fanout, "finished", root="IDLE", exit_code=128 + stop.signum, tick_count=0)
+            return 128 + stop.signum
+        if missing:
+            _emit(
+                fanout,
+                "error",
+                message="Node types still missing after the wait timeout: " + ", ".join(missing),
+            )
+            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_WAIT_TIMEOUT, tick_count=0)
+            return EXIT_WAIT_TIMEOUT
+        problems = document.validate(registry)
+        if problems:
+            for problem in problems:
+                _emit(fanout, "error", message=str(problem))
+            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+            return EXIT_BAD_INPUT
+        try:
+            tree = document.build(registry, context=context)
+        except bt.BTError as err:
+            _emit(fanout, "error", message=str(err))
+            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+            return EXIT_BAD_INPUT
+        waker["tree"] = tree
+        loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
+        loop.wait_for_components(options.liveness_wait_s, stop.event)
+        return loop.run(stop.event, lambda: 128 + stop.signum)
+    finally:
+        # The ROS sink goes first, while its node still exists, so tools get the final records.
+        fanout.remove(ros_sink)
+        ros_sink.close()
+        context.shutdown()
+
+
+def _wait_for_node_types(
+    options: ExecutorOptions,
+    document: Any,
+    registry: Any,
+    state: plugins_phase.PluginState,
+    fanout: sinks.SinkFanout,
+    stop: _Stop,
+    wake: threading.Event,
+    ros_distro: str,
+) -> list[str]:
+    """Polls the plugin location until nothing is missing, a stop, or the wait timeout; returns missing."""
+    deadline = None if options.wait_timeout_s is None else time.monotonic() + options.wait_timeout_s
+    last_plugins: dict[str, Any] | None = None
+    last_missing: list[str] | None = None
+    state.plugins_ready = None
+    reminded_at = time.monotonic()
+    while True:
+        plugins_phase.refresh(state, registry, options.plugins, ros_distro)
+        plugins_record = state.record()
+        if plugins_record != last_plugins:
+            _emit(fanout, **plugins_record)
+            last_plugins = plugins_record
+        missing = sorted(document.missing_node_types(registry))
+        now = time.monotonic()
+        if missing != last_missing or (missing and now - reminded_at > 10.0):
+            reminded_at = now
+            previous = state.plugins_ready
+            condition = records.plugins_ready_condition(previous, missing, time.time())
+            if missing:
+                _emit(fanout, "waiting", missing=missing)
+            if previous is None or (condition.status, condition.message) != (
+                previous.status,
+                previous.message,
+            ):
+                _emit(fanout, "condition", **condition.as_dict())
+            state.plugins_ready = condition
+            last_missing = missing
+        if not missing or stop.event.is_set():
+            return missing
+        if deadline is not None and now >= deadline:
+            return missing
+        wake.wait(0.5)
+        wake.clear()

@@ -1,0 +1,55 @@
+"""Names and message layouts of the ROS topics the runtime itself uses (not the skillsets' own).
+
+Shared by components (`coral.sdk.component`), the executor's health monitor and the call helpers,
+so both ends agree without importing each other.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+
+# Every component publishes `Heartbeat` records here; executors watch it to detect dead skillsets.
+HEARTBEAT_TOPIC = "/coral/heartbeat"
+HEARTBEAT_PERIOD_S = 0.2
+# A component silent for this long is considered gone (several missed beats, not one slow one).
+HEARTBEAT_TIMEOUT_S = 1.5
+
+# Executors publish `CancelRequest`s here when a behavior is halted with a request in flight.
+CANCEL_TOPIC = "/coral/cancel"
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    component: str
+    kind: str
+    state: str  # "alive" while running, "stopping" once on a clean shutdown
+    pid: int
+
+    def encode(self) -> str:
+        return json.dumps(asdict(self), separators=(",", ":"))
+
+    @classmethod
+    def decode(cls, text: str) -> Heartbeat | None:
+        try:
+            raw = json.loads(text)
+            return cls(str(raw["component"]), str(raw["kind"]), str(raw["state"]), int(raw["pid"]))
+        except (ValueError, KeyError, TypeError):
+            return None
+
+
+@dataclass(frozen=True)
+class CancelRequest:
+    service: str  # fully qualified service name
+    requester: str  # fully qualified node name of the executor that halted the call
+
+    def encode(self) -> str:
+        return json.dumps(asdict(self), separators=(",", ":"))
+
+    @classmethod
+    def decode(cls, text: str) -> CancelRequest | None:
+        try:
+            raw = json.loads(text)
+            return cls(str(raw["service"]), str(raw["requester"]))
+        except (ValueError, KeyError, TypeError):
+            return None

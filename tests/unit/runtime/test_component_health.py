@@ -1,0 +1,48 @@
+"""Heartbeat bookkeeping behind `LibraryDegraded` and fail-fast calls, with an injected clock."""
+
+from __future__ import annotations
+
+from coral.executor.health import HealthMonitor
+from coral.sdk import topics
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _beat(component: str, state: str = "alive") -> topics.Heartbeat:
+    return topics.Heartbeat(component, "skillset", state, 1234)
+
+
+def test_a_never_seen_component_is_not_degraded() -> None:
+    monitor = HealthMonitor(FakeClock(), timeout_s=1.5)
+    assert monitor.failure("examples") is None
+
+
+def test_a_silent_component_is_degraded_after_the_timeout_and_recovers_on_a_beat() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5)
+    monitor.observe(_beat("examples"))
+    clock.now += 1.4
+    assert monitor.degraded(["examples"]) == {}
+    clock.now += 0.2
+    assert monitor.degraded(["examples"]) == {"examples": "no heartbeat for 1.6 s"}
+    monitor.observe(_beat("examples"))
+    assert monitor.failure("examples") is None
+
+
+def test_a_stopping_component_is_degraded_at_once() -> None:
+    monitor = HealthMonitor(FakeClock(), timeout_s=1.5)
+    monitor.observe(_beat("examples", "stopping"))
+    assert monitor.failure("examples") == "it shut down"
+
+
+def test_heartbeats_survive_the_wire_and_garbage_is_ignored() -> None:
+    beat = _beat("examples")
+    assert topics.Heartbeat.decode(beat.encode()) == beat
+    assert topics.Heartbeat.decode("not json") is None
+    assert topics.CancelRequest.decode('{"service": "/a"}') is None
