@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-cluster test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -21,7 +21,11 @@ venv: $(STAMP)
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
-demo: venv control-plane
+demo: venv
+	@$(VENV)/bin/coral slam-demo
+
+# The control-plane tour: robots as kwok Nodes, a pod pinned to one of them.
+demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
 test: venv control-plane
@@ -32,6 +36,11 @@ test: venv control-plane
 
 lint: venv
 	@$(VENV)/bin/ruff check .
+
+# Regenerates crds/ and the chart's CRDs from the pydantic models, then the single-file manifest.
+crds: venv
+	@$(PY) hack/generate-crds.py
+	@$(PY) hack/render-manifest.py
 
 test-kind: venv
 	@command -v kind >/dev/null || { echo "kind is not installed"; exit 1; }

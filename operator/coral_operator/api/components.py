@@ -1,0 +1,103 @@
+"""The component model shared by drivers, skillsets and executors of a CoralSystem.
+
+Used by `api.system` (the user's spec), `api.instance` (the per-robot copy) and
+`planning.pods` (which turns one component into one pod).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from coral_operator.api.base import CamelModel
+
+DNS_LABEL = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"
+Role = Literal["driver", "skillset", "executor"]
+ROLES: tuple[Role, ...] = ("driver", "skillset", "executor")
+Quantity = int | str
+
+
+class EnvVar(CamelModel):
+    """One environment variable set in the component's container."""
+
+    name: str = Field(min_length=1, max_length=253)
+    """Variable name."""
+    value: str = ""
+    """Variable value (literal; parameters belong in the system's parameters file)."""
+
+
+class Resources(CamelModel):
+    """Compute resources of the component's container, as in a pod's container spec."""
+
+    requests: dict[str, Quantity] = Field(default_factory=dict)
+    """Minimum resources, for example `cpu: 250m`, `memory: 256Mi`."""
+    limits: dict[str, Quantity] = Field(default_factory=dict)
+    """Maximum resources, for example `memory: 1Gi`."""
+
+
+class DeviceMount(CamelModel):
+    """A device file of the robot passed into the container (for example a serial port or camera)."""
+
+    host_path: str = Field(pattern=r"^/", max_length=1024)
+    """Absolute path of the device on the robot, for example `/dev/ttyUSB0`."""
+    container_path: str | None = Field(default=None, pattern=r"^/", max_length=1024)
+    """Path inside the container; the host path when omitted."""
+
+
+class HostPathMount(CamelModel):
+    """A folder or file of the robot mounted into the container."""
+
+    host_path: str = Field(pattern=r"^/", max_length=1024)
+    """Absolute path on the robot."""
+    mount_path: str = Field(pattern=r"^/", max_length=1024)
+    """Absolute path inside the container."""
+    read_only: bool = True
+    """Mount read-only (the default) or read-write."""
+
+
+class Readiness(CamelModel):
+    """When the component counts as ready, which gates the next startup stage."""
+
+    exec: list[str] = Field(default_factory=list, max_length=32)
+    """Command run in the container; ready when it exits 0. Empty: see `pluginMarker`."""
+    plugin_marker: bool | None = None
+    """Ready when the component's `ready` marker exists in the plugin folder (default for skillsets)."""
+    initial_delay_seconds: int = Field(default=0, ge=0, le=3600)
+    """Seconds before the first check."""
+    period_seconds: int = Field(default=2, ge=1, le=300)
+    """Seconds between checks."""
+    failure_threshold: int = Field(default=3, ge=1, le=100)
+    """Consecutive failed checks before the component counts as not ready."""
+
+
+class Component(CamelModel):
+    """One containerized Coral component: a driver, a skillset or an executor."""
+
+    name: str = Field(min_length=1, max_length=40, pattern=DNS_LABEL)
+    """Component name, unique within the system; names its pod and its plugin folder."""
+    image: str = Field(min_length=1, max_length=512)
+    """Container image."""
+    image_pull_policy: Literal["Always", "IfNotPresent", "Never"] | None = None
+    """Image pull policy; the cluster default when omitted."""
+    command: list[str] = Field(default_factory=list, max_length=64)
+    """Entrypoint override; the image's entrypoint when empty (executors: `python -m coral.executor`)."""
+    args: list[str] = Field(default_factory=list, max_length=256)
+    """Arguments to the entrypoint."""
+    env: list[EnvVar] = Field(default_factory=list, max_length=128)
+    """Extra environment variables; the ROS and Coral variables are set by the operator."""
+    resources: Resources | None = None
+    """Compute resources of the container."""
+    devices: list[DeviceMount] = Field(default_factory=list, max_length=32)
+    """Robot device files passed into the container."""
+    host_paths: list[HostPathMount] = Field(default_factory=list, max_length=32)
+    """Robot folders or files mounted into the container."""
+    privileged: bool = False
+    """Run the container privileged (root on the robot). Allowed only on drivers, and only where the
+    operator's policy allows it."""
+    run_as_root: bool = False
+    """Run as root; components run as non-root by default."""
+    transient: bool = False
+    """The component may exit 0 and then counts as done (for example a one-shot calibration)."""
+    readiness: Readiness | None = None
+    """When the component counts as ready; running is enough when omitted (skillsets: plugin marker)."""

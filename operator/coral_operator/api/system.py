@@ -1,0 +1,246 @@
+"""The CoralSystem kind: what Coral system runs on which robots (DESIGN section 3).
+
+Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
+`planning.instances`, rendered into the CRD by `api.crdgen`, written by `coral convert`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from coral_operator.api.base import CamelModel
+from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector
+from coral_operator.api.components import Component
+
+MAX_COMPONENTS = 32
+
+ROBOTS_NOT_EMPTY = "robots must select with at least one label or expression"
+SOURCE_EXACTLY_ONE = "set exactly one of inline or configMapRef"
+PRIVILEGED_DRIVERS_ONLY = "privileged is allowed only on drivers"
+UNIQUE_NAMES = "component names must be unique across drivers, skillsets and executors"
+NEEDS_EXECUTOR = "at least one executor is required"
+DOMAIN_RANGE = "ros.domainId must be between 0 and 232"
+
+
+def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
+    entry = {"rule": rule, "message": message}
+    if field_path:
+        entry["fieldPath"] = field_path
+    return entry
+
+
+class RosSpec(CamelModel):
+    """ROS 2 settings shared by every component of the system."""
+
+    model_config = CamelModel.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [
+                _cel("self.domainId >= 0 && self.domainId <= 232", DOMAIN_RANGE, ".domainId")
+            ]
+        }
+    }
+
+    domain_id: int = 0
+    """ROS_DOMAIN_ID of every component (0 to 232; 0 to 101 is safe on every Linux host)."""
+    distro: str = Field(default="jazzy", max_length=32)
+    """ROS 2 distribution the components are built for; mismatched plugins are refused."""
+    rmw_implementation: str = Field(default="rmw_fastrtps_cpp", max_length=64)
+    """RMW_IMPLEMENTATION of every component."""
+    localhost_only: bool = False
+    """Keep DDS discovery on the robot (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)."""
+    network: Literal["Host", "Pod"] = "Host"
+    """`Host` (default, like Coral's compose files): host network and host IPC, so DDS works
+    between components and robots. `Pod`: the pod network."""
+
+    @model_validator(mode="after")
+    def _domain_in_range(self) -> RosSpec:
+        if not 0 <= self.domain_id <= 232:
+            raise ValueError(DOMAIN_RANGE)
+        return self
+
+
+class SourceSpec(CamelModel):
+    """A file given inline or by a ConfigMap key; exactly one of the two."""
+
+    model_config = CamelModel.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [
+                _cel("has(self.inline) != has(self.configMapRef)", SOURCE_EXACTLY_ONE)
+            ]
+        }
+    }
+
+    inline: str | None = Field(default=None, max_length=1048576)
+    """The file's content."""
+    config_map_ref: ConfigMapKeyRef | None = None
+    """A ConfigMap key holding the file's content."""
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> SourceSpec:
+        if (self.inline is None) == (self.config_map_ref is None):
+            raise ValueError(SOURCE_EXACTLY_ONE)
+        return self
+
+
+class TreeSpec(SourceSpec):
+    """The behavior tree: BT.CPP v4 XML, inline or from a ConfigMap."""
+
+    main_tree_id: str | None = Field(default=None, max_length=253)
+    """ID of the tree to run; the document's `main_tree_to_execute` when omitted."""
+    tick_rate_hz: float = Field(default=10.0, gt=0, le=1000)
+    """How often the executor ticks the tree."""
+
+
+class StartupSpec(CamelModel):
+    """Ordered startup: drivers, then skillsets, then executors, each stage gated on readiness."""
+
+    health_timeout_seconds: int = Field(default=120, ge=1, le=86400)
+    """How long a stage may wait for the previous one to become ready."""
+    on_timeout: Literal["Block", "Proceed"] = "Block"
+    """`Block`: keep waiting and say so in the `ComponentsReady` condition. `Proceed`: start the next
+    stage anyway."""
+
+
+class PluginsSpec(CamelModel):
+    """How exported behaviors reach the executors."""
+
+    delivery: Literal["HostPath"] = "HostPath"
+    """`HostPath`: a per-robot shared folder, one per system (the default and only mode for now)."""
+    host_path_root: str = Field(default="/var/lib/coral/plugins", pattern=r"^/", max_length=512)
+    """Folder on each robot under which the operator places `<namespace>/<system>`."""
+    mount_path: str = Field(default="/var/lib/coral/plugins", pattern=r"^/", max_length=512)
+    """Where the plugin folder appears inside every component's container (where Coral's component
+    images export to)."""
+
+
+class CanarySpec(CamelModel):
+    """Robots updated first; they must stay healthy for the hold time before the rest follow."""
+
+    robots: LabelSelector
+    """Selector of the canary robots among the matched ones."""
+    hold_seconds: int = Field(default=300, ge=0, le=86400)
+    """How long the canaries must stay healthy."""
+
+
+class RolloutSpec(CamelModel):
+    """How a spec change spreads over the fleet (DESIGN section 6).
+
+    Every instance records the revision it runs (`spec.revision`); the rollout decides which
+    instances move to the newest revision and when."""
+
+    max_unavailable: int | str = Field(default="25%")
+    """How many robots may be updating at once: a count or a percentage of the matched robots."""
+    canary: CanarySpec | None = None
+    """Robots updated first, as a health check for the rest."""
+    paused: bool = False
+    """Stop moving robots to the new revision."""
+    on_failure: Literal["Pause", "Rollback"] = "Pause"
+    """What a failed health gate does."""
+    interrupt_running_trees: bool = False
+    """Restart a robot whose tree is mid-mission (false: wait until its tree is not running)."""
+    offline_robots: Literal["Skip", "Wait", "CountUnavailable"] = "Skip"
+    """How robots that are offline count during a rollout."""
+
+
+_ALL_NAMES = "(self.drivers.map(c, c.name) + self.skillsets.map(c, c.name) + self.executors.map(c, c.name))"
+
+
+class CoralSystemSpec(CamelModel):
+    """A Coral system (the tree, the components and the ROS parameters) and the robots it runs on."""
+
+    model_config = CamelModel.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [
+                _cel(
+                    "size(self.robots.matchLabels) > 0 || size(self.robots.matchExpressions) > 0",
+                    ROBOTS_NOT_EMPTY,
+                    ".robots",
+                ),
+                _cel(
+                    "self.skillsets.all(c, !c.privileged) && self.executors.all(c, !c.privileged)",
+                    PRIVILEGED_DRIVERS_ONLY,
+                ),
+                _cel(f"{_ALL_NAMES}.all(n, {_ALL_NAMES}.exists_one(m, m == n))", UNIQUE_NAMES),
+                _cel("size(self.executors) > 0", NEEDS_EXECUTOR, ".executors"),
+            ]
+        }
+    }
+
+    robots: LabelSelector
+    """Label selector over robot Nodes (labelled `coral.dev/robot=<name>`): one robot or a fleet."""
+    ros: RosSpec = Field(default_factory=RosSpec)
+    """ROS 2 settings."""
+    parameters: SourceSpec
+    """ROS parameters YAML, inline or from a ConfigMap."""
+    tree: TreeSpec
+    """The behavior tree (BT.CPP v4 XML), inline or from a ConfigMap."""
+    drivers: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    """Hardware (or bag player) components; started first."""
+    skillsets: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    """Components that export behaviors; started when the drivers are ready."""
+    executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    """Components that run the tree; started when the skillsets are ready."""
+    startup: StartupSpec = Field(default_factory=StartupSpec)
+    """Ordered startup settings."""
+    plugins: PluginsSpec = Field(default_factory=PluginsSpec)
+    """Plugin delivery settings."""
+    rollout: RolloutSpec = Field(default_factory=RolloutSpec)
+    """Fleet rollout settings."""
+
+    @model_validator(mode="after")
+    def _rules(self) -> CoralSystemSpec:
+        # The same rules as the CEL validations, so specs built in Python (coral convert,
+        # tests) fail early with the messages the API server would give.
+        if not self.robots.match_labels and not self.robots.match_expressions:
+            raise ValueError(ROBOTS_NOT_EMPTY)
+        if any(c.privileged for c in self.skillsets + self.executors):
+            raise ValueError(PRIVILEGED_DRIVERS_ONLY)
+        names = [c.name for c in self.drivers + self.skillsets + self.executors]
+        if len(names) != len(set(names)):
+            raise ValueError(UNIQUE_NAMES)
+        if not self.executors:
+            raise ValueError(NEEDS_EXECUTOR)
+        return self
+
+
+class RobotCounts(CamelModel):
+    """How many matched robots are in which state."""
+
+    matched: int = 0
+    """Robot Nodes matching the selector."""
+    ready: int = 0
+    """Robots whose CoralInstance is Ready."""
+    updated: int = 0
+    """Robots whose CoralInstance runs the newest revision."""
+    unreachable: int = 0
+    """Robots whose Node is not Ready."""
+
+
+class TreeCounts(CamelModel):
+    """How many robots' trees are in which root state, as reported by their executors."""
+
+    running: int = 0
+    """Trees whose root is RUNNING."""
+    success: int = 0
+    """Trees whose root returned SUCCESS."""
+    failure: int = 0
+    """Trees whose root returned FAILURE."""
+    idle: int = 0
+    """Trees not ticking yet, or with no report."""
+
+
+class CoralSystemStatus(CamelModel):
+    """Observed state of a CoralSystem: conditions and counts, never a per-robot list."""
+
+    observed_generation: int | None = None
+    """The generation this status was computed from."""
+    conditions: list[Condition] = Field(default_factory=list)
+    """Ready, Reconciling, Stalled and RobotsReachable."""
+    revision: str | None = None
+    """Hash of the newest revision of the spec."""
+    robots: RobotCounts = Field(default_factory=RobotCounts)
+    """Robot counts."""
+    trees: TreeCounts = Field(default_factory=TreeCounts)
+    """Tree root states over the robots."""

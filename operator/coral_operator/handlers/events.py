@@ -1,0 +1,44 @@
+"""Kubernetes Events for what a user watching `kubectl describe` should see: objects the operator
+created or deleted and condition transitions. Called by the handlers.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import kopf
+
+# Transitions worth an Event: (type, new status) -> (is a warning, reason).
+_NOTABLE = {
+    ("Ready", "True"): (False, "Ready"),
+    ("Stalled", "True"): (True, "Stalled"),
+    ("RobotReachable", "False"): (True, "RobotUnreachable"),
+    ("RobotReachable", "True"): (False, "RobotReachable"),
+    ("RobotsReachable", "False"): (True, "RobotsUnreachable"),
+    ("TreeHealthy", "False"): (True, "TreeFailed"),
+    ("LibraryDegraded", "True"): (True, "LibraryDegraded"),
+}
+
+
+def info(body: kopf.Body, reason: str, message: str) -> None:
+    # kopf.event, not kopf.info: the posting level (WARNING) keeps kopf's own chatter out, not ours.
+    kopf.event(body, type="Normal", reason=reason, message=message)
+
+
+def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[dict[str, Any]]) -> None:
+    """Post one Event per notable condition whose status or message changed."""
+    before = {c.get("type"): c for c in old}
+    for condition in new:
+        key = (condition["type"], condition["status"])
+        if key not in _NOTABLE:
+            continue
+        previous = before.get(condition["type"])
+        if (
+            previous
+            and previous.get("status") == condition["status"]
+            and previous.get("message") == condition["message"]
+        ):
+            continue
+        warning, reason = _NOTABLE[key]
+        message = condition["message"] or condition["reason"]
+        kopf.event(body, type="Warning" if warning else "Normal", reason=reason, message=message)

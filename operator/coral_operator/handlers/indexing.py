@@ -1,0 +1,44 @@
+"""In-memory indexes of robot Nodes, component pods and CoralInstances, kept by kopf's watches.
+
+The reconcilers read these instead of listing the API on every pass; a pass that runs before
+an index caught up meets 409 on create, which `kube.applying` treats as done.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import kopf
+
+from coral_operator.kube import observing
+from coral_operator.planning import naming
+
+ALL_ROBOTS = "all"
+
+
+@kopf.index("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+def robot_nodes(name: str, labels: kopf.Labels, status: kopf.Status, **_: Any) -> dict[Any, Any]:
+    robot = observing.robot_node(name, labels, status)
+    if robot is None:
+        return {}
+    return {ALL_ROBOTS: robot, ("node", name): robot}
+
+
+@kopf.index("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: Any) -> dict[Any, Any]:
+    return {(namespace, labels[naming.LABEL_INSTANCE]): observing.observed_pod(body)}
+
+
+@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+def coral_instances(namespace: str, spec: kopf.Spec, body: kopf.Body, **_: Any) -> dict[Any, Any]:
+    return {(namespace, spec.get("system", "")): observing.observed_instance(body)}
+
+
+@kopf.index("coral.dev", "v1alpha1", "coralsystems")
+def coral_systems(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
+    return {namespace: (name, dict(spec))}
+
+
+@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+def instances_by_node(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
+    return {spec.get("nodeName", ""): (namespace, name)}

@@ -1,0 +1,224 @@
+"""Reconciles a CoralSystem: validate, choose robots, create/update/delete CoralInstances, report.
+
+One idempotent, level-based pass on every event of the CoralSystem: its own changes, and the
+pokes `handlers.triggers` gives it when its robots, instances or source ConfigMaps change. No
+timers and no change handlers, so kopf puts no finalizer on it. The decisions are made by
+`planning`, the writes by `kube.applying`, the status by `status.system_status`.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Any
+
+import kopf
+from pydantic import ValidationError
+
+from coral_operator import config
+from coral_operator.api.system import CoralSystemSpec, SourceSpec
+from coral_operator.handlers import events, triggers
+from coral_operator.handlers.indexing import ALL_ROBOTS
+from coral_operator.kube import applying
+from coral_operator.planning import configmaps, instances, policy, selection, validation
+from coral_operator.status import system_status
+from coral_operator.status.conditions import Reason
+
+CONFIG = config.from_environment()
+CORAL = ("coral.dev", "v1alpha1", "coralsystems")
+
+
+def _format_validation(error: ValidationError) -> str:
+    parts = []
+    for item in error.errors():
+        where = "spec." + ".".join(str(p) for p in item["loc"]) if item["loc"] else "spec"
+        parts.append(f"{where}: {item['msg']}")
+    return "; ".join(parts)
+
+
+def _read_source(
+    namespace: str, name: str, source: SourceSpec, field: str
+) -> tuple[str, str] | system_status.Problem:
+    """(text, filename for messages) of an inline or ConfigMap file, or why it cannot be read."""
+    if source.inline is not None:
+        return source.inline, f"coralsystem/{name} spec.{field}.inline"
+    ref = source.config_map_ref
+    assert ref is not None  # the model guarantees exactly one of the two
+    text = applying.read_config_map_key(namespace, ref.name, ref.key)
+    if text is None:
+        return system_status.Problem(
+            Reason.CONFIG_MAP_NOT_FOUND,
+            f"spec.{field}.configMapRef: ConfigMap {ref.name} has no key {ref.key}.",
+        )
+    return text, f"configmap/{ref.name}/{ref.key}"
+
+
+def _prepare(name: str, namespace: str, spec: CoralSystemSpec) -> tuple[str, str] | system_status.Problem:
+    """Validated (tree text, parameters text), or the problem that stalls the system."""
+    tree = _read_source(namespace, name, spec.tree, "tree")
+    if isinstance(tree, system_status.Problem):
+        return tree
+    params = _read_source(namespace, name, spec.parameters, "parameters")
+    if isinstance(params, system_status.Problem):
+        return params
+    problems = validation.validate_tree(tree[0], tree[1], spec.tree.main_tree_id)
+    if problems:
+        return system_status.Problem(Reason.INVALID_TREE, "; ".join(problems))
+    problems = validation.validate_parameters(params[0], params[1])
+    if problems:
+        return system_status.Problem(Reason.INVALID_PARAMETERS, "; ".join(problems))
+    denied = policy.evaluate_policy(namespace, spec, CONFIG.policy)
+    if denied:
+        return system_status.Problem(
+            Reason.POLICY_DENIED, "Refused by the operator's policy: " + "; ".join(denied)
+        )
+    return tree[0], params[0]
+
+
+def _names(names: list[str]) -> str:
+    shown = ", ".join(names[:10])
+    return shown + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+
+
+def _apply_plan(body: kopf.Body, namespace: str, plan: instances.InstancePlan) -> None:
+    # One Event per kind of change and pass, not per robot: a fleet has thousands of them.
+    created = [
+        m["metadata"]["name"]
+        for m, new in zip(
+            plan.create, applying.in_parallel(applying.create_instance, plan.create), strict=True
+        )
+        if new
+    ]
+    if created:
+        events.info(body, "InstancesCreated", f"Created {len(created)} CoralInstances: {_names(created)}")
+    applying.in_parallel(applying.update_instance, plan.update)
+    if plan.update:
+        revision = plan.update[0]["spec"]["revision"]
+        updated = [m["metadata"]["name"] for m in plan.update]
+        events.info(
+            body,
+            "InstancesUpdated",
+            f"Moved {len(updated)} CoralInstances to revision {revision}: {_names(updated)}",
+        )
+    applying.in_parallel(lambda name: applying.retire_instance(namespace, name), plan.retire)
+    if plan.retire:
+        events.info(
+            body, "InstancesRetiring", f"Stopping in reverse order, their robots left: {_names(plan.retire)}"
+        )
+    applying.in_parallel(lambda name: applying.delete_instance(namespace, name), plan.delete)
+    if plan.delete:
+        events.info(
+            body, "InstancesDeleted", f"Deleted CoralInstances whose robots left: {_names(plan.delete)}"
+        )
+
+
+@kopf.on.event(*CORAL)
+def reconcile_system(
+    type: str | None, uid: str, name: str, namespace: str, meta: kopf.Meta, **kwargs: Any
+) -> None:
+    """Reconcile on the system's own changes and on pokes; its own status writes change nothing."""
+    if type == "DELETED":
+        triggers.forget(uid)
+        return
+    inputs = (meta.get("generation"), (meta.get("annotations") or {}).get(triggers.ANNOTATION))
+    if triggers.already_handled(uid, inputs):
+        return
+    try:
+        _reconcile_system(name=name, namespace=namespace, uid=uid, meta=meta, **kwargs)
+    except Exception:
+        triggers.retry_later("coralsystems", namespace, name, uid)
+        raise
+    triggers.handled(uid, inputs)
+
+
+def _reconcile_system(
+    name: str,
+    namespace: str,
+    uid: str,
+    spec: kopf.Spec,
+    status: kopf.Status,
+    meta: kopf.Meta,
+    body: kopf.Body,
+    patch: kopf.Patch,
+    robot_nodes: kopf.Index,
+    coral_instances: kopf.Index,
+    **_: Any,
+) -> None:
+    now = datetime.now(UTC)
+    observed = list(coral_instances.get((namespace, name), []))
+    problem: system_status.Problem | None = None
+    matched = len(observed)
+    revision = status.get("revision")
+    try:
+        parsed = CoralSystemSpec.model_validate(dict(spec))
+    except ValidationError as error:
+        parsed = None
+        problem = system_status.Problem(Reason.INVALID_SPEC, _format_validation(error))
+    if parsed is not None:
+        prepared = _prepare(name, namespace, parsed)
+        if isinstance(prepared, system_status.Problem):
+            problem = prepared
+        else:
+            problem, matched, revision = (
+                None,
+                *_deploy(body, name, namespace, uid, parsed, prepared, observed, robot_nodes),
+            )
+    # Instances stopping because their robot left are no longer part of the system's counts.
+    counted = [instance for instance in observed if not instance.spec.get("retiring")]
+    view = system_status.SystemView(matched=matched, instances=counted, revision=revision, problem=problem)
+    new = system_status.build_system_status(
+        view, old_conditions=list(status.get("conditions") or []), generation=meta.get("generation"), now=now
+    )
+    events.on_condition_changes(body, list(status.get("conditions") or []), new["conditions"])
+    for key, value in new.items():
+        if status.get(key) != value:
+            patch.status[key] = value
+
+
+def _deploy(
+    body: kopf.Body,
+    name: str,
+    namespace: str,
+    uid: str,
+    spec: CoralSystemSpec,
+    files: tuple[str, str],
+    observed: list[Any],
+    robot_nodes: kopf.Index,
+) -> tuple[int, str]:
+    """Make the instances match the robots; returns (matched robots, newest revision)."""
+    tree_cm = configmaps.build_config_map(
+        system=name, namespace=namespace, system_uid=uid, kind="tree", key=configmaps.TREE_KEY, text=files[0]
+    )
+    params_cm = configmaps.build_config_map(
+        system=name,
+        namespace=namespace,
+        system_uid=uid,
+        kind="params",
+        key=configmaps.PARAMS_KEY,
+        text=files[1],
+    )
+    template = instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"])
+    revision = instances.revision_of(template)
+    robots = selection.select_robots(spec.robots, robot_nodes.get(ALL_ROBOTS, []))
+    desired = [
+        instances.build_instance(
+            system=name, namespace=namespace, system_uid=uid, robot=robot, template=template
+        )
+        for robot in robots
+    ]
+    reachable = {node.node_name for node in robot_nodes.get(ALL_ROBOTS, []) if node.ready}
+    plan = instances.plan_instances(desired, observed, reachable)
+    if plan.empty:
+        return len(robots), revision
+    # ConfigMaps first: an instance must never point at a file that does not exist yet.
+    applying.create_config_map(tree_cm)
+    applying.create_config_map(params_cm)
+    _apply_plan(body, namespace, plan)
+    in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}
+    for instance in observed:
+        in_use.add((instance.spec.get("tree") or {}).get("configMap", ""))
+        in_use.add((instance.spec.get("parameters") or {}).get("configMap", ""))
+    for stale in configmaps.plan_config_map_cleanup(
+        applying.list_system_config_maps(namespace, name), in_use
+    ):
+        applying.delete_config_map(namespace, stale)
+    return len(robots), revision

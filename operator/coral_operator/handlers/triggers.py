@@ -1,0 +1,165 @@
+"""Makes a CoralSystem or CoralInstance reconcile when something it depends on changes.
+
+The reconcilers run on every event of their own object (`on.event`, so kopf adds no finalizer).
+What they depend on but do not own (pods, robot Nodes, instances, source ConfigMaps, the clock)
+reaches them as a "poke": the `coral.dev/observed` annotation set to a digest of what changed,
+written only when the digest differs, so one pod transition costs one small patch.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from datetime import datetime
+from typing import Any
+
+import kopf
+
+from coral_operator.api.common import LabelSelector
+from coral_operator.kube import applying
+from coral_operator.planning import naming, selection
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+
+ANNOTATION = "coral.dev/observed"
+_lock = threading.Lock()
+_poked: dict[tuple[str, str, str], str] = {}
+_nodes: dict[str, tuple[Any, ...]] = {}
+_wakeups: set[tuple[str, str, str]] = set()
+_wakeups: set[tuple[str, str, str]] = set()
+
+
+def poke(plural: str, namespace: str, name: str, digest: str) -> None:
+    """Set the object's observed-digest annotation unless this process already set that value."""
+    key = (plural, namespace, name)
+    with _lock:
+        if _poked.get(key) == digest:
+            return
+    applying.annotate(plural, namespace, name, {ANNOTATION: digest})
+    with _lock:
+        _poked[key] = digest
+
+
+_handled: dict[str, tuple[Any, ...]] = {}
+
+
+def already_handled(uid: str, inputs: tuple[Any, ...]) -> bool:
+    """Whether the object was reconciled from exactly these inputs; its own status writes are not inputs."""
+    with _lock:
+        return _handled.get(uid) == inputs
+
+
+def handled(uid: str, inputs: tuple[Any, ...]) -> None:
+    with _lock:
+        _handled[uid] = inputs
+
+
+def forget(uid: str) -> None:
+    with _lock:
+        _handled.pop(uid, None)
+
+
+def retry_later(plural: str, namespace: str, name: str, uid: str, delay_s: float = 5.0) -> None:
+    """After a failed pass (an API error, say), poke the object again so the pass is retried."""
+    forget(uid)
+    digest = f"retry-{time.monotonic_ns()}"
+    timer = threading.Timer(delay_s, poke, args=(plural, namespace, name, digest))
+    timer.daemon = True
+    timer.start()
+
+
+def _pods_digest(pods: list[ObservedPod]) -> str:
+    return naming.content_hash(
+        sorted((p.name, p.phase, p.ready, p.deleting, p.pod_hash, p.restarts) for p in pods)
+    )
+
+
+@kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+def poke_instance_on_pod_change(
+    namespace: str, labels: kopf.Labels, coral_pods: kopf.Index, **_: Any
+) -> None:
+    instance = labels[naming.LABEL_INSTANCE]
+    poke(
+        "coralinstances",
+        namespace,
+        instance,
+        "pods-" + _pods_digest(list(coral_pods.get((namespace, instance), []))),
+    )
+
+
+def _selected_digest(spec: dict[str, Any], robots: list[RobotNode]) -> str | None:
+    try:
+        selector = LabelSelector.model_validate(spec.get("robots") or {})
+    except ValueError:
+        return None
+    chosen = selection.select_robots(selector, robots)
+    return naming.content_hash([(r.robot, r.node_name, r.ready) for r in chosen])
+
+
+@kopf.on.event("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+def poke_on_robot_change(
+    type: str | None,
+    name: str,
+    labels: kopf.Labels,
+    robot_nodes: kopf.Index,
+    coral_systems: kopf.Index,
+    instances_by_node: kopf.Index,
+    **_: Any,
+) -> None:
+    robot = next(iter(robot_nodes.get(("node", name), [])), None)
+    summary = (
+        ("gone",) if type == "DELETED" or robot is None else (tuple(sorted(labels.items())), robot.ready)
+    )
+    with _lock:
+        # Heartbeats change a Node every few seconds; only labels and readiness matter here.
+        if _nodes.get(name) == summary:
+            return
+        _nodes[name] = summary
+    for namespace, node_name in [(k, n) for k in coral_systems for n in coral_systems[k]]:
+        digest = _selected_digest(node_name[1], list(robot_nodes.get("all", [])))
+        if digest is not None:
+            poke("coralsystems", namespace, node_name[0], "robots-" + digest)
+    for namespace, instance in instances_by_node.get(name, []):
+        poke("coralinstances", namespace, instance, "node-" + naming.content_hash(summary))
+
+
+def _instances_digest(instances: list[ObservedInstance]) -> str:
+    return naming.content_hash(
+        sorted(
+            (i.name, i.revision, i.ready, i.reachable, i.tree_root, bool(i.spec.get("retiring")))
+            for i in instances
+        )
+    )
+
+
+@kopf.on.event("coral.dev", "v1alpha1", "coralinstances")
+def poke_system_on_instance_change(
+    namespace: str, spec: kopf.Spec, coral_instances: kopf.Index, **_: Any
+) -> None:
+    system = spec.get("system")
+    if system:
+        observed = list(coral_instances.get((namespace, system), []))
+        poke("coralsystems", namespace, system, "instances-" + _instances_digest(observed))
+
+
+@kopf.on.event("configmaps")
+def poke_systems_on_source_change(
+    type: str | None, namespace: str, name: str, body: kopf.Body, coral_systems: kopf.Index, **_: Any
+) -> None:
+    for system, spec in coral_systems.get(namespace, []):
+        refs = [((spec.get(f) or {}).get("configMapRef") or {}).get("name") for f in ("tree", "parameters")]
+        if name in refs:
+            digest = naming.content_hash([type == "DELETED", body.get("data")])
+            poke("coralsystems", namespace, system, f"configmap-{name}-{digest}")
+
+
+def wake_instance_at(namespace: str, name: str, when: datetime, now: datetime) -> None:
+    """Reconcile the instance again when a startup stage's health timeout falls due."""
+    key = (namespace, name, when.isoformat())
+    with _lock:
+        if key in _wakeups:
+            return
+        _wakeups.add(key)
+    delay = max((when - now).total_seconds(), 0.0) + 0.5
+    timer = threading.Timer(delay, poke, args=("coralinstances", namespace, name, f"clock-{key[2]}"))
+    timer.daemon = True
+    timer.start()

@@ -1,0 +1,197 @@
+"""Writes to the API: create-if-absent, patch-when-changed and delete, all idempotent.
+
+A 409 on create means an earlier pass (or an operator before a restart) already made the object;
+a 404 on delete means it is already gone. Called by the handlers only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
+
+from kubernetes.client.exceptions import ApiException
+
+from coral_operator.api.base import GROUP, VERSION
+from coral_operator.kube import client
+from coral_operator.planning import naming
+
+T = TypeVar("T")
+R = TypeVar("R")
+# API calls wait on the network, so a fleet's worth of them overlap instead of queueing.
+_POOL = ThreadPoolExecutor(max_workers=8, thread_name_prefix="coral-api")
+
+
+def in_parallel(call: Callable[[T], R], items: Iterable[T]) -> list[R]:
+    """`call` on every item, a few at a time; results in item order; the first error is raised."""
+    return list(_POOL.map(call, list(items)))
+
+
+def _ignore(error: ApiException, *codes: int) -> None:
+    if error.status not in codes:
+        raise error
+
+
+def create_pod(manifest: dict[str, Any]) -> bool:
+    """Create a pod; False when it already existed."""
+    try:
+        client.core().create_namespaced_pod(manifest["metadata"]["namespace"], manifest)
+    except ApiException as error:
+        _ignore(error, 409)
+        return False
+    return True
+
+
+def delete_pod(namespace: str, name: str) -> None:
+    try:
+        client.core().delete_namespaced_pod(name, namespace)
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def patch_pod_labels(namespace: str, name: str, labels: dict[str, str]) -> None:
+    try:
+        client.core().patch_namespaced_pod(
+            name, namespace, {"metadata": {"labels": labels}}, _content_type="application/merge-patch+json"
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def create_config_map(manifest: dict[str, Any]) -> None:
+    """Create an immutable ConfigMap unless it exists (its name is its content hash)."""
+    try:
+        client.core().create_namespaced_config_map(manifest["metadata"]["namespace"], manifest)
+    except ApiException as error:
+        _ignore(error, 409)
+
+
+def delete_config_map(namespace: str, name: str) -> None:
+    try:
+        client.core().delete_namespaced_config_map(name, namespace)
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def apply_rbac(objects: list[dict[str, Any]]) -> None:
+    """Create the executor's ServiceAccount, Role and RoleBinding unless they exist."""
+    for manifest in objects:
+        namespace = manifest["metadata"]["namespace"]
+        try:
+            if manifest["kind"] == "ServiceAccount":
+                client.core().create_namespaced_service_account(namespace, manifest)
+            elif manifest["kind"] == "Role":
+                client.rbac().create_namespaced_role(namespace, manifest)
+            else:
+                client.rbac().create_namespaced_role_binding(namespace, manifest)
+        except ApiException as error:
+            _ignore(error, 409)
+
+
+def create_instance(manifest: dict[str, Any]) -> bool:
+    try:
+        client.custom().create_namespaced_custom_object(
+            GROUP, VERSION, manifest["metadata"]["namespace"], "coralinstances", manifest
+        )
+    except ApiException as error:
+        _ignore(error, 409)
+        return False
+    return True
+
+
+def update_instance(manifest: dict[str, Any]) -> None:
+    """Replace an instance's spec and labels (a JSON merge patch would keep removed list items)."""
+    body = [
+        {"op": "replace", "path": "/spec", "value": manifest["spec"]},
+        {"op": "replace", "path": "/metadata/labels", "value": manifest["metadata"]["labels"]},
+    ]
+    try:
+        client.custom().patch_namespaced_custom_object(
+            GROUP,
+            VERSION,
+            manifest["metadata"]["namespace"],
+            "coralinstances",
+            manifest["metadata"]["name"],
+            body,
+            _content_type="application/json-patch+json",
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def retire_instance(namespace: str, name: str) -> None:
+    """Ask an instance to stop its components in reverse order and then remove itself."""
+    try:
+        client.custom().patch_namespaced_custom_object(
+            GROUP,
+            VERSION,
+            namespace,
+            "coralinstances",
+            name,
+            {"spec": {"retiring": True}},
+            _content_type="application/merge-patch+json",
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def annotate(plural: str, namespace: str, name: str, annotations: dict[str, str]) -> None:
+    """Merge annotations into a coral.dev object (the triggers' way to make kopf reconcile it)."""
+    try:
+        client.custom().patch_namespaced_custom_object(
+            GROUP,
+            VERSION,
+            namespace,
+            plural,
+            name,
+            {"metadata": {"annotations": annotations}},
+            _content_type="application/merge-patch+json",
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def delete_instance(namespace: str, name: str) -> None:
+    try:
+        client.custom().delete_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances", name)
+    except ApiException as error:
+        _ignore(error, 404)
+
+
+def coral_api_served(namespaces: list[str]) -> str | None:
+    """None when both kinds can be listed where the operator serves, else what is not served yet.
+
+    A CRD created a moment ago answers 404 or 429 ("storage is (re)initializing") for a while.
+    """
+    api = client.custom()
+    for plural in ("coralsystems", "coralinstances"):
+        for namespace in namespaces or [None]:
+            try:
+                if namespace is None:
+                    api.list_cluster_custom_object(GROUP, VERSION, plural, limit=1)
+                else:
+                    api.list_namespaced_custom_object(GROUP, VERSION, namespace, plural, limit=1)
+            except ApiException as error:
+                if error.status in (404, 429, 503):
+                    return f"{plural}.{GROUP} answers {error.status} ({error.reason})"
+                raise
+    return None
+
+
+def read_config_map_key(namespace: str, name: str, key: str) -> str | None:
+    """The text under `key`, or None when the ConfigMap or the key is missing."""
+    try:
+        config_map = client.core().read_namespaced_config_map(name, namespace)
+    except ApiException as error:
+        _ignore(error, 404)
+        return None
+    return (config_map.data or {}).get(key)
+
+
+def list_system_config_maps(namespace: str, system: str) -> list[str]:
+    """Names of the revision ConfigMaps the operator made for one system."""
+    selector = (
+        f"{naming.LABEL_SYSTEM}={naming.label_value(system)},{naming.LABEL_MANAGED_BY}={naming.MANAGER}"
+    )
+    items = client.core().list_namespaced_config_map(namespace, label_selector=selector).items
+    return [item.metadata.name for item in items]

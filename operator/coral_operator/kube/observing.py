@@ -1,0 +1,88 @@
+"""Turns API bodies (nodes, pods, CoralInstances) into the plain records planning reads.
+
+Called by the kopf indexers in `handlers.indexing`; no API calls, but it knows API shapes, so
+it lives beside the client.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from datetime import datetime
+from typing import Any
+
+from coral_operator.planning import naming
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+
+
+def parse_time(text: str | None) -> datetime | None:
+    if not text:
+        return None
+    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+
+
+def _condition(conditions: list[Mapping[str, Any]] | None, ctype: str) -> Mapping[str, Any] | None:
+    for condition in conditions or []:
+        if condition.get("type") == ctype:
+            return condition
+    return None
+
+
+def robot_node(name: str, labels: Mapping[str, str], status: Mapping[str, Any]) -> RobotNode | None:
+    """A robot record for a Node labelled `coral.dev/robot`, else None."""
+    robot = labels.get(naming.LABEL_ROBOT)
+    if not robot:
+        return None
+    ready = _condition(status.get("conditions"), "Ready")
+    return RobotNode(
+        node_name=name,
+        robot=robot,
+        labels=dict(labels),
+        ready=bool(ready and ready.get("status") == "True"),
+        last_seen=parse_time((ready or {}).get("lastHeartbeatTime")),
+    )
+
+
+def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
+    """A component pod record."""
+    metadata = body.get("metadata", {})
+    labels = metadata.get("labels") or {}
+    status = body.get("status") or {}
+    statuses = status.get("containerStatuses") or []
+    ready = _condition(status.get("conditions"), "Ready")
+    waiting_reasons = {((s.get("state") or {}).get("waiting") or {}).get("reason") for s in statuses}
+    return ObservedPod(
+        name=metadata.get("name", ""),
+        component=labels.get(naming.LABEL_COMPONENT, ""),
+        role=labels.get(naming.LABEL_ROLE, ""),
+        revision=labels.get(naming.LABEL_REVISION, ""),
+        pod_hash=(metadata.get("annotations") or {}).get(naming.ANNOTATION_POD_HASH, ""),
+        phase=status.get("phase") or "Pending",
+        ready=bool(ready and ready.get("status") == "True"),
+        created=parse_time(metadata.get("creationTimestamp")),
+        deleting=bool(metadata.get("deletionTimestamp")),
+        restarts=sum(int(s.get("restartCount") or 0) for s in statuses),
+        crash_looping="CrashLoopBackOff" in waiting_reasons,
+    )
+
+
+def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
+    """A CoralInstance record as its system sees it."""
+    metadata = body.get("metadata", {})
+    spec = dict(body.get("spec") or {})
+    status = body.get("status") or {}
+    ready = _condition(status.get("conditions"), "Ready")
+    robot = status.get("robot") or {}
+    return ObservedInstance(
+        name=metadata.get("name", ""),
+        robot=spec.get("robot", ""),
+        spec=spec,
+        revision=spec.get("revision", ""),
+        ready=bool(
+            ready
+            and ready.get("status") == "True"
+            and ready.get("observedGeneration") == metadata.get("generation")
+        ),
+        reachable=robot.get("reachable"),
+        tree_root=(status.get("tree") or {}).get("rootStatus"),
+        labels=dict(metadata.get("labels") or {}),
+    )

@@ -1,0 +1,49 @@
+"""Immutable ConfigMaps holding the validated tree and parameters of one revision.
+
+Named by content hash, so a revision keeps pointing at exactly what was validated: editing a
+source ConfigMap into something broken never changes what robots run. Pure; called by the system
+handler, applied by `kube.applying`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from coral_operator.api.base import API_VERSION
+from coral_operator.planning import naming
+
+TREE_KEY = "tree.xml"
+PARAMS_KEY = "params.yaml"
+
+
+def build_config_map(
+    *,
+    system: str,
+    namespace: str,
+    system_uid: str,
+    kind: str,
+    key: str,
+    text: str,
+) -> dict[str, Any]:
+    """The ConfigMap manifest of one validated file (`kind` is `tree` or `params`)."""
+    digest = naming.content_hash({key: text})
+    return {
+        "apiVersion": "v1",
+        "kind": "ConfigMap",
+        "metadata": {
+            "name": naming.config_map_name(system, kind, digest),
+            "namespace": namespace,
+            "labels": {
+                naming.LABEL_SYSTEM: naming.label_value(system),
+                naming.LABEL_MANAGED_BY: naming.MANAGER,
+            },
+            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)],
+        },
+        "immutable": True,
+        "data": {key: text},
+    }
+
+
+def plan_config_map_cleanup(existing: list[str], in_use: set[str]) -> list[str]:
+    """ConfigMaps no instance and no current revision uses any more, to delete."""
+    return sorted(name for name in existing if name not in in_use)

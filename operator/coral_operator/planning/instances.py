@@ -1,0 +1,132 @@
+"""From a CoralSystem and its matched robots to the CoralInstances that should exist.
+
+`build_instance_spec` freezes one revision of the system for one robot; `plan_instances` compares
+desired and existing instances. Pure; called by the system handler. Fleet rollouts (which
+instances move to a new revision, and when) plug in between the two without changing them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from coral_operator.api.base import API_VERSION
+from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.planning import naming
+from coral_operator.planning.observed import ObservedInstance, RobotNode
+
+
+def build_template(spec: CoralSystemSpec, tree_config_map: str, params_config_map: str) -> dict[str, Any]:
+    """What every robot of the revision runs, without the robot-specific fields (wire format)."""
+    return {
+        "ros": spec.ros.to_wire(),
+        "parameters": ConfigRef(config_map=params_config_map).to_wire(),
+        "tree": InstanceTree(
+            config_map=tree_config_map,
+            main_tree_id=spec.tree.main_tree_id,
+            tick_rate_hz=spec.tree.tick_rate_hz,
+        ).to_wire(),
+        "drivers": [c.to_wire() for c in spec.drivers],
+        "skillsets": [c.to_wire() for c in spec.skillsets],
+        "executors": [c.to_wire() for c in spec.executors],
+        "startup": spec.startup.to_wire(),
+        "plugins": spec.plugins.to_wire(),
+    }
+
+
+def revision_of(template: dict[str, Any]) -> str:
+    """The revision hash of a template; equal templates give equal revisions."""
+    return naming.content_hash(template)
+
+
+def build_instance_spec(system: str, robot: RobotNode, template: dict[str, Any]) -> dict[str, Any]:
+    """The CoralInstance spec of one robot at the template's revision (validated by the model)."""
+    wire = {
+        "system": system,
+        "robot": robot.robot,
+        "nodeName": robot.node_name,
+        "revision": revision_of(template),
+        **template,
+    }
+    return CoralInstanceSpec.model_validate(wire).to_wire()
+
+
+def build_instance(
+    *,
+    system: str,
+    namespace: str,
+    system_uid: str,
+    robot: RobotNode,
+    template: dict[str, Any],
+) -> dict[str, Any]:
+    """The full CoralInstance manifest, owned by its CoralSystem."""
+    return {
+        "apiVersion": API_VERSION,
+        "kind": "CoralInstance",
+        "metadata": {
+            "name": naming.instance_name(system, robot.robot),
+            "namespace": namespace,
+            "labels": naming.instance_labels(system, robot.robot),
+            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)],
+        },
+        "spec": build_instance_spec(system, robot, template),
+    }
+
+
+@dataclass
+class InstancePlan:
+    """What to do with CoralInstances; each list holds manifests or names."""
+
+    create: list[dict[str, Any]] = field(default_factory=list)
+    update: list[dict[str, Any]] = field(default_factory=list)
+    retire: list[str] = field(default_factory=list)
+    """Instances whose robot left the selector but is reachable: they stop in reverse order first."""
+    delete: list[str] = field(default_factory=list)
+    """Instances to delete now (their robot is gone or unreachable, so nothing could stop in order)."""
+
+    @property
+    def empty(self) -> bool:
+        return not (self.create or self.update or self.retire or self.delete)
+
+
+def _normalized(spec: dict[str, Any]) -> dict[str, Any] | None:
+    # The API server stores defaults and may render 10.0 as 10; compare model to model.
+    try:
+        return CoralInstanceSpec.model_validate(spec).to_wire()
+    except ValueError:
+        return None
+
+
+def plan_instances(
+    desired: list[dict[str, Any]], existing: list[ObservedInstance], reachable_nodes: set[str] | None = None
+) -> InstancePlan:
+    """Create the missing, update the changed, retire or delete those whose robot left the selector.
+
+    Args:
+        desired: instance manifests for the matched robots.
+        existing: the system's instances as observed.
+        reachable_nodes: Nodes that are Ready; a leaving robot among them is retired (its
+            components stop executors first, drivers last), any other is deleted at once.
+    """
+    plan = InstancePlan()
+    by_name = {instance.name: instance for instance in existing}
+    wanted = set()
+    for manifest in desired:
+        name = manifest["metadata"]["name"]
+        wanted.add(name)
+        current = by_name.get(name)
+        if current is None:
+            plan.create.append(manifest)
+        elif (
+            _normalized(current.spec) != manifest["spec"] or current.labels != manifest["metadata"]["labels"]
+        ):
+            plan.update.append(manifest)
+    for name in sorted(set(by_name) - wanted):
+        instance = by_name[name]
+        if instance.spec.get("nodeName") in (reachable_nodes or set()):
+            if not instance.spec.get("retiring"):
+                plan.retire.append(name)
+        else:
+            plan.delete.append(name)
+    return plan

@@ -1,0 +1,98 @@
+"""Names, labels and content hashes of everything the operator creates.
+
+One module so the handlers, the planners, the sink and the tests agree on every name. Pure.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from typing import Any
+
+from coral_operator.api.components import Role
+
+GROUP = "coral.dev"
+LABEL_ROBOT = "coral.dev/robot"
+LABEL_SYSTEM = "coral.dev/system"
+LABEL_INSTANCE = "coral.dev/instance"
+LABEL_COMPONENT = "coral.dev/component"
+LABEL_ROLE = "coral.dev/role"
+LABEL_REVISION = "coral.dev/revision"
+LABEL_MANAGED_BY = "app.kubernetes.io/managed-by"
+MANAGER = "coral-operator"
+ANNOTATION_POD_HASH = "coral.dev/pod-hash"
+FIELD_MANAGER = "coral-operator"
+
+_MAX_LABEL = 63
+
+
+def content_hash(value: Any, length: int = 10) -> str:
+    """A short, stable hash of any JSON-ready value."""
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+def dns_label(text: str, max_length: int = _MAX_LABEL) -> str:
+    """`text` as a DNS-1123 label; too long or rewritten names get a hash suffix so they stay unique."""
+    cleaned = re.sub(r"[^a-z0-9-]+", "-", text.lower()).strip("-") or "x"
+    if cleaned == text and len(cleaned) <= max_length:
+        return cleaned
+    suffix = content_hash(text, 8)
+    return f"{cleaned[: max_length - 9].rstrip('-')}-{suffix}"
+
+
+def label_value(text: str) -> str:
+    """`text` usable as a label value (at most 63 characters)."""
+    if len(text) <= _MAX_LABEL:
+        return text
+    return f"{text[:54].rstrip('-._')}-{content_hash(text, 8)}"
+
+
+def instance_name(system: str, robot: str) -> str:
+    """CoralInstance of `robot` for `system`; short enough to be a label value."""
+    return dns_label(f"{system}-{robot}")
+
+
+def pod_name(instance: str, component: str) -> str:
+    """Pod of one component on one robot; stable, so a restarted operator finds it again."""
+    return f"{instance}-{component}"
+
+
+def executor_account_name(instance: str) -> str:
+    """ServiceAccount (and Role, RoleBinding) of the executors of one robot."""
+    return f"{instance}-executor"
+
+
+def config_map_name(system: str, kind: str, digest: str) -> str:
+    """Immutable ConfigMap holding one validated file (`tree` or `params`), named by content."""
+    return f"{dns_label(system, 200)}-{kind}-{digest}"
+
+
+def instance_labels(system: str, robot: str) -> dict[str, str]:
+    """Labels of a CoralInstance (curated, never copied from the parent)."""
+    return {
+        LABEL_SYSTEM: label_value(system),
+        LABEL_ROBOT: label_value(robot),
+        LABEL_MANAGED_BY: MANAGER,
+    }
+
+
+def pod_labels(
+    system: str, robot: str, instance: str, component: str, role: Role, revision: str
+) -> dict[str, str]:
+    """Labels of a component pod."""
+    return {
+        LABEL_SYSTEM: label_value(system),
+        LABEL_ROBOT: label_value(robot),
+        LABEL_INSTANCE: instance,
+        LABEL_COMPONENT: component,
+        LABEL_ROLE: role,
+        LABEL_REVISION: revision,
+        LABEL_MANAGED_BY: MANAGER,
+    }
+
+
+def owner_reference(api_version: str, kind: str, name: str, uid: str) -> dict[str, Any]:
+    """A controller owner reference, so deleting the owner deletes the object (garbage collection)."""
+    return {"apiVersion": api_version, "kind": kind, "name": name, "uid": uid, "controller": True}

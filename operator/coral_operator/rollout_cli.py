@@ -1,0 +1,89 @@
+"""`coral rollout status|pause|resume|undo`: watch and steer a CoralSystem's fleet rollout.
+
+Thin verbs over `rollout_control`, which reads `status.rollout` and writes what the operator
+reads: `spec.rollout.paused` (pause, resume), the removal of a recorded health-gate failure
+(resume) and the `coral.dev/rollout-undo` annotation (undo). Loaded lazily by `coral.cli`.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import time
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from coral_operator import rollout_control
+
+
+def _target(function: Callable[..., None]) -> Callable[..., None]:
+    """SYSTEM and --namespace, and rollout errors shown as clean CLI errors."""
+
+    @functools.wraps(function)
+    def run(*args: Any, **kwargs: Any) -> None:
+        try:
+            function(*args, **kwargs)
+        except rollout_control.RolloutError as error:
+            raise click.ClickException(str(error)) from error
+
+    run = click.option("-n", "--namespace", default="default", show_default=True)(run)
+    return click.argument("system")(run)
+
+
+@click.group()
+def rollout() -> None:
+    """Watch and steer the rollout of a CoralSystem over its robots."""
+
+
+@rollout.command("status")
+@_target
+@click.option("-w", "--watch", is_flag=True, help="Print again on every change until the rollout completes.")
+@click.option("--timeout", default=600.0, show_default=True, help="Seconds to watch at most.")
+@click.option("-o", "--output", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def status_command(system: str, namespace: str, watch: bool, timeout: float, output: str) -> None:
+    """Show where the rollout stands (revision, counts, canaries, failure, what it waits for)."""
+    control = rollout_control.RolloutControl.from_kubeconfig(namespace)
+    deadline = time.monotonic() + timeout
+    last = None
+    while True:
+        body = control.read(system)
+        text = (
+            json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
+            if output == "json"
+            else rollout_control.describe(body)
+        )
+        if text != last:
+            click.echo(text)
+            last = text
+        done = rollout_control.finished(body)
+        if not watch or done:
+            return
+        if time.monotonic() > deadline:
+            raise click.ClickException(f"the rollout of {system} did not complete within {timeout:g} s")
+        time.sleep(1.0)
+
+
+@rollout.command("pause")
+@_target
+def pause_command(system: str, namespace: str) -> None:
+    """Stop moving robots to the new revision (sets spec.rollout.paused)."""
+    rollout_control.RolloutControl.from_kubeconfig(namespace).pause(system)
+    click.echo(f"coralsystem/{system} rollout paused")
+
+
+@rollout.command("resume")
+@_target
+def resume_command(system: str, namespace: str) -> None:
+    """Resume a paused rollout, also after a health-gate failure paused it."""
+    rollout_control.RolloutControl.from_kubeconfig(namespace).resume(system)
+    click.echo(f"coralsystem/{system} rollout resumed")
+
+
+@rollout.command("undo")
+@_target
+def undo_command(system: str, namespace: str) -> None:
+    """Return every robot to the previous revision (until the spec changes again)."""
+    revision = rollout_control.RolloutControl.from_kubeconfig(namespace).undo(system)
+    click.echo(f"coralsystem/{system} rolling back from revision {revision}")

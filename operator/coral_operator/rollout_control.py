@@ -1,0 +1,127 @@
+"""What `coral rollout` does to a CoralSystem, as a small library (also used by tests and tooling).
+
+Pause and resume set `spec.rollout.paused`, as `kubectl rollout pause` does for a Deployment.
+Resume also removes `status.rollout.failure`, the operator's record of a failed health gate, so the
+operator judges the robots afresh. Undo sets the `coral.dev/rollout-undo` annotation to the
+revision to roll back from; the operator then targets the revision before it until the spec makes a
+newer one. `describe` renders `status.rollout` for humans.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from kubernetes import client as k8s
+from kubernetes import config as k8s_config
+from kubernetes.client.exceptions import ApiException
+
+GROUP, VERSION, PLURAL = "coral.dev", "v1alpha1", "coralsystems"
+UNDO_ANNOTATION = "coral.dev/rollout-undo"
+
+
+class RolloutError(Exception):
+    """The rollout cannot be steered that way; the message says why."""
+
+
+class RolloutControl:
+    """Reads and steers the rollouts of one namespace."""
+
+    def __init__(self, api_client: k8s.ApiClient, namespace: str) -> None:
+        self.custom = k8s.CustomObjectsApi(api_client)
+        self.namespace = namespace
+
+    @classmethod
+    def from_kubeconfig(cls, namespace: str) -> RolloutControl:
+        try:
+            k8s_config.load_incluster_config()
+        except k8s_config.ConfigException:
+            k8s_config.load_kube_config()
+        return cls(k8s.ApiClient(), namespace)
+
+    def read(self, name: str) -> dict[str, Any]:
+        try:
+            return self.custom.get_namespaced_custom_object(GROUP, VERSION, self.namespace, PLURAL, name)
+        except ApiException as error:
+            if error.status == 404:
+                raise RolloutError(f"coralsystem/{name} not found in namespace {self.namespace}") from error
+            raise
+
+    def _patch(self, name: str, body: dict[str, Any]) -> None:
+        self.custom.patch_namespaced_custom_object(
+            GROUP, VERSION, self.namespace, PLURAL, name, body, _content_type="application/merge-patch+json"
+        )
+
+    def pause(self, name: str) -> None:
+        self.read(name)
+        self._patch(name, {"spec": {"rollout": {"paused": True}}})
+
+    def resume(self, name: str) -> None:
+        body = self.read(name)
+        self._patch(name, {"spec": {"rollout": {"paused": False}}})
+        if ((body.get("status") or {}).get("rollout") or {}).get("failure"):
+            self.custom.patch_namespaced_custom_object_status(
+                GROUP,
+                VERSION,
+                self.namespace,
+                PLURAL,
+                name,
+                {"status": {"rollout": {"failure": None}}},
+                _content_type="application/merge-patch+json",
+            )
+
+    def undo(self, name: str) -> str:
+        """Roll back from the spec's newest revision; returns that revision."""
+        body = self.read(name)
+        status = body.get("status") or {}
+        newest = status.get("revision")
+        history = (status.get("rollout") or {}).get("history") or []
+        if not newest:
+            raise RolloutError(f"coralsystem/{name} has no revision yet; nothing to undo")
+        if newest not in history or history.index(newest) == 0:
+            raise RolloutError(f"coralsystem/{name} has no revision before {newest} to return to")
+        self._patch(name, {"metadata": {"annotations": {UNDO_ANNOTATION: newest}}})
+        return str(newest)
+
+
+def finished(body: dict[str, Any]) -> bool:
+    """The rollout completed, or stopped for a human (paused or failed)."""
+    rollout = (body.get("status") or {}).get("rollout") or {}
+    return bool(rollout.get("complete") or rollout.get("paused"))
+
+
+def describe(body: dict[str, Any]) -> str:
+    """`status.rollout` as a few lines of text."""
+    name = body["metadata"]["name"]
+    status = body.get("status") or {}
+    rollout = status.get("rollout")
+    if not rollout:
+        return f"coralsystem/{name}: no rollout reported yet (revision {status.get('revision', 'unknown')})"
+    counts = rollout.get("counts") or {}
+    lines = [
+        f"coralsystem/{name} revision {rollout.get('revision')} "
+        f"(previous {rollout.get('previousRevision') or 'none'})",
+        f"  robots: {counts.get('healthy', 0)} healthy, {counts.get('updated', 0)} updated of "
+        f"{counts.get('total', 0)}; {counts.get('unavailable', 0)} unavailable "
+        f"(max {counts.get('maxUnavailable', 0)}), {counts.get('locked', 0)} locked by running trees, "
+        f"{counts.get('offline', 0)} offline",
+    ]
+    canary = rollout.get("canary")
+    if canary:
+        lines.append(
+            f"  canary: {canary.get('healthy', 0)} of {canary.get('robots', 0)} healthy"
+            + (", promoted" if canary.get("promoted") else "")
+            + (f", healthy since {canary['healthySince']}" if canary.get("healthySince") else "")
+        )
+    if rollout.get("rolledBack"):
+        back = rollout["rolledBack"]
+        lines.append(
+            f"  rolled back from {back.get('fromRevision')} to {back.get('toRevision')} "
+            f"({back.get('reason')})"
+        )
+    if rollout.get("failure"):
+        lines.append(f"  failure: {rollout['failure'].get('message', '')}")
+    if rollout.get("waitingFor"):
+        lines.append(f"  waiting for: {', '.join(rollout['waitingFor'])}")
+    state = "complete" if rollout.get("complete") else ("paused" if rollout.get("paused") else "in progress")
+    lines.append(f"  {state}: {rollout.get('message', '')}")
+    return "\n".join(lines)

@@ -1,0 +1,1 @@
+"""The executor's Kubernetes status sink (robot side; imports no kopf)."""

@@ -1,0 +1,205 @@
+"""Writes an executor's tree summary into `status.tree` / `status.plugins` of its own CoralInstance.
+
+Plugged into the executor with `--sink coral_operator.sink.kubernetes:create_sink` (the operator
+puts it in the executor's default command). It patches only when the summary changed, at most
+once per `min_interval_s`, with the last pending summary flushed by a background thread and on
+close. It authenticates as the robot's executor ServiceAccount, whose Role allows nothing but
+this status patch. A failed patch is logged once per kind of error and retried with the next change.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+from typing import Any
+
+LOG = logging.getLogger(__name__)
+Patcher = Callable[[dict[str, Any]], None]
+
+
+def _rfc3339(seconds: float | None) -> str | None:
+    if seconds is None:
+        return None
+    return datetime.fromtimestamp(float(seconds), UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
+    """The status summary after one executor record (pure; unknown events change nothing).
+
+    `state` and the result hold `tree` and `plugins` in the CoralInstance's wire format.
+    """
+    tree = dict(state.get("tree") or {})
+    plugins = dict(state.get("plugins") or {})
+    event = record.get("event")
+    if event == "status":
+        tree["rootStatus"] = str(record.get("root", tree.get("rootStatus", "IDLE")))
+        tree["tickCount"] = int(record.get("tick_count", tree.get("tickCount", 0)))
+        tree["activePath"] = str(record.get("active_path") or "")
+        if record.get("last_transition_time") is not None:
+            tree["lastTransitionTime"] = _rfc3339(record["last_transition_time"])
+        failure = record.get("last_failure") or {}
+        if failure.get("path") or failure.get("message"):
+            tree["lastFailure"] = {
+                "path": str(failure.get("path", "")),
+                "message": str(failure.get("message", "")),
+                **({"time": _rfc3339(failure["time"])} if failure.get("time") is not None else {}),
+            }
+        for condition in record.get("conditions") or []:
+            if condition.get("type") == "LibraryDegraded":
+                plugins["degraded"] = (
+                    [str(condition.get("message", ""))] if condition.get("status") == "True" else []
+                )
+        tree["message"] = ""
+    elif event == "waiting":
+        missing = [str(m) for m in record.get("missing", [])]
+        plugins["missing"] = missing
+        tree.setdefault("rootStatus", "IDLE")
+        tree["message"] = "Waiting for node types: " + ", ".join(missing)
+    elif event == "plugins":
+        plugins["loaded"] = sorted(str(p.get("component", "")) for p in record.get("loaded", []))
+        plugins["conflicts"] = [str(c.get("message", "")) for c in record.get("conflicts", [])] + [
+            f"{r.get('plugin')} refused: {r.get('reason')}" for r in record.get("refused", [])
+        ]
+    elif event == "condition" and record.get("type") == "PluginsReady" and record.get("status") == "True":
+        plugins["missing"] = []
+    elif event == "condition" and record.get("type") == "LibraryDegraded":
+        plugins["degraded"] = [str(record.get("message", ""))] if record.get("status") == "True" else []
+    elif event in ("finished", "error"):
+        if record.get("status"):
+            tree["rootStatus"] = str(record["status"])
+        if record.get("message") or record.get("error"):
+            tree["message"] = str(record.get("message") or record.get("error"))
+    else:
+        return state
+    result = dict(state)
+    if tree:
+        result["tree"] = tree
+    if plugins:
+        plugins.setdefault("loaded", [])
+        plugins.setdefault("missing", [])
+        result["plugins"] = plugins
+    return result
+
+
+class KubernetesStatusSink:
+    """Executor status sink: rate-limited, on-change merge patches of the instance's status."""
+
+    def __init__(
+        self,
+        patcher: Patcher,
+        *,
+        min_interval_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+        wall: Callable[[], float] = time.time,
+        background: bool = True,
+    ) -> None:
+        self._patcher = patcher
+        self._interval = min_interval_s
+        self._clock = clock
+        self._wall = wall
+        self._state: dict[str, Any] = {}
+        self._written: dict[str, Any] = {}
+        self._last_write = float("-inf")
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._closed = False
+        self._errors: set[str] = set()
+        self.patches = 0
+        self._thread: threading.Thread | None = None
+        if background:
+            self._thread = threading.Thread(target=self._flush_loop, name="k8s-status-sink", daemon=True)
+            self._thread.start()
+
+    def emit(self, record: dict[str, Any]) -> None:
+        with self._lock:
+            self._state = summarize(self._state, record)
+        self.flush(force=False)
+
+    def flush(self, *, force: bool) -> bool:
+        """Patch if the summary changed and the rate limit allows (or `force`); True if it patched."""
+        with self._lock:
+            if self._state == self._written:
+                return False
+            if not force and self._clock() - self._last_write < self._interval:
+                self._wake.set()
+                return False
+            state = {key: dict(value) for key, value in self._state.items()}
+            self._last_write = self._clock()
+        if "tree" in state:
+            state["tree"]["updatedAt"] = _rfc3339(self._wall())
+        try:
+            self._patcher({"status": state})
+        except Exception as error:  # noqa: BLE001 - a sink must never stop the mission
+            kind = type(error).__name__ + str(getattr(error, "status", ""))
+            if kind not in self._errors:
+                self._errors.add(kind)
+                LOG.warning("Status patch of the CoralInstance failed: %s", error)
+            return False
+        with self._lock:
+            for key in state:
+                self._written[key] = {k: v for k, v in state[key].items() if k != "updatedAt"}
+            self.patches += 1
+        return True
+
+    def _flush_loop(self) -> None:
+        while not self._closed:
+            self._wake.wait()
+            self._wake.clear()
+            if self._closed:
+                return
+            delay = self._interval - (self._clock() - self._last_write)
+            if delay > 0:
+                time.sleep(min(delay, self._interval))
+            self.flush(force=False)
+
+    def close(self) -> None:
+        self._closed = True
+        self._wake.set()
+        self.flush(force=True)
+
+
+def build_patcher(api_client: Any, namespace: str, instance: str) -> Patcher:
+    """A patcher that merge-patches `coralinstances/<instance>/status` through `api_client`."""
+    from kubernetes import client
+
+    api = client.CustomObjectsApi(api_client)
+
+    def patch(body: dict[str, Any]) -> None:
+        api.patch_namespaced_custom_object_status(
+            "coral.dev",
+            "v1alpha1",
+            namespace,
+            "coralinstances",
+            instance,
+            body,
+            _content_type="application/merge-patch+json",
+        )
+
+    return patch
+
+
+def create_sink(options: dict[str, Any]) -> KubernetesStatusSink:
+    """Factory for the executor's `--sink`: instance from CORAL_INSTANCE / CORAL_NAMESPACE, credentials
+    from the pod's ServiceAccount (or KUBECONFIG outside a cluster)."""
+    from kubernetes import client, config
+    from kubernetes.config.config_exception import ConfigException
+
+    instance = options.get("instance") or os.environ.get("CORAL_INSTANCE")
+    namespace = options.get("namespace") or os.environ.get("CORAL_NAMESPACE")
+    if not instance or not namespace:
+        raise ValueError(
+            "the Kubernetes status sink needs CORAL_INSTANCE and CORAL_NAMESPACE in the environment"
+        )
+    configuration = client.Configuration()
+    try:
+        config.load_incluster_config(client_configuration=configuration)
+    except ConfigException:
+        config.load_kube_config(client_configuration=configuration)
+    interval = float(options.get("min_interval_s") or os.environ.get("CORAL_STATUS_MIN_INTERVAL_S", "1.0"))
+    return KubernetesStatusSink(
+        build_patcher(client.ApiClient(configuration), namespace, instance), min_interval_s=interval
+    )

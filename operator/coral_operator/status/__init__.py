@@ -1,0 +1,1 @@
+"""Pure status helpers: condition types and reasons, transitions, readiness chains."""

@@ -1,0 +1,208 @@
+"""Computes the operator-owned part of a CoralInstance's status (the executor owns `tree`, `plugins`).
+
+`Ready` comes from an ordered chain of small checks; the first that fails gives reason and
+message. Pure; called by the instance handler with the observed state and the clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.planning import naming
+from coral_operator.planning.observed import ObservedPod, RobotNode
+from coral_operator.planning.startup import StartupPlan, counts_as_ready
+from coral_operator.status.conditions import ConditionType as C
+from coral_operator.status.conditions import Reason as R
+from coral_operator.status.transitions import Verdict, merge_conditions, rfc3339
+
+
+@dataclass(frozen=True)
+class InstanceView:
+    """Everything the instance's status is computed from."""
+
+    spec: CoralInstanceSpec
+    node: RobotNode | None
+    desired: list[dict[str, Any]]
+    pods: list[ObservedPod]
+    plan: StartupPlan
+    transient: set[str]
+    tree: dict[str, Any] | None
+    plugins: dict[str, Any] | None
+
+
+def _robot_verdict(view: InstanceView) -> Verdict:
+    if view.node is None:
+        return Verdict(
+            C.ROBOT_REACHABLE, False, R.NODE_MISSING, f"Node {view.spec.node_name} does not exist."
+        )
+    if not view.node.ready:
+        seen = rfc3339(view.node.last_seen) if view.node.last_seen else "never"
+        return Verdict(
+            C.ROBOT_REACHABLE,
+            False,
+            R.NODE_NOT_READY,
+            f"Robot {view.spec.robot} is unreachable (Node {view.node.node_name} not Ready, "
+            f"last seen {seen}); its pods are kept.",
+        )
+    return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} is Ready.")
+
+
+def _components_verdict(view: InstanceView) -> Verdict:
+    by_name = {p.name: p for p in view.pods}
+    crashing = [
+        p.component
+        for p in view.pods
+        if p.crash_looping or (p.phase == "Failed" and p.component not in view.transient)
+    ]
+    if crashing:
+        return Verdict(
+            C.COMPONENTS_READY,
+            False,
+            R.COMPONENT_FAILED,
+            f"Components failing: {', '.join(sorted(crashing))}.",
+        )
+    if view.plan.timed_out:
+        return Verdict(C.COMPONENTS_READY, False, R.HEALTH_TIMEOUT, view.plan.message)
+    if view.plan.waiting_for == "driver":
+        return Verdict(C.COMPONENTS_READY, False, R.WAITING_FOR_DRIVERS, view.plan.message)
+    if view.plan.waiting_for == "skillset":
+        return Verdict(C.COMPONENTS_READY, False, R.WAITING_FOR_SKILLSETS, view.plan.message)
+    if view.plan.delete or view.plan.create:
+        names = sorted({*view.plan.delete, *(m["metadata"]["name"] for m in view.plan.create)})
+        return Verdict(
+            C.COMPONENTS_READY, False, R.PODS_UPDATING, f"Pods being created or replaced: {', '.join(names)}."
+        )
+    unready = []
+    for manifest in view.desired:
+        labels = manifest["metadata"]["labels"]
+        pod = by_name.get(manifest["metadata"]["name"])
+        if not counts_as_ready(pod, labels[naming.LABEL_COMPONENT] in view.transient):
+            unready.append(labels[naming.LABEL_COMPONENT])
+    if unready:
+        return Verdict(
+            C.COMPONENTS_READY, False, R.PODS_NOT_READY, f"Components not ready: {', '.join(unready)}."
+        )
+    return Verdict(
+        C.COMPONENTS_READY, True, R.ALL_COMPONENTS_READY, f"All {len(view.desired)} components are ready."
+    )
+
+
+def _plugins_verdict(view: InstanceView) -> Verdict:
+    if not view.plugins:
+        return Verdict(C.PLUGINS_READY, None, R.NO_REPORT, "The executor has not reported plugins yet.")
+    missing = view.plugins.get("missing") or []
+    if missing:
+        return Verdict(
+            C.PLUGINS_READY, False, R.PLUGINS_MISSING, f"No plugin provides: {', '.join(missing)}."
+        )
+    return Verdict(C.PLUGINS_READY, True, R.PLUGINS_LOADED, "Every node type of the tree has a plugin.")
+
+
+def _library_verdict(view: InstanceView) -> Verdict:
+    degraded = (view.plugins or {}).get("degraded") or []
+    if degraded:
+        return Verdict(
+            C.LIBRARY_DEGRADED,
+            True,
+            R.LIBRARY_LOST,
+            f"Skillsets lost under loaded behaviors: {', '.join(degraded)}.",
+        )
+    return Verdict(C.LIBRARY_DEGRADED, False, R.LIBRARIES_HEALTHY, "Every loaded plugin's skillset is alive.")
+
+
+def _tree_verdict(view: InstanceView) -> Verdict:
+    if not view.tree:
+        return Verdict(C.TREE_HEALTHY, None, R.NO_REPORT, "The executor has not reported tree status yet.")
+    if view.tree.get("rootStatus") == "FAILURE":
+        failure = view.tree.get("lastFailure") or {}
+        detail = f" at {failure.get('path')}: {failure.get('message')}" if failure else ""
+        return Verdict(C.TREE_HEALTHY, False, R.TREE_FAILED, f"The tree failed{detail}.")
+    return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {view.tree.get('rootStatus', 'IDLE')}.")
+
+
+# Ready = the first failing link of this chain; reachability comes first because nothing else
+# observed about an unreachable robot is current.
+_READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [_robot_verdict, _components_verdict]
+
+
+def evaluate_ready(view: InstanceView) -> Verdict:
+    """The `Ready` verdict: the first failing check's reason and message, or Ready."""
+    for check in _READY_CHAIN:
+        verdict = check(view)
+        if verdict.status is not True:
+            return Verdict(C.READY, False, verdict.reason, verdict.message)
+    return Verdict(C.READY, True, R.READY, f"Robot {view.spec.robot} runs revision {view.spec.revision}.")
+
+
+def build_components(view: InstanceView) -> list[dict[str, Any]]:
+    """One entry per component in startup order."""
+    by_name = {p.name: p for p in view.pods}
+    entries = []
+    for manifest in view.desired:
+        labels = manifest["metadata"]["labels"]
+        pod = by_name.get(manifest["metadata"]["name"])
+        entry: dict[str, Any] = {"name": labels[naming.LABEL_COMPONENT], "role": labels[naming.LABEL_ROLE]}
+        if pod is not None:
+            entry |= {
+                "pod": pod.name,
+                "phase": "Terminating" if pod.deleting else pod.phase,
+                "ready": counts_as_ready(pod, entry["name"] in view.transient),
+                "restarts": pod.restarts,
+                "revision": pod.revision,
+            }
+        else:
+            entry |= {"phase": "Waiting", "ready": False, "restarts": 0}
+        entries.append(entry)
+    return entries
+
+
+def build_instance_status(
+    view: InstanceView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
+) -> dict[str, Any]:
+    """The operator-owned status fields of the instance (wire format)."""
+    robot = _robot_verdict(view)
+    components = _components_verdict(view)
+    ready = evaluate_ready(view)
+    stalled = components.reason in (R.COMPONENT_FAILED,) or (
+        components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
+    )
+    reconciling = not ready.status and not stalled and robot.status is True
+    verdicts = [
+        ready,
+        Verdict(
+            C.RECONCILING,
+            reconciling,
+            R.PROGRESSING if reconciling else R.READY,
+            components.message if reconciling else "",
+        ),
+        Verdict(
+            C.STALLED,
+            stalled,
+            components.reason if stalled else R.READY,
+            components.message if stalled else "",
+        ),
+        robot,
+        components,
+        _plugins_verdict(view),
+        _library_verdict(view),
+        _tree_verdict(view),
+    ]
+    revisions = {p.revision for p in view.pods if not p.deleting}
+    node = view.node
+    return {
+        "observedGeneration": generation,
+        "conditions": merge_conditions(old_conditions, verdicts, generation=generation, now=now),
+        "revision": revisions.pop()
+        if len(revisions) == 1 and not view.plan.create and not view.plan.delete
+        else None,
+        "robot": {
+            "nodeName": view.spec.node_name,
+            "reachable": bool(node and node.ready),
+            **({"lastSeen": rfc3339(node.last_seen)} if node and node.last_seen else {}),
+        },
+        "components": build_components(view),
+    }

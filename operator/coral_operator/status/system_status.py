@@ -1,0 +1,131 @@
+"""Computes a CoralSystem's status: conditions and robot/tree counts, never a per-robot list.
+
+Pure; called by the system handler. `problem` carries a validation, policy or missing-ConfigMap
+failure, which makes the system Stalled while robots keep what they ran.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from coral_operator.planning.observed import ObservedInstance
+from coral_operator.status.conditions import ConditionType as C
+from coral_operator.status.conditions import Reason as R
+from coral_operator.status.transitions import Verdict, merge_conditions
+
+_TREE_STATES = {"RUNNING": "running", "SUCCESS": "success", "FAILURE": "failure"}
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Why the operator cannot make progress on this spec."""
+
+    reason: R
+    message: str
+
+
+@dataclass(frozen=True)
+class SystemView:
+    """Everything the system's status is computed from."""
+
+    matched: int
+    instances: list[ObservedInstance]
+    revision: str | None
+    problem: Problem | None = None
+
+
+def count_robots(view: SystemView) -> dict[str, int]:
+    """Robot counts over the instances."""
+    return {
+        "matched": view.matched,
+        "ready": sum(1 for i in view.instances if i.ready),
+        "updated": sum(1 for i in view.instances if view.revision and i.revision == view.revision),
+        "unreachable": sum(1 for i in view.instances if i.reachable is False),
+    }
+
+
+def count_trees(view: SystemView) -> dict[str, int]:
+    """Tree root states over the instances; no report counts as idle."""
+    counts = {"running": 0, "success": 0, "failure": 0, "idle": 0}
+    for instance in view.instances:
+        counts[_TREE_STATES.get(instance.tree_root or "", "idle")] += 1
+    return counts
+
+
+def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
+    """Ready: nothing stalled, robots matched, all on the newest revision, all reachable ones Ready.
+
+    Unreachable robots do not hold `Ready` back (they are told by `RobotsReachable`), so one robot
+    off the network does not make a whole fleet look broken.
+    """
+    if view.problem is not None:
+        return Verdict(C.READY, False, view.problem.reason, view.problem.message)
+    if view.matched == 0:
+        return Verdict(C.READY, False, R.NO_MATCHING_ROBOTS, "No robot Node matches spec.robots.")
+    if len(view.instances) != view.matched or robots["updated"] < view.matched:
+        return Verdict(
+            C.READY,
+            False,
+            R.UPDATING,
+            f"{robots['updated']} of {view.matched} robots run revision {view.revision}.",
+        )
+    reachable = [i for i in view.instances if i.reachable is not False]
+    not_ready = sorted(i.robot for i in reachable if not i.ready)
+    if not_ready:
+        shown = ", ".join(not_ready[:10]) + (" ..." if len(not_ready) > 10 else "")
+        return Verdict(C.READY, False, R.INSTANCES_NOT_READY, f"{len(not_ready)} robots not ready: {shown}.")
+    return Verdict(
+        C.READY,
+        True,
+        R.READY,
+        f"{robots['ready']} of {view.matched} robots ready at revision {view.revision}"
+        + (f" ({robots['unreachable']} unreachable)." if robots["unreachable"] else "."),
+    )
+
+
+def build_system_status(
+    view: SystemView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
+) -> dict[str, Any]:
+    """The system's status (wire format)."""
+    robots = count_robots(view)
+    ready = evaluate_ready(view, robots)
+    stalled = view.problem is not None
+    reconciling = not stalled and not ready.status and ready.reason != R.NO_MATCHING_ROBOTS
+    unreachable = sorted(i.robot for i in view.instances if i.reachable is False)
+    reach = (
+        Verdict(
+            C.ROBOTS_REACHABLE,
+            False,
+            R.ROBOTS_UNREACHABLE,
+            f"Unreachable robots: {', '.join(unreachable[:10])}.",
+        )
+        if unreachable
+        else Verdict(C.ROBOTS_REACHABLE, True, R.ALL_REACHABLE, "Every matched robot is reachable.")
+    )
+    verdicts = [
+        ready,
+        Verdict(
+            C.RECONCILING,
+            reconciling,
+            ready.reason if reconciling else R.READY,
+            ready.message if reconciling else "",
+        ),
+        Verdict(
+            C.STALLED,
+            stalled,
+            view.problem.reason if view.problem else R.READY,
+            view.problem.message if view.problem else "",
+        ),
+        reach,
+    ]
+    status: dict[str, Any] = {
+        "observedGeneration": generation,
+        "conditions": merge_conditions(old_conditions, verdicts, generation=generation, now=now),
+        "robots": robots,
+        "trees": count_trees(view),
+    }
+    if view.revision:
+        status["revision"] = view.revision
+    return status

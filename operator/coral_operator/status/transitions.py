@@ -1,0 +1,83 @@
+"""The one place that knows how a condition changes over time (metav1.Condition semantics).
+
+Rules: `lastTransitionTime` moves only when `status` flips; `reason`, `message` and
+`observedGeneration` are always refreshed; the clock is a parameter. Called by the status builders.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+from coral_operator.status.conditions import ConditionType, Reason
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """A condition's new value before it meets the old one."""
+
+    type: ConditionType
+    status: bool | None
+    reason: Reason
+    message: str = ""
+
+    @property
+    def status_text(self) -> str:
+        return "Unknown" if self.status is None else ("True" if self.status else "False")
+
+
+def rfc3339(moment: datetime) -> str:
+    """Kubernetes' timestamp format, second precision, UTC."""
+    return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def merge_conditions(
+    old: Iterable[dict[str, Any]],
+    verdicts: Iterable[Verdict],
+    *,
+    generation: int | None,
+    now: datetime,
+) -> list[dict[str, Any]]:
+    """The new condition list: one entry per verdict, in verdict order; old unknown types dropped.
+
+    Args:
+        old: the conditions currently in status (wire format).
+        verdicts: the freshly computed values.
+        generation: `metadata.generation` they were computed from.
+        now: the clock, injected.
+
+    Returns:
+        Conditions in wire format (camelCase keys).
+    """
+    previous = {c.get("type"): c for c in old}
+    result: list[dict[str, Any]] = []
+    for verdict in verdicts:
+        before = previous.get(verdict.type.value)
+        flipped = before is None or before.get("status") != verdict.status_text
+        entry = {
+            "type": verdict.type.value,
+            "status": verdict.status_text,
+            "reason": verdict.reason.value,
+            "message": verdict.message,
+            "lastTransitionTime": rfc3339(now) if flipped else before["lastTransitionTime"],
+        }
+        if generation is not None:
+            entry["observedGeneration"] = generation
+        result.append(entry)
+    return result
+
+
+def find(conditions: Iterable[dict[str, Any]], ctype: ConditionType) -> dict[str, Any] | None:
+    """The condition of that type, if present."""
+    for condition in conditions:
+        if condition.get("type") == ctype.value:
+            return condition
+    return None
+
+
+def is_true(conditions: Iterable[dict[str, Any]], ctype: ConditionType) -> bool:
+    """Whether the condition is present and True."""
+    found = find(conditions, ctype)
+    return bool(found and found.get("status") == "True")

@@ -1,0 +1,90 @@
+"""Small readers and writers of coral.dev objects and pods for the operator's integration tests."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import yaml
+from kubernetes import client as k8s
+from kubernetes.client.exceptions import ApiException
+
+ROOT = Path(__file__).resolve().parents[3]
+GROUP, VERSION = "coral.dev", "v1alpha1"
+
+
+def fleet_mission(name: str, fleet: str) -> dict[str, Any]:
+    """The fleet example, renamed and selecting only this test's robots."""
+    manifest = yaml.safe_load((ROOT / "examples" / "fleet" / "mission.yaml").read_text())
+    manifest = copy.deepcopy(manifest)
+    manifest["metadata"]["name"] = name
+    manifest["spec"]["robots"] = {"matchLabels": {"fleet": fleet}}
+    return manifest
+
+
+class Coral:
+    """Typed-enough access to one namespace."""
+
+    def __init__(self, api_client: k8s.ApiClient, namespace: str) -> None:
+        self.custom = k8s.CustomObjectsApi(api_client)
+        self.core = k8s.CoreV1Api(api_client)
+        self.namespace = namespace
+
+    def create_system(self, manifest: dict[str, Any]) -> dict[str, Any]:
+        return self.custom.create_namespaced_custom_object(
+            GROUP, VERSION, self.namespace, "coralsystems", manifest
+        )
+
+    def patch_system(self, name: str, patch: Any, content_type: str = "application/merge-patch+json") -> None:
+        self.custom.patch_namespaced_custom_object(
+            GROUP, VERSION, self.namespace, "coralsystems", name, patch, _content_type=content_type
+        )
+
+    def delete_system(self, name: str) -> None:
+        self.custom.delete_namespaced_custom_object(GROUP, VERSION, self.namespace, "coralsystems", name)
+
+    def system(self, name: str) -> dict[str, Any] | None:
+        try:
+            return self.custom.get_namespaced_custom_object(
+                GROUP, VERSION, self.namespace, "coralsystems", name
+            )
+        except ApiException as error:
+            if error.status == 404:
+                return None
+            raise
+
+    def instances(self) -> dict[str, dict[str, Any]]:
+        items = self.custom.list_namespaced_custom_object(GROUP, VERSION, self.namespace, "coralinstances")[
+            "items"
+        ]
+        return {item["metadata"]["name"]: item for item in items}
+
+    def pods(self) -> dict[str, Any]:
+        return {p.metadata.name: p for p in self.core.list_namespaced_pod(self.namespace).items}
+
+    def config_maps(self) -> list[str]:
+        items = self.core.list_namespaced_config_map(self.namespace, label_selector="coral.dev/system").items
+        return [c.metadata.name for c in items]
+
+
+def condition(obj: dict[str, Any] | None, ctype: str) -> dict[str, Any]:
+    """The condition of that type, or an empty dict."""
+    for entry in ((obj or {}).get("status") or {}).get("conditions") or []:
+        if entry["type"] == ctype:
+            return entry
+    return {}
+
+
+def is_current_and_true(obj: dict[str, Any] | None, ctype: str) -> bool:
+    found = condition(obj, ctype)
+    return found.get("status") == "True" and found.get("observedGeneration") == (obj or {}).get(
+        "metadata", {}
+    ).get("generation")
+
+
+def pod_ready_since(pod: Any) -> Any:
+    for entry in pod.status.conditions or []:
+        if entry.type == "Ready" and entry.status == "True":
+            return entry.last_transition_time
+    return None

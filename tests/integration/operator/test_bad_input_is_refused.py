@@ -1,0 +1,115 @@
+"""CRs breaking a CEL rule are rejected at admission; a bad tree stalls the system and deploys nothing."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+import yaml
+from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_testbed.waiting import holds_for
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+BAD_TREE = '<root BTCPP_format="4">\n  <BehaviorTree ID="Main">\n    <Sequence>\n  </BehaviorTree>\n</root>\n'
+
+
+def _variant(change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+    manifest = copy.deepcopy(fleet_mission("bad", "nobody"))
+    change(manifest["spec"])
+    return manifest
+
+
+REJECTIONS = [
+    (
+        "privileged skillset",
+        lambda s: s["skillsets"][0].update(privileged=True),
+        "privileged is allowed only on drivers",
+    ),
+    (
+        "duplicate component names",
+        lambda s: s["executors"][0].update(name="slam"),
+        "component names must be unique across drivers, skillsets and executors",
+    ),
+    (
+        "empty robot selector",
+        lambda s: s.update(robots={}),
+        "robots must select with at least one label or expression",
+    ),
+    (
+        "domain out of range",
+        lambda s: s.update(ros={"domainId": 300}),
+        "ros.domainId must be between 0 and 232",
+    ),
+    (
+        "tree inline and from a ConfigMap",
+        lambda s: s["tree"].update(configMapRef={"name": "x", "key": "tree.xml"}),
+        "set exactly one of inline or configMapRef",
+    ),
+]
+
+
+@pytest.mark.parametrize(("story", "change", "message"), REJECTIONS, ids=[r[0] for r in REJECTIONS])
+def test_the_api_server_rejects_what_the_cel_rules_forbid(
+    cluster: Any,
+    namespace: str,
+    coral_crds: None,
+    story: str,
+    change: Callable[[dict[str, Any]], None],
+    message: str,
+) -> None:
+    result = cluster.kubectl(
+        "apply", "-n", namespace, "-f", "-", input=yaml.safe_dump(_variant(change)), check=False
+    )
+    assert result.returncode != 0
+    assert message in result.stderr
+    assert "coralsystems" not in cluster.kubectl("get", "coralsystems", "-n", namespace, "-o", "name").stdout
+
+
+def test_a_bad_tree_stalls_with_file_and_line_and_robots_keep_what_they_ran(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    robots(1, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+
+    broken = fleet_mission("broken", fleet_label)
+    broken["spec"]["tree"] = {"inline": BAD_TREE}
+    coral.create_system(broken)
+    stalled = wait(
+        lambda: (
+            condition(coral.system("broken"), "Stalled").get("status") == "True" and coral.system("broken")
+        ),
+        "the broken system to be Stalled",
+    )
+    assert "coralsystem/broken spec.tree.inline:4:" in condition(stalled, "Stalled")["message"]
+    assert condition(stalled, "Ready")["status"] == "False"
+    assert not coral.instances() and not coral.pods()
+
+    # A running system whose tree breaks keeps its pods and revision, and says why.
+    coral.create_system(fleet_mission("good", fleet_label))
+    wait(lambda: is_current_and_true(coral.system("good"), "Ready"), "the good system to become Ready")
+    running = {n: p.metadata.uid for n, p in coral.pods().items() if n.startswith("good-")}
+    revision = coral.system("good")["status"]["revision"]
+    coral.patch_system("good", {"spec": {"tree": {"inline": BAD_TREE}}})
+    wait(
+        lambda: is_current_and_true(coral.system("good"), "Stalled"),
+        "the edited system to be Stalled at its new generation",
+    )
+    message = condition(coral.system("good"), "Stalled")["message"]
+    assert "spec.tree.inline:4:" in message
+    holds_for(
+        lambda: (
+            {n: p.metadata.uid for n, p in coral.pods().items() if n.startswith("good-")} == running
+            and {i["spec"]["revision"] for i in coral.instances().values() if i["spec"]["system"] == "good"}
+            == {revision}
+        ),
+        duration=4,
+        message="the robots keeping their pods and revision",
+    )

@@ -1,0 +1,106 @@
+"""The executor's ServiceAccount may patch its own instance's status and nothing else."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from coral_api import GROUP, VERSION, Coral, fleet_mission, is_current_and_true
+from coral_operator.sink import kubernetes as sink
+from kubernetes import client as k8s
+from kubernetes.client.exceptions import ApiException
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+
+def _client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
+    token = cluster.kubectl("create", "token", account, "-n", namespace, "--duration=10m").stdout.strip()
+    base = cluster.api_client.configuration
+    configuration = k8s.Configuration()
+    configuration.host = base.host
+    configuration.ssl_ca_cert = base.ssl_ca_cert
+    configuration.verify_ssl = base.verify_ssl
+    configuration.api_key = {"authorization": f"Bearer {token}"}
+    return k8s.ApiClient(configuration)
+
+
+def _denied(call: Callable[[], Any]) -> bool:
+    try:
+        call()
+    except ApiException as error:
+        return error.status == 403
+    return False
+
+
+def test_the_executor_account_writes_its_tree_status_and_nothing_else(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    mine, other = robots(2, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+    coral.create_system(fleet_mission("fleet", fleet_label))
+    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+    instance = f"fleet-{mine}"
+    as_executor = _client_as(cluster, namespace, f"{instance}-executor")
+
+    status_sink = sink.KubernetesStatusSink(
+        sink.build_patcher(as_executor, namespace, instance), background=False
+    )
+    status_sink.emit(
+        {
+            "event": "status",
+            "root": "RUNNING",
+            "tick_count": 42,
+            "active_path": "Patrol/patrol/RetryUntilSuccessful/EstimatePose",
+            "last_failure": None,
+        }
+    )
+    status_sink.close()
+    assert status_sink.patches == 1
+
+    tree = coral.instances()[instance]["status"]["tree"]
+    assert (tree["rootStatus"], tree["tickCount"]) == ("RUNNING", 42)
+    assert tree["activePath"].endswith("EstimatePose")
+    wait(
+        lambda: coral.system("fleet")["status"]["trees"]["running"] == 1,
+        "the system summary to count the tree",
+    )
+    columns = cluster.kubectl("get", "coralinstance", instance, "-n", namespace).stdout
+    assert "RUNNING" in columns
+
+    custom = k8s.CustomObjectsApi(as_executor)
+    core = k8s.CoreV1Api(as_executor)
+    merge = "application/merge-patch+json"
+    body = {"status": {"tree": {"rootStatus": "FAILURE"}}}
+    assert _denied(
+        lambda: custom.patch_namespaced_custom_object_status(
+            GROUP, VERSION, namespace, "coralinstances", f"fleet-{other}", body, _content_type=merge
+        )
+    ), "patching another robot's instance must be denied"
+    assert _denied(
+        lambda: custom.patch_namespaced_custom_object_status(
+            GROUP, VERSION, namespace, "coralsystems", "fleet", {"status": {}}, _content_type=merge
+        )
+    ), "patching the CoralSystem's status must be denied"
+    assert _denied(
+        lambda: custom.patch_namespaced_custom_object(
+            GROUP,
+            VERSION,
+            namespace,
+            "coralinstances",
+            instance,
+            {"spec": {"robot": "x"}},
+            _content_type=merge,
+        )
+    ), "patching its own instance's spec must be denied"
+    assert _denied(
+        lambda: core.patch_namespaced_pod(
+            f"{instance}-executor", namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
+        )
+    ), "patching a pod must be denied"
+    assert coral.instances()[f"fleet-{other}"]["status"].get("tree") is None

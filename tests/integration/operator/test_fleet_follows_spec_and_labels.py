@@ -1,0 +1,80 @@
+"""A spec change updates what changed; robots leaving the selector lose their instance; deletion cleans up."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from coral_api import Coral, fleet_mission, is_current_and_true
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+
+def _uids(coral: Coral) -> dict[str, str]:
+    return {
+        name: pod.metadata.uid
+        for name, pod in coral.pods().items()
+        if pod.metadata.deletion_timestamp is None
+    }
+
+
+def test_spec_changes_labels_and_deletion(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    first, second = robots(2, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+    coral.create_system(fleet_mission("fleet", fleet_label))
+    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+    before = _uids(coral)
+    assert len(before) == 6
+
+    # A new executor image replaces the executor pods only.
+    coral.patch_system(
+        "fleet",
+        [{"op": "replace", "path": "/spec/executors/0/image", "value": "coral-on-kubernetes/executor:0.2.0"}],
+        content_type="application/json-patch+json",
+    )
+
+    def updated() -> bool:
+        system = coral.system("fleet")
+        pods = coral.pods()
+        images = {p.spec.containers[0].image for n, p in pods.items() if n.endswith("-executor")}
+        return is_current_and_true(system, "Ready") and images == {"coral-on-kubernetes/executor:0.2.0"}
+
+    wait(updated, "the executors to run the new image and the system to be Ready again")
+    after = _uids(coral)
+    for name, uid in before.items():
+        if name.endswith("-executor"):
+            assert after[name] != uid, f"{name} was not replaced"
+        else:
+            assert after[name] == uid, f"{name} was restarted although its component did not change"
+    revision = coral.system("fleet")["status"]["revision"]
+    assert {i["spec"]["revision"] for i in coral.instances().values()} == {revision}
+    assert {p.metadata.labels["coral.dev/revision"] for p in coral.pods().values()} == {revision}
+
+    # The second robot loses the label: its instance and pods go, the first robot keeps its own.
+    cluster.kubectl("label", "node", second, "fleet-")
+    wait(
+        lambda: (
+            set(coral.instances()) == {f"fleet-{first}"}
+            and all(p.metadata.labels["coral.dev/robot"] == first for p in coral.pods().values())
+        ),
+        "the unlabelled robot's instance and pods to be gone",
+    )
+    assert all(after[n] == p.metadata.uid for n, p in coral.pods().items())
+    wait(lambda: (coral.system("fleet")["status"]["robots"]["matched"]) == 1, "the system to count one robot")
+
+    # Deleting the system removes everything through owner references (no finalizers).
+    coral.delete_system("fleet")
+    wait(
+        lambda: not coral.instances() and not coral.pods() and not coral.config_maps(),
+        "instances, pods and ConfigMaps to be garbage collected",
+    )
+    accounts = coral.core.list_namespaced_service_account(namespace).items
+    assert [a.metadata.name for a in accounts] == ["default"]

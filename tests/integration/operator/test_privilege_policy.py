@@ -1,0 +1,47 @@
+"""The operator refuses a CoralSystem asking for more privilege than its policy allows, deploying nothing."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from coral_api import Coral, condition, fleet_mission
+from coral_testbed.waiting import holds_for
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+
+@pytest.fixture
+def operator_env() -> dict[str, str]:
+    return {
+        "CORAL_POLICY_PRIVILEGED_NAMESPACES": "robots-hardware",
+        "CORAL_POLICY_HOST_PATH_PREFIXES": "/dev,/var/lib/coral",
+    }
+
+
+def test_a_privileged_driver_outside_the_allowed_namespaces_is_refused(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    robots(1, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+    mission = fleet_mission("fleet", fleet_label)
+    mission["spec"]["drivers"][0] |= {
+        "privileged": True,
+        "hostPaths": [{"hostPath": "/etc/ssh", "mountPath": "/etc/ssh"}],
+    }
+    coral.create_system(mission)
+    stalled = wait(
+        lambda: condition(coral.system("fleet"), "Stalled").get("status") == "True" and coral.system("fleet"),
+        "the system to be refused",
+    )
+    message = condition(stalled, "Stalled")["message"]
+    assert condition(stalled, "Stalled")["reason"] == "PolicyDenied"
+    assert f"spec.drivers[0] (lidar-driver): privileged is not allowed in namespace {namespace}" in message
+    assert "host path /etc/ssh is outside the allowed prefixes" in message
+    holds_for(lambda: not coral.instances() and not coral.pods(), duration=3, message="nothing deployed")

@@ -1,0 +1,83 @@
+"""A robot whose Node goes NotReady is reported unreachable with its last heartbeat and keeps its pods."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from coral_api import Coral, condition, fleet_mission, is_current_and_true
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+
+def test_an_unreachable_robot_keeps_its_pods(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    lost, kept = robots(2, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+    coral.create_system(fleet_mission("fleet", fleet_label))
+    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+    uids = {n: p.metadata.uid for n, p in coral.pods().items()}
+
+    # A pod with the usual 1 s toleration shows that the control plane really evicts from this robot.
+    coral.core.create_namespaced_pod(
+        namespace,
+        {
+            "metadata": {"name": "ordinary"},
+            "spec": {
+                "nodeName": lost,
+                "containers": [{"name": "c", "image": "example/ordinary:1"}],
+                "tolerations": [
+                    {
+                        "key": "node.kubernetes.io/not-ready",
+                        "operator": "Exists",
+                        "effect": "NoExecute",
+                        "tolerationSeconds": 1,
+                    },
+                    {
+                        "key": "node.kubernetes.io/unreachable",
+                        "operator": "Exists",
+                        "effect": "NoExecute",
+                        "tolerationSeconds": 1,
+                    },
+                ],
+            },
+        },
+    )
+    cluster.set_robot_ready(lost, False)
+
+    instance_name = f"fleet-{lost}"
+    reachable = wait(
+        lambda: (
+            condition(coral.instances().get(instance_name), "RobotReachable").get("status") == "False"
+            and coral.instances()[instance_name]
+        ),
+        "the instance to report the robot unreachable",
+    )
+    message = condition(reachable, "RobotReachable")["message"]
+    assert "last seen 20" in message and "its pods are kept" in message
+    assert reachable["status"]["robot"]["reachable"] is False and reachable["status"]["robot"]["lastSeen"]
+    wait(lambda: coral.system("fleet")["status"]["robots"]["unreachable"] == 1, "the system to count it")
+    assert condition(coral.system("fleet"), "RobotsReachable")["status"] == "False"
+
+    wait(
+        lambda: "ordinary" not in coral.pods(),
+        "the ordinary pod to be evicted from the unreachable robot",
+        timeout=120,
+    )
+    pods = coral.pods()
+    for name, uid in uids.items():
+        assert pods[name].metadata.uid == uid and pods[name].metadata.deletion_timestamp is None, name
+    assert is_current_and_true(coral.instances()[f"fleet-{kept}"], "Ready")
+
+    cluster.set_robot_ready(lost, True)
+    wait(
+        lambda: condition(coral.instances().get(instance_name), "RobotReachable").get("status") == "True",
+        "the robot to be reachable again",
+    )

@@ -1,0 +1,215 @@
+"""Conditions follow metav1 semantics; Ready is the first failing link of an ordered chain."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import timedelta
+from typing import Any
+
+from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.api.system import CoralSystemSpec, StartupSpec
+from coral_operator.planning import instances, naming, pods, startup
+from coral_operator.planning.observed import ObservedInstance, ObservedPod
+from coral_operator.status import instance_status, system_status
+from coral_operator.status.conditions import ConditionType, Reason
+from coral_operator.status.transitions import Verdict, find, merge_conditions
+from operator_specs import NOW, robot
+
+LATER = NOW + timedelta(minutes=5)
+
+
+def test_the_transition_time_moves_only_when_the_status_flips() -> None:
+    first = merge_conditions(
+        [], [Verdict(ConditionType.READY, False, Reason.PROGRESSING, "a")], generation=1, now=NOW
+    )
+    same = merge_conditions(
+        first, [Verdict(ConditionType.READY, False, Reason.UPDATING, "b")], generation=2, now=LATER
+    )
+    assert same[0]["lastTransitionTime"] == first[0]["lastTransitionTime"]
+    assert (same[0]["reason"], same[0]["message"], same[0]["observedGeneration"]) == ("Updating", "b", 2)
+    flipped = merge_conditions(
+        same, [Verdict(ConditionType.READY, True, Reason.READY)], generation=2, now=LATER
+    )
+    assert flipped[0]["lastTransitionTime"] == "2026-01-01T12:05:00Z"
+    assert flipped[0]["status"] == "True"
+
+
+def _view(
+    spec: dict[str, Any],
+    *,
+    ready: bool = True,
+    node_ready: bool = True,
+    tree: dict | None = None,
+    plugins: dict | None = None,
+) -> instance_status.InstanceView:
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
+    desired = pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
+    observed = [
+        ObservedPod(
+            name=m["metadata"]["name"],
+            component=m["metadata"]["labels"][naming.LABEL_COMPONENT],
+            role=m["metadata"]["labels"][naming.LABEL_ROLE],
+            revision=m["metadata"]["labels"][naming.LABEL_REVISION],
+            pod_hash=m["metadata"]["annotations"][naming.ANNOTATION_POD_HASH],
+            phase="Running",
+            ready=ready,
+            created=NOW,
+        )
+        for m in desired
+    ]
+    plan = startup.plan_startup(
+        desired=desired, observed=observed, transient=set(), startup=StartupSpec(), now=NOW
+    )
+    return instance_status.InstanceView(
+        spec=parsed,
+        node=robot("r1", ready=node_ready),
+        desired=desired,
+        pods=observed,
+        plan=plan,
+        transient=set(),
+        tree=tree,
+        plugins=plugins,
+    )
+
+
+def _conditions(view: instance_status.InstanceView) -> dict[str, dict[str, Any]]:
+    status = instance_status.build_instance_status(view, old_conditions=[], generation=3, now=NOW)
+    return {c["type"]: c for c in status["conditions"]}
+
+
+def test_an_instance_with_every_pod_ready_is_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    view = _view(spec_dict())
+    status = instance_status.build_instance_status(view, old_conditions=[], generation=3, now=NOW)
+    conditions = {c["type"]: c for c in status["conditions"]}
+    assert conditions["Ready"]["status"] == "True"
+    assert conditions["Reconciling"]["status"] == "False" and conditions["Stalled"]["status"] == "False"
+    assert all(c["observedGeneration"] == 3 for c in status["conditions"])
+    assert [c["name"] for c in status["components"]] == ["lidar", "slam", "executor"]
+    assert status["revision"] == view.spec.revision
+
+
+def test_an_unreachable_robot_says_when_it_was_last_seen(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    conditions = _conditions(_view(spec_dict(), node_ready=False))
+    assert conditions["RobotReachable"]["status"] == "False"
+    assert "last seen 2026-01-01T12:00:00Z" in conditions["RobotReachable"]["message"]
+    assert conditions["Ready"]["reason"] == "NodeNotReady"
+
+
+def test_pods_not_ready_make_the_instance_reconciling(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    conditions = _conditions(_view(spec_dict(), ready=False))
+    assert conditions["Ready"]["status"] == "False"
+    assert conditions["Reconciling"]["status"] == "True"
+    assert conditions["ComponentsReady"]["reason"] == "WaitingForDrivers"
+
+
+def test_executor_reports_drive_the_tree_and_plugin_conditions(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    conditions = _conditions(_view(spec_dict()))
+    assert (
+        conditions["TreeHealthy"]["status"] == "Unknown" and conditions["PluginsReady"]["status"] == "Unknown"
+    )
+    failed = _conditions(
+        _view(
+            spec_dict(),
+            tree={
+                "rootStatus": "FAILURE",
+                "lastFailure": {"path": "Main/Sequence/Nav", "message": "timeout"},
+            },
+            plugins={"missing": ["Nav"], "degraded": ["slam (exited)"]},
+        )
+    )
+    assert (
+        failed["TreeHealthy"]["status"] == "False" and "Main/Sequence/Nav" in failed["TreeHealthy"]["message"]
+    )
+    assert failed["PluginsReady"]["status"] == "False" and "Nav" in failed["PluginsReady"]["message"]
+    assert failed["LibraryDegraded"]["status"] == "True"
+    assert failed["Ready"]["status"] == "True"
+
+
+def _instance(
+    robot_name: str,
+    *,
+    ready: bool = True,
+    revision: str = "r2",
+    reachable: bool = True,
+    tree: str | None = None,
+) -> ObservedInstance:
+    return ObservedInstance(
+        name=f"s-{robot_name}",
+        robot=robot_name,
+        spec={},
+        revision=revision,
+        ready=ready,
+        reachable=reachable,
+        tree_root=tree,
+    )
+
+
+SYSTEM_CASES = [
+    (
+        "stalled by a bad tree",
+        dict(
+            matched=1,
+            instances=[_instance("a")],
+            problem=system_status.Problem(Reason.INVALID_TREE, "t.xml:3: bad"),
+        ),
+        ("False", "InvalidTree", "False", "True"),
+    ),
+    ("no robot matches", dict(matched=0, instances=[]), ("False", "NoMatchingRobots", "False", "False")),
+    (
+        "an instance is still missing",
+        dict(matched=2, instances=[_instance("a")]),
+        ("False", "Updating", "True", "False"),
+    ),
+    (
+        "an instance runs an old revision",
+        dict(matched=1, instances=[_instance("a", revision="r1")]),
+        ("False", "Updating", "True", "False"),
+    ),
+    (
+        "an instance is not ready",
+        dict(matched=2, instances=[_instance("a"), _instance("b", ready=False)]),
+        ("False", "InstancesNotReady", "True", "False"),
+    ),
+    (
+        "an unreachable robot does not hold Ready back",
+        dict(matched=2, instances=[_instance("a"), _instance("b", ready=False, reachable=False)]),
+        ("True", "Ready", "False", "False"),
+    ),
+    (
+        "everything ready",
+        dict(matched=2, instances=[_instance("a"), _instance("b")]),
+        ("True", "Ready", "False", "False"),
+    ),
+]
+
+
+def test_the_system_ready_chain() -> None:
+    for story, fields, (ready, reason, reconciling, stalled) in SYSTEM_CASES:
+        view = system_status.SystemView(revision="r2", **fields)
+        status = system_status.build_system_status(view, old_conditions=[], generation=4, now=NOW)
+        got = (
+            find(status["conditions"], ConditionType.READY)["status"],
+            find(status["conditions"], ConditionType.READY)["reason"],
+            find(status["conditions"], ConditionType.RECONCILING)["status"],
+            find(status["conditions"], ConditionType.STALLED)["status"],
+        )
+        assert got == (ready, reason, reconciling, stalled), story
+
+
+def test_the_system_counts_robots_and_trees_without_listing_them() -> None:
+    view = system_status.SystemView(
+        matched=3,
+        revision="r2",
+        instances=[
+            _instance("a", tree="RUNNING"),
+            _instance("b", tree="FAILURE", reachable=False),
+            _instance("c", revision="r1"),
+        ],
+    )
+    status = system_status.build_system_status(view, old_conditions=[], generation=1, now=NOW)
+    assert status["robots"] == {"matched": 3, "ready": 3, "updated": 2, "unreachable": 1}
+    assert status["trees"] == {"running": 1, "success": 0, "failure": 1, "idle": 1}
+    assert find(status["conditions"], ConditionType.ROBOTS_REACHABLE)["message"] == "Unreachable robots: b."

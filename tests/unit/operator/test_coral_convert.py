@@ -1,0 +1,108 @@
+"""`coral convert DIR` turns Coral's three files into a CoralSystem the operator accepts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.convert.cli import convert_command
+from operator_specs import TREE
+
+ROOT = Path(__file__).resolve().parents[3]
+
+COMPOSE = """services:
+  lidar:
+    image: example/lidar:1
+    profiles: [drivers]
+    privileged: true
+    devices: ["/dev/ttyUSB0:/dev/ttyUSB0"]
+    environment:
+      ROS_DOMAIN_ID: "7"
+      FRAME: laser
+  slam:
+    image: example/slam:1
+    profiles: [skillsets]
+    command: python -m slam
+    healthcheck:
+      test: ["CMD", "test", "-f", "/ready"]
+  executor:
+    image: example/executor:1
+    profiles: [executors]
+    volumes: ["plugins:/plugins"]
+"""
+
+
+def _folder(tmp_path: Path, compose: str = COMPOSE) -> Path:
+    (tmp_path / "compose.yaml").write_text(compose)
+    (tmp_path / "tree.xml").write_text(TREE)
+    (tmp_path / "params.yaml").write_text("slam:\n  ros__parameters:\n    voxel: 0.5\n")
+    return tmp_path
+
+
+def test_the_three_files_become_a_valid_coral_system(tmp_path: Path) -> None:
+    result = CliRunner().invoke(
+        convert_command, [str(_folder(tmp_path)), "--name", "demo", "--robots", "fleet=a"]
+    )
+    assert result.exit_code == 0, result.output
+    manifest = yaml.safe_load(result.stdout)
+    assert manifest["kind"] == "CoralSystem" and manifest["metadata"]["name"] == "demo"
+    spec = CoralSystemSpec.model_validate(manifest["spec"])
+    assert spec.robots.match_labels == {"fleet": "a"}
+    assert spec.ros.domain_id == 7
+    assert spec.drivers[0].privileged and spec.drivers[0].devices[0].host_path == "/dev/ttyUSB0"
+    assert spec.skillsets[0].args == ["python", "-m", "slam"]
+    assert spec.skillsets[0].readiness is not None and spec.skillsets[0].readiness.exec == [
+        "test",
+        "-f",
+        "/ready",
+    ]
+    assert spec.tree.inline == TREE
+    assert "not a host bind mount" in result.stderr
+
+
+def test_a_service_without_a_coral_profile_is_named(tmp_path: Path) -> None:
+    compose = "services:\n  tool:\n    image: x\n"
+    result = CliRunner().invoke(convert_command, [str(_folder(tmp_path, compose))])
+    assert result.exit_code != 0
+    assert "compose.yaml:2" in result.output and "needs exactly one of the profiles" in result.output
+
+
+def test_the_compose_project_sets_startup_and_transient_drivers(tmp_path: Path) -> None:
+    compose = COMPOSE.replace(
+        "    privileged: true\n", "    privileged: true\n    x-coral:\n      transient: true\n"
+    )
+    compose = "x-coral:\n  ready_timeout_s: 30\n  on_timeout: proceed\n  rate: 20\n" + compose
+    result = CliRunner().invoke(convert_command, [str(_folder(tmp_path, compose))])
+    assert result.exit_code == 0, result.output
+    spec = CoralSystemSpec.model_validate(yaml.safe_load(result.stdout)["spec"])
+    assert spec.drivers[0].transient
+    assert (spec.startup.health_timeout_seconds, spec.startup.on_timeout) == (30, "Proceed")
+    assert spec.tree.tick_rate_hz == 20
+    assert spec.robots.match_labels == {"coral.dev/robot": "robot-1"}
+
+
+def test_a_broken_tree_is_refused_with_its_line(tmp_path: Path) -> None:
+    folder = _folder(tmp_path)
+    (folder / "tree.xml").write_text("<root>\n<BehaviorTree ID='a'>\n</root>\n")
+    result = CliRunner().invoke(convert_command, [str(folder)])
+    assert result.exit_code != 0 and "tree.xml:3:" in result.output
+
+
+@pytest.mark.parametrize(
+    ("example", "arguments", "environment"),
+    [
+        ("fleet", ["--name", "fleet", "--robots", "fleet=demo"], {}),
+        ("lidar-slam", [], {"CORAL_BAG": "/var/lib/coral/bags/lidar-slam"}),
+    ],
+)
+def test_the_examples_missions_are_the_output_of_convert(
+    example: str, arguments: list[str], environment: dict[str, str]
+) -> None:
+    folder = ROOT / "examples" / example
+    result = CliRunner().invoke(convert_command, [str(folder), *arguments], env=environment)
+    assert result.exit_code == 0, result.output
+    committed = (folder / "mission.yaml").read_text()
+    assert yaml.safe_load(committed) == yaml.safe_load(result.stdout)

@@ -1,0 +1,189 @@
+"""Drivers start first, skillsets when drivers are Ready, executors when skillsets are Ready."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.api.system import CoralSystemSpec, StartupSpec
+from coral_operator.planning import instances, naming, pods, startup
+from coral_operator.planning.observed import ObservedPod
+from operator_specs import NOW, robot
+
+
+def _desired(spec: dict[str, Any]) -> list[dict[str, Any]]:
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
+    return pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
+
+
+def _observed(
+    manifest: dict[str, Any], *, ready: bool, age_s: float = 5, phase: str = "Running", **kw: Any
+) -> ObservedPod:
+    labels = manifest["metadata"]["labels"]
+    return ObservedPod(
+        name=manifest["metadata"]["name"],
+        component=labels[naming.LABEL_COMPONENT],
+        role=labels[naming.LABEL_ROLE],
+        revision=kw.pop("revision", labels[naming.LABEL_REVISION]),
+        pod_hash=kw.pop("pod_hash", manifest["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]),
+        phase=phase,
+        ready=ready,
+        created=NOW - timedelta(seconds=age_s),
+        **kw,
+    )
+
+
+def _plan(
+    desired: list[dict[str, Any]],
+    observed: list[ObservedPod],
+    transient: set[str] | None = None,
+    **startup_spec: Any,
+) -> startup.StartupPlan:
+    return startup.plan_startup(
+        desired=desired,
+        observed=observed,
+        transient=transient or set(),
+        startup=StartupSpec(**startup_spec),
+        now=NOW,
+    )
+
+
+def _names(manifests: list[dict[str, Any]]) -> list[str]:
+    return [m["metadata"]["name"] for m in manifests]
+
+
+def test_a_new_robot_starts_with_its_drivers_only(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    plan = _plan(_desired(spec_dict()), [])
+    assert _names(plan.create) == ["sys-r1-lidar"]
+    assert plan.waiting_for == "driver"
+
+
+def test_skillsets_wait_for_a_driver_that_is_running_but_not_ready(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(desired[0], ready=False)])
+    assert plan.create == []
+    assert "lidar" in plan.message
+
+
+def test_skillsets_start_once_the_drivers_are_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(desired[0], ready=True)])
+    assert _names(plan.create) == ["sys-r1-slam"]
+    assert plan.waiting_for == "skillset"
+
+
+def test_executors_start_once_the_skillsets_are_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(desired[0], ready=True), _observed(desired[1], ready=True)])
+    assert _names(plan.create) == ["sys-r1-executor"]
+    assert plan.waiting_for is None
+
+
+def test_a_transient_driver_that_succeeded_counts_as_done(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict(drivers=[{"name": "lidar", "image": "l", "transient": True}]))
+    plan = _plan(desired, [_observed(desired[0], ready=False, phase="Succeeded")], transient={"lidar"})
+    assert _names(plan.create) == ["sys-r1-slam"]
+
+
+def test_a_stage_without_components_does_not_block(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    plan = _plan(_desired(spec_dict(drivers=[])), [])
+    assert _names(plan.create) == ["sys-r1-slam"]
+
+
+@pytest.mark.parametrize(
+    ("on_timeout", "age_s", "created", "timed_out"),
+    [
+        ("Block", 10, [], False),
+        ("Block", 200, [], True),
+        ("Proceed", 10, [], False),
+        ("Proceed", 200, ["sys-r1-slam"], True),
+    ],
+    ids=["block within timeout", "block after timeout", "proceed within timeout", "proceed after timeout"],
+)
+def test_a_driver_that_never_becomes_ready(
+    spec_dict: Callable[..., dict[str, Any]],
+    on_timeout: str,
+    age_s: float,
+    created: list[str],
+    timed_out: bool,
+) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(
+        desired,
+        [_observed(desired[0], ready=False, age_s=age_s)],
+        healthTimeoutSeconds=120,
+        onTimeout=on_timeout,
+    )
+    assert _names(plan.create) == created
+    assert plan.timed_out is timed_out
+    if timed_out:
+        assert f"onTimeout={on_timeout}" in plan.message
+
+
+def test_a_changed_component_is_deleted_then_recreated_when_gone(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    running = [_observed(m, ready=True) for m in desired]
+    stale = _observed(desired[2], ready=True, pod_hash="old")
+    plan = _plan(desired, [*running[:2], stale])
+    assert plan.delete == ["sys-r1-executor"] and plan.create == []
+    plan = _plan(desired, [*running[:2], _observed(desired[2], ready=True, pod_hash="old", deleting=True)])
+    assert plan.delete == [] and plan.create == []
+    plan = _plan(desired, running[:2])
+    assert _names(plan.create) == ["sys-r1-executor"]
+
+
+def test_an_unchanged_pod_of_a_new_revision_is_relabelled_not_restarted(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    observed = [_observed(m, ready=True, revision="older") for m in desired]
+    plan = _plan(desired, observed)
+    assert plan.delete == [] and plan.create == []
+    assert [name for name, _ in plan.relabel] == ["sys-r1-lidar", "sys-r1-slam", "sys-r1-executor"]
+
+
+def test_a_removed_component_loses_its_pod(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict())
+    extra = _observed(desired[1], ready=True)
+    orphan = ObservedPod(**{**extra.__dict__, "name": "sys-r1-old", "component": "old"})
+    plan = _plan(desired, [*(_observed(m, ready=True) for m in desired), orphan])
+    assert plan.delete == ["sys-r1-old"]
+
+
+def test_a_running_system_needs_nothing(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(m, ready=True) for m in desired])
+    assert (plan.create, plan.delete, plan.relabel, plan.waiting_for) == ([], [], [], None)
+
+
+def test_a_retiring_robot_stops_executors_then_skillsets_then_drivers(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    running = [_observed(m, ready=True) for m in desired]
+    assert startup.plan_shutdown(running) == ["sys-r1-executor"]
+    terminating = _observed(desired[2], ready=True, deleting=True)
+    assert startup.plan_shutdown([*running[:2], terminating]) == []
+    assert startup.plan_shutdown(running[:2]) == ["sys-r1-slam"]
+    assert startup.plan_shutdown(running[:1]) == ["sys-r1-lidar"]
+    assert startup.plan_shutdown([]) == []
+
+
+def test_a_waiting_stage_asks_to_be_planned_again_when_its_timeout_falls_due(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(desired[0], ready=False, age_s=30)], healthTimeoutSeconds=120)
+    assert plan.wake_at == NOW + timedelta(seconds=90)
+    assert (
+        _plan(desired, [_observed(desired[0], ready=False, age_s=300)], healthTimeoutSeconds=120).wake_at
+        is None
+    )

@@ -1,0 +1,124 @@
+"""A CoralSystem gets one CoralInstance per matching robot; spec changes and robots leaving are planned."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+from coral_operator.api.common import LabelSelector
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.planning import instances, selection
+from coral_operator.planning.observed import ObservedInstance
+from operator_specs import robot
+
+
+def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    return [
+        instances.build_instance(system="sys", namespace="ns", system_uid="uid", robot=r, template=template)
+        for r in robots
+    ]
+
+
+def _existing(manifest: dict[str, Any]) -> ObservedInstance:
+    return ObservedInstance(
+        name=manifest["metadata"]["name"],
+        robot=manifest["spec"]["robot"],
+        spec=copy.deepcopy(manifest["spec"]),
+        revision=manifest["spec"]["revision"],
+        labels=manifest["metadata"]["labels"],
+    )
+
+
+def test_the_selector_matches_robots_by_labels_and_expressions() -> None:
+    nodes = [robot("r1", model="x1"), robot("r2", model="x2"), robot("r3")]
+    chosen = selection.select_robots(
+        LabelSelector.model_validate(
+            {
+                "matchLabels": {"fleet": "a"},
+                "matchExpressions": [{"key": "model", "operator": "In", "values": ["x1", "x2"]}],
+            }
+        ),
+        nodes,
+    )
+    assert [r.robot for r in chosen] == ["r1", "r2"]
+    absent = LabelSelector.model_validate(
+        {"matchExpressions": [{"key": "model", "operator": "DoesNotExist"}]}
+    )
+    assert [r.robot for r in selection.select_robots(absent, nodes)] == ["r3"]
+
+
+def test_an_empty_selector_matches_nothing() -> None:
+    assert selection.select_robots(LabelSelector(), [robot("r1")]) == []
+
+
+def test_one_instance_per_robot_owned_by_the_system(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict(), [robot("r1"), robot("r2")])
+    plan = instances.plan_instances(desired, [])
+    assert [m["metadata"]["name"] for m in plan.create] == ["sys-r1", "sys-r2"]
+    owner = plan.create[0]["metadata"]["ownerReferences"][0]
+    assert (owner["kind"], owner["name"], owner["controller"]) == ("CoralSystem", "sys", True)
+    assert plan.create[0]["spec"]["nodeName"] == "r1"
+
+
+def test_nothing_to_do_when_instances_match(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict(), [robot("r1")])
+    assert instances.plan_instances(desired, [_existing(m) for m in desired]).empty
+
+
+def test_a_spec_change_updates_every_instance_to_a_new_revision(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    old = _desired(spec_dict(), [robot("r1")])
+    new = _desired(spec_dict(ros={"domainId": 7}), [robot("r1")])
+    plan = instances.plan_instances(new, [_existing(m) for m in old])
+    assert [m["spec"]["revision"] for m in plan.update] == [new[0]["spec"]["revision"]]
+    assert new[0]["spec"]["revision"] != old[0]["spec"]["revision"]
+
+
+def test_the_revision_ignores_which_robots_are_selected(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    one = _desired(spec_dict(), [robot("r1")])[0]["spec"]["revision"]
+    other = _desired(spec_dict(robots={"matchLabels": {"fleet": "b"}}), [robot("r1")])[0]["spec"]["revision"]
+    assert one == other
+
+
+def test_a_reachable_robot_leaving_the_selector_retires_its_instance(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    before = _desired(spec_dict(), [robot("r1"), robot("r2")])
+    after = _desired(spec_dict(), [robot("r1")])
+    plan = instances.plan_instances(after, [_existing(m) for m in before], {"r1", "r2"})
+    assert plan.retire == ["sys-r2"] and not plan.delete and not plan.create and not plan.update
+    retiring = [_existing(m) for m in before]
+    retiring[1].spec["retiring"] = True
+    assert instances.plan_instances(after, retiring, {"r1", "r2"}).empty
+
+
+def test_an_unreachable_or_vanished_robot_leaving_loses_its_instance_at_once(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    before = _desired(spec_dict(), [robot("r1"), robot("r2")])
+    after = _desired(spec_dict(), [robot("r1")])
+    plan = instances.plan_instances(after, [_existing(m) for m in before], {"r1"})
+    assert plan.delete == ["sys-r2"] and not plan.retire
+
+
+def test_a_robot_coming_back_while_retiring_is_restored(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired = _desired(spec_dict(), [robot("r1")])
+    retiring = _existing(desired[0])
+    retiring.spec["retiring"] = True
+    plan = instances.plan_instances(desired, [retiring], {"r1"})
+    assert [m["metadata"]["name"] for m in plan.update] == ["sys-r1"]
+    assert plan.update[0]["spec"]["retiring"] is False
+
+
+def test_the_api_servers_rendering_of_the_spec_is_not_a_change(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict(), [robot("r1")])
+    stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
+    observed = ObservedInstance(
+        name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
+    )
+    assert instances.plan_instances(desired, [observed]).empty
