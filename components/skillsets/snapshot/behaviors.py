@@ -14,12 +14,6 @@ from std_srvs.srv import Trigger
 SERVICES = {"latest": "~/latest", "synchronized": "~/synchronized"}
 
 
-def optional_output(node: Any, port: str, value: Any) -> None:
-    """Writes an output port only when the tree wired it: BT.CPP ignores unwired outputs, so do we."""
-    if getattr(node, "ports", {}).get(port) is not None:
-        node.set_output(port, value)
-
-
 @behavior(description="Saves the newest (or time-synchronised) message of every configured topic")
 class TakeSnapshot(StatefulAction):
     """SUCCESS with the snapshot folder in `snapshot`; FAILURE while a topic has no data yet (or, in
@@ -53,9 +47,9 @@ class TakeSnapshot(StatefulAction):
         if not response.success:
             self.feedback_message = str(payload.get("error", response.message))
             return Status.FAILURE
-        optional_output(self, "snapshot", str(payload.get("path", "")))
+        self.set_output("snapshot", str(payload.get("path", "")))
         stamps = payload.get("stamps") or [0]
-        optional_output(self, "stamp", str(stamps[0]))
+        self.set_output("stamp", str(stamps[0]))
         return Status.SUCCESS
 
     def on_halted(self) -> None:

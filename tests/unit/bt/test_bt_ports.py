@@ -82,3 +82,42 @@ def test_nodes_are_py_trees_behaviours_that_py_trees_can_display() -> None:
     text = py_trees.display.unicode_tree(tree.root, show_status=True)
     assert "main" in text and "a" in text
     assert tree.root.status == py_trees.common.Status.RUNNING
+
+
+class _Measure(bt.leaves.SyncAction):
+    PORTS = [
+        bt.PortSpec("distance", bt.PortDirection.OUTPUT, "double"),
+        bt.PortSpec("note", bt.PortDirection.OUTPUT, "string"),
+    ]
+    written: list[bool] = []
+
+    def tick(self) -> bt.Status:
+        type(self).written = [self.set_output("distance", 2.5), self.set_output("note", "measured")]
+        return bt.Status.SUCCESS
+
+
+def test_an_output_the_tree_leaves_unwired_is_skipped_as_bt_cpp_does() -> None:
+    registry = bt.NodeRegistry.with_builtins()
+    registry.register("Measure", _Measure)
+    xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Measure distance="{d}"/></BehaviorTree></root>'
+    tree = bt.load_tree_text(xml, registry).build(registry)
+    assert tree.tick_exactly_once() == bt.Status.SUCCESS
+    assert _Measure.written == [True, False]
+    assert tree.root_blackboard.get("d") == 2.5
+
+
+class _Typo(bt.leaves.SyncAction):
+    PORTS = [bt.PortSpec("distance", bt.PortDirection.OUTPUT, "double")]
+
+    def tick(self) -> bt.Status:
+        self.set_output("distnce", 1.0)
+        return bt.Status.SUCCESS
+
+
+def test_writing_a_port_the_node_never_declared_is_an_error_naming_the_node() -> None:
+    registry = bt.NodeRegistry.with_builtins()
+    registry.register("Typo", _Typo)
+    xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Typo name="typo" distance="{d}"/></BehaviorTree></root>'
+    tree = bt.load_tree_text(xml, registry).build(registry)
+    with pytest.raises(bt.BTRuntimeError, match=r"typo.*distnce|distnce.*typo"):
+        tree.tick_exactly_once()

@@ -79,19 +79,26 @@ class PortAccess:
             raise BTRuntimeError(f"missing input port [{name}]: {detail}", node_path=self.path)
         return value
 
-    def set_output(self, name: str, value: Any) -> None:
+    def set_output(self, name: str, value: Any) -> bool:
+        """Writes the port's blackboard entry; False when the tree left this output unwired.
+
+        BT.CPP's `setOutput` answers an unwired port with an error value that callers usually
+        ignore, so a behavior may offer outputs a tree does not use. A name the node never
+        declared is a programming error and raises.
+        """
         raw = self.ports.get(name)
         spec = self.port_specs.get(name)
+        if raw is None and spec is None:
+            raise BTRuntimeError(f"[{name}] is not a declared port of this node", node_path=self.path)
         if raw is None and spec is not None:
             raw = spec.default
         key = blackboard_key(raw) if raw is not None else None
         if key == "=":
             key = name
         if key is None:
-            raise BTRuntimeError(
-                f"output port [{name}] is not remapped to a blackboard entry", node_path=self.path
-            )
+            return False
         try:
             self.board.set(key, value)
         except ScriptError as err:
             raise BTRuntimeError(err.message, node_path=self.path) from None
+        return True
