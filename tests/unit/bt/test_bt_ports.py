@@ -117,7 +117,10 @@ class _Typo(bt.leaves.SyncAction):
 def test_writing_a_port_the_node_never_declared_is_an_error_naming_the_node() -> None:
     registry = bt.NodeRegistry.with_builtins()
     registry.register("Typo", _Typo)
-    xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Typo name="typo" distance="{d}"/></BehaviorTree></root>'
+    xml = (
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        '<Typo name="typo" distance="{d}"/></BehaviorTree></root>'
+    )
     tree = bt.load_tree_text(xml, registry).build(registry)
     with pytest.raises(bt.BTRuntimeError, match=r"typo.*distnce|distnce.*typo"):
         tree.tick_exactly_once()
