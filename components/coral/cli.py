@@ -13,7 +13,23 @@ import click
 
 # verb name -> "module:attribute" of a click command.
 VERBS: dict[str, str] = {
+    "run": "coral.local.cli:run_command",
+    "ps": "coral.local.cli:ps_command",
+    "stop": "coral.local.cli:stop_command",
+    "logs": "coral.local.cli:logs_command",
+    "validate": "coral.local.cli:validate_command",
+    "verify": "coral.local.cli:verify_command",
+    "nodes-model": "coral.local.cli:nodes_model_command",
+    "generate-bag": "coral.lidar.cli:generate_bag_command",
+    "slam-demo": "coral.lidar.cli:slam_demo_command",
     "dev-cluster": "coral_testbed.cluster.cli:dev_cluster",
+    "executor": "coral.executor.cli:executor_command",
+    "skillset": "coral.sdk.cli:skillset_command",
+    "plugins": "coral.plugins.cli:plugins_command",
+    "robot-runner": "coral_testbed.runner.cli:robot_runner",
+    "operator": "coral_operator.cli:operator_command",
+    "convert": "coral_operator.convert.cli:convert_command",
+    "crds": "coral_operator.crds_cli:crds_command",
 }
 
 

@@ -28,8 +28,14 @@ def coral_crds(cluster: Any) -> None:
         # `kubectl wait` fails outright while a new CRD has no status yet; poll instead.
         wait_for(
             lambda name=name: (
+                # check=False: a CRD that has no conditions yet makes this jsonpath fail.
                 cluster.kubectl(
-                    "get", "crd", name, "-o", 'jsonpath={.status.conditions[?(@.type=="Established")].status}'
+                    "get",
+                    "crd",
+                    name,
+                    "-o",
+                    'jsonpath={.status.conditions[?(@.type=="Established")].status}',
+                    check=False,
                 ).stdout
                 == "True"
             ),
