@@ -73,6 +73,7 @@ class ExecutorContext:
         self.coordination: Any = None
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
+        self._stop_spinning = threading.Event()
         self._spinner = threading.Thread(target=self._spin, name="ros-spin", daemon=True)
         self._spinner.start()
 
@@ -80,7 +81,8 @@ class ExecutorContext:
         from rclpy.executors import ExternalShutdownException
 
         try:
-            self._executor.spin()
+            while not self._stop_spinning.is_set():
+                self._executor.spin_once(timeout_sec=0.1)
         except ExternalShutdownException:
             pass
 
@@ -165,8 +167,13 @@ class ExecutorContext:
         import rclpy
 
         self.flush()
+        # rclpy's Executor.shutdown destroys its guard condition without waiting for a spinning
+        # thread (Jazzy), which can abort the process (exit 134) after the mission succeeded; so the
+        # spin thread is stopped and joined first.
+        self._stop_spinning.set()
+        self._executor.wake()
+        self._spinner.join(timeout=2.0)
         self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
-        self._spinner.join(timeout=2.0)

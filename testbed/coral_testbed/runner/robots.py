@@ -135,6 +135,10 @@ class RobotAgent:
                 self.workers[uid] = worker
                 log.info("Pod %s started on robot %s", worker.key, self.robot.name)
             worker.update(pod)
+            if _conditions_differ(pod.get("status") or {}, self.last_sent.get(uid)):
+                # Someone else changed the pod's status (the node controller marks the pods of an
+                # unreachable robot not Ready): send ours again, as the kubelet's status manager does.
+                self.last_sent.pop(uid, None)
             if pod["metadata"].get("deletionTimestamp"):
                 grace = pod["metadata"].get("deletionGracePeriodSeconds")
                 worker.terminate(float(grace if grace is not None else 30))
@@ -208,6 +212,15 @@ class RobotAgent:
                 f"ServiceAccount {namespace}/{account}: token request failed ({error.status} {error.reason})"
             ) from error
         return str(response.status.token)
+
+
+def _conditions_differ(current: dict[str, Any], sent: dict[str, Any] | None) -> bool:
+    """True when a condition we sent has another status on the API server now."""
+    if sent is None:
+        return False
+    ours = {c["type"]: c["status"] for c in sent.get("conditions") or []}
+    theirs = {c.get("type"): c.get("status") for c in current.get("conditions") or []}
+    return any(theirs.get(kind) != status for kind, status in ours.items())
 
 
 def _now() -> datetime:

@@ -1,0 +1,27 @@
+"""The `coral demo` verb: a mission applied with kubectl on a local control plane (see demo.py)."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+
+@click.command("demo")
+@click.option(
+    "--mission",
+    type=click.Choice(["slam", "relay"]),
+    default="slam",
+    show_default=True,
+    help="slam: examples/lidar-slam on one robot; relay: examples/relay on three.",
+)
+@click.option(
+    "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
+)
+@click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
+def demo_command(mission: str, scans: int | None, timeout: float) -> None:
+    """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
+    from coral_testbed.missions import demo
+
+    outcome = demo.run(mission, scans or (300 if mission == "slam" else 60), timeout, echo=click.echo)
+    sys.exit(0 if outcome.success else 1)

@@ -1,0 +1,165 @@
+"""`coral demo` (what `make demo` runs): a mission on a real local control plane, end to end.
+
+Starts a throwaway control plane, the operator and the robot runner, links the synthetic LiDAR bag
+into the robot's files, `kubectl apply`s the committed example mission, prints every robot's tree
+as it moves until the mission ends, shows `kubectl get coralinstances`, scores the map and the
+trajectory against ground truth, and stops everything it started, also on error or Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from coral.lidar import demo as slam_demo
+from coral.lidar import generating
+
+from coral_testbed.cluster import controlplane
+from coral_testbed.cluster.client import Cluster
+from coral_testbed.missions import domains, following, manifests
+from coral_testbed.missions.stack import MissionStack
+from coral_testbed.waiting import wait_for
+
+NAMESPACE = "coral-demo"
+Echo = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    roots: dict[str, str]
+    """Robot -> the tree's final root status."""
+    duration_s: float
+
+    @property
+    def success(self) -> bool:
+        return bool(self.roots) and all(root == "SUCCESS" for root in self.roots.values())
+
+
+def _kubectl(cluster: Cluster, echo: Echo, *args: str) -> None:
+    echo(f"$ kubectl {' '.join(args)}")
+    result = cluster.kubectl(*args, check=False)
+    echo((result.stdout + result.stderr).rstrip())
+
+
+def _apply(stack: MissionStack, mission: Path, domain: int, echo: Echo) -> None:
+    shown = mission.relative_to(manifests.ROOT)
+    echo(f"==> Applying {shown} on ROS domain {domain} (spec.ros.domainId; held by this demo, so no")
+    echo("    other ROS process on this machine talks to its robots)")
+    echo(f"$ kubectl apply -n {NAMESPACE} -f {shown}")
+    echo(stack.apply(manifests.with_domain(mission.read_text(), domain)).rstrip())
+
+
+def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) -> dict[str, str]:
+    echo(
+        f"==> Following the CoralInstances' tree status (robot, root, ticks, active node),"
+        f" up to {timeout:.0f} s"
+    )
+    instances = following.follow(
+        stack.instances,
+        lambda items: following.finished(items, robots),
+        timeout=timeout,
+        echo=echo,
+        check=stack.check_operator,
+    )
+    return {following.robot(i): str(following.tree(i).get("rootStatus")) for i in instances}
+
+
+def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) -> None:
+    """Waits (bounded) for the executor pods to exit, so the pod list shows the mission Completed."""
+
+    def done() -> bool:
+        pods = stack.core.list_namespaced_pod(stack.namespace, label_selector="coral.dev/role=executor").items
+        return all(p.status.phase in ("Succeeded", "Failed") for p in pods)
+
+    try:
+        wait_for(done, timeout=timeout, interval=0.5, message="executor pods finished")
+    except TimeoutError as error:
+        echo(f"    ({error})")
+
+
+def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+    assert stack.runner is not None
+    link = manifests.place_bag(stack.runner, manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
+    echo(f"==> The bag is on {manifests.SLAM_ROBOT} at hostPath {manifests.SLAM_BAG} ({link})")
+    _apply(stack, manifests.SLAM_MISSION, domain, echo)
+    roots = _follow(stack, [manifests.SLAM_ROBOT], timeout, echo)
+    _await_executors_done(stack, echo)
+    _kubectl(stack.cluster, echo, "get", "coralsystems,coralinstances", "-n", NAMESPACE)
+    _kubectl(stack.cluster, echo, "get", "pods", "-n", NAMESPACE, "-o", "wide")
+    output = stack.pod_dir(manifests.SLAM_ROBOT, "slam")
+    if output is None:
+        echo("No SLAM pod folder: no map to score")
+        return roots
+    scans, total, error, points = slam_demo.score(output, dataset)
+    echo("")
+    echo(f"Mission           : {roots.get(manifests.SLAM_ROBOT)} on {manifests.SLAM_ROBOT}")
+    echo(f"Scans processed   : {scans} of {total}")
+    echo(f"Map               : {output / slam_demo.EXAMPLE_MAP_NAME} ({points} points)")
+    if error is not None:
+        echo(f"Trajectory error  : ATE {error.ate_rmse_m:.3f} m RMSE, RPE {error.rpe_rmse_m:.3f} m per scan")
+    else:
+        echo("Trajectory error  : not available (no trajectory saved)")
+    return roots
+
+
+def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+    assert stack.runner is not None
+    survey, server, worker = manifests.RELAY_ROBOTS
+    manifests.place_bag(stack.runner, survey, dataset / "bag", manifests.SURVEY_BAG)
+    share = manifests.share_folder(stack.runner, server, [survey, worker])
+    echo(f"==> {server} exports {manifests.SITE_SHARE} ({share}); {survey} and {worker} mount it")
+    _apply(stack, manifests.RELAY_MISSION, domain, echo)
+    roots = _follow(stack, list(manifests.RELAY_ROBOTS), timeout, echo)
+    _await_executors_done(stack, echo)
+    _kubectl(stack.cluster, echo, "get", "coralsystems,coralinstances", "-n", NAMESPACE)
+    echo("")
+    for robot in manifests.RELAY_ROBOTS:
+        echo(f"{robot:<14}: {roots.get(robot)}")
+    shared = sorted(p.name for p in share.iterdir())
+    echo(f"Site share      : {', '.join(shared) or '(empty)'}")
+    return roots
+
+
+def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome:
+    """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring."""
+    began = time.monotonic()
+    params = generating.BagParams(scans=scans)
+    echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
+    dataset = generating.cached_dataset(params)
+    echo(f"    {dataset / 'bag'}")
+    robots = [manifests.SLAM_ROBOT] if mission == "slam" else list(manifests.RELAY_ROBOTS)
+    run_mission = _slam if mission == "slam" else _relay
+    roots: dict[str, str] = {}
+    domain, lock = domains.claim_domain()
+    try:
+        with tempfile.TemporaryDirectory(prefix="coral-demo-") as folder:
+            state_dir = Path(folder) / "control-plane"
+            echo(
+                "==> Starting a local control plane: etcd, kube-apiserver, kube-controller-manager,"
+                " kube-scheduler, kwok"
+            )
+            try:
+                state = controlplane.start(state_dir, progress=lambda line: echo(f"    {line}"))
+                cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True)
+                echo(
+                    f"==> Starting the Coral operator (namespace {NAMESPACE})"
+                    f" and the robot runner ({', '.join(robots)})"
+                )
+                with MissionStack(cluster, NAMESPACE, robots, Path(folder) / "mission") as stack:
+                    _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
+                    roots = run_mission(stack, dataset, domain, timeout, echo)
+                    echo("==> Stopping the robot runner and the operator")
+                cluster.close()
+            finally:
+                stopped = controlplane.stop(state_dir)
+                echo(f"==> Stopped {len(stopped)} control-plane processes")
+    finally:
+        os.close(lock)
+    outcome = Outcome(roots=roots, duration_s=time.monotonic() - began)
+    verdict = "SUCCESS" if outcome.success else "not SUCCESS"
+    echo(f"==> Demo finished in {outcome.duration_s:.1f} s: {verdict}")
+    return outcome

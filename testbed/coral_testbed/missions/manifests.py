@@ -1,0 +1,97 @@
+"""Prepares an example mission for a given cluster: robot names, ROS domain, trees' timeouts, and
+the robot files a mission expects (the bag, the site share).
+
+Pure text/YAML functions plus two file helpers over a `RobotRunner`'s folders. Used by `coral demo`
+and the mission tests, which run the committed examples with their own robot names.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from coral_testbed.runner import RobotRunner
+
+ROOT = Path(__file__).resolve().parents[3]
+SLAM_MISSION = ROOT / "examples" / "lidar-slam" / "mission.yaml"
+RELAY_MISSION = ROOT / "examples" / "relay" / "mission.yaml"
+SLAM_ROBOT = "robot-1"
+RELAY_ROBOTS = ("relay-survey", "relay-server", "relay-worker")
+SLAM_BAG = "/var/lib/coral/bags/lidar-slam"
+SURVEY_BAG = "/var/lib/coral/bags/survey"
+SITE_SHARE = "/srv/maps"
+
+
+def rename_robots(text: str, names: dict[str, str]) -> str:
+    """The manifest with each robot name replaced (selectors, hostnames in trees, system names)."""
+    for old in sorted(names, key=len, reverse=True):
+        text = re.sub(rf"(?<![\w-]){re.escape(old)}(?![\w-])", names[old], text)
+    return text
+
+
+def documents(text: str) -> list[dict[str, Any]]:
+    return [d for d in yaml.safe_load_all(text) if d]
+
+
+class _BlockDumper(yaml.SafeDumper):
+    """Keeps trees and parameters as readable block scalars, so the text stays greppable."""
+
+
+def _text(dumper: yaml.SafeDumper, value: str) -> yaml.Node:
+    return dumper.represent_scalar("tag:yaml.org,2002:str", value, style="|" if "\n" in value else None)
+
+
+_BlockDumper.add_representer(str, _text)
+
+
+def _dump(docs: list[dict[str, Any]]) -> str:
+    return yaml.dump_all(docs, Dumper=_BlockDumper, sort_keys=False, width=110)
+
+
+def with_domain(text: str, domain: int) -> str:
+    """Every CoralSystem of the manifest on ROS domain `domain` (tests get a private one)."""
+    docs = documents(text)
+    for doc in docs:
+        doc["spec"].setdefault("ros", {})["domainId"] = domain
+    return _dump(docs)
+
+
+def with_timeout(text: str, process: str, timeout_ms: int) -> str:
+    """The `timeout_ms` of every `WaitForRemoteTrigger` for `process` set to `timeout_ms`."""
+    pattern = rf'(<WaitForRemoteTrigger process_identifier="{re.escape(process)}" timeout_ms=")\d+(")'
+    result, count = re.subn(pattern, rf"\g<1>{timeout_ms}\g<2>", text)
+    if not count:
+        raise ValueError(f"no WaitForRemoteTrigger for {process!r} in the mission")
+    return result
+
+
+def only_systems(text: str, names: set[str]) -> str:
+    """The manifest restricted to the CoralSystems named in `names`."""
+    return _dump([d for d in documents(text) if d["metadata"]["name"] in names])
+
+
+def place_bag(runner: RobotRunner, robot: str, bag: Path, robot_path: str) -> Path:
+    """Links the bag folder `bag` into `robot`'s hostPath `robot_path`; returns the link."""
+    link = runner.host_path(robot, robot_path)
+    link.parent.mkdir(parents=True, exist_ok=True)
+    if link.is_symlink() or link.exists():
+        link.unlink()
+    link.symlink_to(bag.resolve(), target_is_directory=True)
+    return link
+
+
+def share_folder(runner: RobotRunner, server: str, clients: list[str], robot_path: str = SITE_SHARE) -> Path:
+    """`server`'s folder `robot_path`, mounted at the same path on `clients` (what NFS would do on a
+    real site: the robots see one folder); returns the server's folder."""
+    exported = runner.host_path(server, robot_path)
+    exported.mkdir(parents=True, exist_ok=True)
+    for client in clients:
+        mount = runner.host_path(client, robot_path)
+        mount.parent.mkdir(parents=True, exist_ok=True)
+        if mount.is_symlink():
+            mount.unlink()
+        mount.symlink_to(exported, target_is_directory=True)
+    return exported

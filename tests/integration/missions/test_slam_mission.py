@@ -1,0 +1,78 @@
+"""Acceptance 1: the committed SLAM mission, applied with `kubectl apply`, runs to SUCCESS on a
+runner robot, `kubectl get coralinstances` shows it, the map is in the robot's files and the
+trajectory matches the bag's ground truth; the finished executor stays Succeeded (no re-run).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from coral.lidar import demo as slam_demo
+from coral_testbed.cluster import Cluster
+from coral_testbed.missions import following, manifests
+from coral_testbed.waiting import wait_for
+from kubernetes import client as k8s
+
+from .conftest import TEST_SCANS, StartStack, wait_finished
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(420)]
+
+
+def test_slam_mission_applied_with_kubectl_maps_the_bag(
+    cluster: Cluster,
+    namespace: str,
+    start_stack: StartStack,
+    suffix: str,
+    short_bag: Path,
+    ros_env: dict[str, str],
+) -> None:
+    robot = f"m-slam-{suffix}"
+    stack = start_stack([robot])
+    assert stack.runner is not None
+    manifests.place_bag(stack.runner, robot, short_bag / "bag", manifests.SLAM_BAG)
+    text = manifests.rename_robots(manifests.SLAM_MISSION.read_text(), {manifests.SLAM_ROBOT: robot})
+    text = manifests.with_domain(text, int(ros_env["ROS_DOMAIN_ID"]))
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=text)
+
+    instance = wait_finished(stack, [robot], timeout=300)[robot]
+    assert following.tree(instance)["rootStatus"] == "SUCCESS", following.describe(instance)
+
+    table = cluster.kubectl("get", "coralinstances", "-n", namespace).stdout
+    row = next(line for line in table.splitlines() if robot in line)
+    assert "SUCCESS" in row.split(), table
+
+    output = stack.pod_dir(robot, "slam")
+    assert output is not None and stack.runner.robot_dir(robot) in output.parents
+    map_file = output / slam_demo.EXAMPLE_MAP_NAME
+    assert map_file.is_file(), sorted(p.name for p in output.iterdir())
+    scans, total, error, points = slam_demo.score(output, short_bag)
+    assert total == TEST_SCANS and scans >= TEST_SCANS - 2, (scans, total)
+    assert points > 1000
+    assert error is not None and error.ate_rmse_m < 0.5, error
+
+    # The mission is over: the executor pod ends Succeeded and is not started again.
+    core = k8s.CoreV1Api(cluster.api_client)
+
+    def executor_pod() -> k8s.V1Pod:
+        return core.list_namespaced_pod(namespace, label_selector="coral.dev/role=executor").items[0]
+
+    pod = wait_for(
+        lambda: (p := executor_pod()).status.phase == "Succeeded" and p,
+        timeout=60,
+        message="executor pod Succeeded",
+    )
+    assert pod.status.container_statuses[0].restart_count == 0
+    assert pod.spec.restart_policy == "OnFailure"
+
+    def mission_finished() -> bool:
+        # The instance says the mission ended: executor Succeeded and still Ready (a finished
+        # mission is not a broken robot).
+        current = stack.instance_of(robot) or {}
+        components = {c["name"]: c for c in (current.get("status") or {}).get("components", [])}
+        return (
+            following.condition(current, "Ready").get("status") == "True"
+            and components.get("executor", {}).get("phase") == "Succeeded"
+        )
+
+    wait_for(mission_finished, timeout=90, message=lambda: f"mission finished: {stack.instance_of(robot)}")
