@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-cluster test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -21,7 +21,12 @@ venv: $(STAMP)
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
-demo: venv
+# The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
+demo: venv control-plane
+	@$(VENV)/bin/coral demo
+
+# The same mission on one machine, no cluster: `coral run` with a live tree view.
+demo-local: venv
 	@$(VENV)/bin/coral slam-demo
 
 # The control-plane tour: robots as kwok Nodes, a pod pinned to one of them.
