@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+import yaml
 from coral.lidar import demo
 from coral_testbed.waiting import wait_for
 from fixtures.processes import Spawn
@@ -89,3 +91,37 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
     scans, total, error, points = demo.score(output, short_bag)
     assert 0 < scans < total and points > 0
     assert error is not None and error.ate_rmse_m < ATE_BOUND_M
+
+
+def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_batches(
+    spawned: Spawn,
+    run_env: dict[str, str],
+    example_copy: Callable[..., Path],
+    short_bag: Path,
+    tmp_path: Path,
+) -> None:
+    example = example_copy(rate=0.0)  # the whole bag at once: a backlog for the skillset
+    params = yaml.safe_load((example / "params.yaml").read_text())
+    params["slam"]["ros__parameters"]["subscribe_on_enable"] = True
+    (example / "params.yaml").write_text(yaml.safe_dump(params))
+    output = tmp_path / "out"
+    process = spawned(
+        coral("run", str(example), "--output", str(output), "--no-live"),
+        env=run_env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    log, _ = process.communicate(timeout=240)
+    assert process.returncode == 0, log
+
+    scans, total, error, _ = demo.score(output, short_bag)
+    assert scans == total == 40 and error is not None and error.ate_rmse_m < ATE_BOUND_M
+    stats = json.loads((output / "slam_map.stats.json").read_text())
+    assert stats["processed"] == stats["delivered"] == 40 and stats["failed"] == 0
+    # Subscribed at EnableLocalization: the bag player waited for it, so the scans did not pile up
+    # before registration started.
+    assert stats["queued_at_start"] < 40
+    # scans_per_call is 4 in the example: the tree took the backlog in batches, not one call a scan.
+    assert 10 <= stats["process_calls"] < 40
+    assert 0 < stats["registering_s"] <= stats["active_s"]

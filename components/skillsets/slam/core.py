@@ -99,18 +99,25 @@ class ScanResult:
 
 @dataclass
 class SlamCore:
-    """Odometry and mapping state of one SLAM session; thread-safe (one lock around everything)."""
+    """Odometry and mapping state of one SLAM session; thread-safe.
+
+    Two locks: `_odometry_lock` serialises KISS-ICP (one registration at a time) and `_state_lock`
+    guards the trajectory, the map chunks and the displacement mark. Readers of the pose or the
+    displacement take only the state lock, so a behavior asking where the robot is never waits for
+    a registration in progress (KISS-ICP takes 20-30 ms per scan and holds the GIL meanwhile).
+    """
 
     config: SlamConfig = field(default_factory=SlamConfig)
 
     def __post_init__(self) -> None:
-        self._lock = threading.Lock()
+        self._odometry_lock = threading.Lock()
+        self._state_lock = threading.Lock()
         self.reset()
 
     def reset(self) -> None:
         from kiss_icp.kiss_icp import KissICP
 
-        with self._lock:
+        with self._odometry_lock, self._state_lock:
             self._odometry = KissICP(config=self.config.kiss_config())
             self._stamps: list[int] = []
             self._poses: list[np.ndarray] = []
@@ -126,34 +133,45 @@ class SlamCore:
 
     @property
     def pose(self) -> np.ndarray:
+        with self._state_lock:
+            return self._last_pose()
+
+    def _last_pose(self) -> np.ndarray:
         return self._poses[-1].copy() if self._poses else np.eye(4)
 
     def process(self, points: np.ndarray, times: np.ndarray | None, stamp_ns: int) -> ScanResult:
         """Registers one scan; raises `ScanRejected` (state unchanged) when it is unusable."""
         clean = sanitise(points, times, deskew=self.config.deskew)
         if len(clean.points) < self.config.min_points:
-            with self._lock:
+            with self._state_lock:
                 self.rejected += 1
             raise ScanRejected(
                 f"scan has {len(clean.points)} usable points after dropping {clean.dropped} non-finite ones "
                 f"(need at least {self.config.min_points})"
             )
-        with self._lock:
+        with self._odometry_lock:
             frame, _ = self._odometry.register_frame(clean.points, clean.times)
             pose = np.array(self._odometry.last_pose)
             if not np.isfinite(pose).all():
                 raise ScanRejected("registration produced a non-finite pose")
-            self._poses.append(pose)
-            self._stamps.append(int(stamp_ns))
-            if self._is_keyframe(pose):
-                # Keyframes only: consecutive scans overlap almost entirely, and thinning every one
-                # would cost registration time for no new map content.
-                from kiss_icp.voxelization import voxel_down_sample
+            # Recorded while registrations are still serialised, so the trajectory keeps their order.
+            with self._state_lock:
+                self._poses.append(pose)
+                self._stamps.append(int(stamp_ns))
+                index = len(self._poses) - 1
+                keyframe = self._is_keyframe(pose)
+                if keyframe:
+                    self._keyframe = pose
+        if keyframe:
+            # Keyframes only: consecutive scans overlap almost entirely, and thinning every one
+            # would cost registration time for no new map content.
+            from kiss_icp.voxelization import voxel_down_sample
 
-                thinned = voxel_down_sample(np.asarray(frame), self.config.map_voxel_size)
-                self._map_chunks.append(thinned @ pose[:3, :3].T + pose[:3, 3])
-                self._keyframe = pose
-            return ScanResult(len(self._poses) - 1, pose, len(clean.points), clean.dropped, clean.deskew)
+            thinned = voxel_down_sample(np.asarray(frame), self.config.map_voxel_size)
+            chunk = thinned @ pose[:3, :3].T + pose[:3, 3]
+            with self._state_lock:
+                self._map_chunks.append(chunk)
+        return ScanResult(index, pose, len(clean.points), clean.dropped, clean.deskew)
 
     def _is_keyframe(self, pose: np.ndarray) -> bool:
         if self._keyframe is None:
@@ -164,25 +182,25 @@ class SlamCore:
 
     def displacement(self) -> tuple[float, float]:
         """(metres, radians) moved since the last `mark_displacement` (or the start)."""
-        with self._lock:
-            delta = np.linalg.inv(self._mark) @ self.pose
+        with self._state_lock:
+            delta = np.linalg.inv(self._mark) @ self._last_pose()
         angle = math.acos(max(-1.0, min(1.0, (np.trace(delta[:3, :3]) - 1.0) / 2.0)))
         return float(np.linalg.norm(delta[:3, 3])), angle
 
     def mark_displacement(self) -> None:
-        with self._lock:
-            self._mark = self.pose
+        with self._state_lock:
+            self._mark = self._last_pose()
 
     def local_map(self) -> np.ndarray:
         """The points KISS-ICP currently registers against (within max_range of the robot)."""
-        with self._lock:
+        with self._odometry_lock:
             return np.asarray(self._odometry.local_map.point_cloud())
 
     def global_map(self) -> np.ndarray:
         """Every keyframe scan (and a loaded map), voxel-thinned to `map_voxel_size`."""
         from kiss_icp.voxelization import voxel_down_sample
 
-        with self._lock:
+        with self._state_lock:
             chunks = [self._prior_map, *self._map_chunks]
         merged = np.concatenate(chunks) if chunks else np.empty((0, 3))
         if len(merged) == 0:
@@ -190,7 +208,7 @@ class SlamCore:
         return np.asarray(voxel_down_sample(merged, self.config.map_voxel_size))
 
     def trajectory(self) -> tuple[np.ndarray, np.ndarray]:
-        with self._lock:
+        with self._state_lock:
             return np.asarray(self._stamps, dtype=np.int64), np.asarray(self._poses).reshape(-1, 4, 4)
 
     def save_map(self, path: Path) -> int:
@@ -209,7 +227,7 @@ class SlamCore:
     def load_map(self, path: Path) -> int:
         """Seeds the odometry's local map with a saved map so new scans localise against it."""
         points = read_ply(Path(path))
-        with self._lock:
+        with self._odometry_lock, self._state_lock:
             self._odometry.local_map.add_points(points)
             self._prior_map = points
         return len(points)

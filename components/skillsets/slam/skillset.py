@@ -3,13 +3,23 @@
 Run with `python -m coral_skillsets.slam --plugins DIR [--params FILE]`. Parameters (node `slam`):
 points_topic; end_of_data_topic (std_msgs/String JSON {"done", "published": {topic: count}} from
 the bag player: the data ended once that many scans arrived); queue_size; scan_wait_s;
-lookahead (scans registered ahead of the tree's requests, default 8); scans_per_call (most
-registered scans one ProcessScan hands out, default 1); map_path (relative paths resolve against
-$CORAL_OUTPUT_DIR, else the working directory); max_range, min_range, deskew, voxel_size
-(0: max_range/100), min_points, max_threads (KISS-ICP's; 0: all cores). Scans are queued from the
-moment the node starts, so none is lost before the tree enables localization; a worker thread
-registers them while localization is enabled, at most `lookahead` ahead of the `ProcessScan`
-requests that hand out the results, so the tree paces the work without waiting on it.
+lookahead (most registered scans waiting for the tree; 0, the default: no bound); scans_per_call
+(most registered scans one ProcessScan hands out, default 1); batch_wait_s (how long a
+ProcessScan waits to fill its batch while a backlog is registered, default 0.05); map_path
+(relative paths resolve against $CORAL_OUTPUT_DIR, else the working directory); max_range,
+min_range, deskew, voxel_size (0: max_range/100), min_points, max_threads (KISS-ICP's; 0: all
+cores); subscribe_on_enable.
+
+Scans are queued from the moment the node starts, so none is lost before the tree enables
+localization; with `subscribe_on_enable: true` the skillset subscribes to the points at the first
+EnableLocalization instead, so a source that waits for its subscribers (the bag player) starts
+when SLAM does (the benchmark uses this to keep the data path inside its clock).
+
+While localization is enabled a worker thread registers scans as they come, as
+Coral's SLAM skillsets run their SLAM between EnableLocalization and DisableLocalization; a
+`ProcessScan` request only hands out results already computed (or waits for the next one), so a
+slow or starved executor never holds registration up. The timing counters (`timings()`) end up in
+the map's `.stats.json` next to the map, for the benchmark and for whoever tunes a deployment.
 """
 
 from __future__ import annotations
@@ -78,21 +88,33 @@ class SlamSkillset(Skillset):
         self.expected = 0
         self.received = 0
         self.first_arrival: float | None = None
+        self.last_arrival: float | None = None
         self.first_registration: float | None = None
         self.last_delivered_at: float | None = None
         self.delivered = 0
-        self.lookahead = max(1, int(self.param("lookahead", 8)))
+        self.process_calls = 0  # ProcessScan requests served
+        self.lookahead = max(0, int(self.param("lookahead", 0)))
         self.scans_per_call = max(1, int(self.param("scans_per_call", 1)))
+        self.batch_wait_s = max(0.0, float(self.param("batch_wait_s", 0.05)))
         self.results: collections.deque[tuple[bool, dict[str, Any]]] = collections.deque()
         self.registering = False
         self.worker_stop = threading.Event()
         self.failed_scans = 0
         self.dropped = 0
-        self.busy_s = 0.0
-        reliable = QoSProfile(
+        self.busy_s = 0.0  # in SlamCore.process: sanitising, registration, keyframe map
+        self.decode_s = 0.0  # message buffer -> numpy arrays
+        self.stalled_s = 0.0  # scans queued, but `lookahead` results already wait for the tree
+        self.queued_at_start = 0  # scans already queued when the worker took the first one
+        self.last_registered_at: float | None = None
+        # This process's CPU time (all threads) over the same window as active_s.
+        self.first_registration_cpu = self.last_delivered_cpu = 0.0
+        self.points_qos = QoSProfile(
             depth=queue_size, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
         )
-        self.create_subscription(PointCloud2, self.points_topic, self.on_scan, reliable)
+        self.points_subscription: Any = None
+        self.subscribe_on_enable = bool(self.param("subscribe_on_enable", False))
+        if not self.subscribe_on_enable:
+            self._subscribe_points()
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
@@ -112,6 +134,13 @@ class SlamSkillset(Skillset):
         self.worker.start()
 
     # Data in.
+    def _subscribe_points(self) -> None:
+        with self.arrived:
+            if self.points_subscription is None:
+                self.points_subscription = self.create_subscription(
+                    PointCloud2, self.points_topic, self.on_scan, self.points_qos
+                )
+
     def on_scan(self, message: PointCloud2) -> None:
         with self.arrived:
             if len(self.queue) == self.queue.maxlen:
@@ -122,8 +151,9 @@ class SlamSkillset(Skillset):
                     )
             self.queue.append(message)
             self.received += 1
+            self.last_arrival = time.monotonic()
             if self.first_arrival is None:
-                self.first_arrival = time.monotonic()
+                self.first_arrival = self.last_arrival
             self.arrived.notify_all()
 
     def on_end(self, message: String) -> None:
@@ -159,6 +189,7 @@ class SlamSkillset(Skillset):
             "queued": queued,
             "processed": self.core.scans_processed,
             "delivered": self.delivered,
+            "process_calls": self.process_calls,
             "failed": self.failed_scans,
             "dropped": self.dropped,
             "end_of_data": ended,
@@ -168,31 +199,61 @@ class SlamSkillset(Skillset):
             else 0.0,
         }
 
+    def timings(self) -> dict[str, Any]:
+        """Where the worker's time went, from the first scan it took to the last one handed out."""
+        start, end = self.first_registration, self.last_delivered_at
+        return {
+            "registering_s": self.busy_s,
+            "decoding_s": self.decode_s,
+            "stalled_s": self.stalled_s,
+            "queued_at_start": self.queued_at_start,
+            # Relative to the first registration: negative when scans queued up before it.
+            "first_arrival_s": (self.first_arrival - start) if start and self.first_arrival else 0.0,
+            "last_arrival_s": (self.last_arrival - start) if start and self.last_arrival else 0.0,
+            "process_cpu_s": self.last_delivered_cpu - self.first_registration_cpu,
+            "delivery_lag_s": (end - self.last_registered_at) if end and self.last_registered_at else 0.0,
+        }
+
     def publish_status(self) -> None:
         self.status_publisher.publish(String(data=json.dumps(self.status())))
 
-    # Registration: a worker registers up to `lookahead` scans ahead of the tree's requests, so
-    # KISS-ICP works while the executor round-trips; the tree still paces it (no requests, no work).
+    # Registration: the worker takes scans as they arrive while localization is enabled; it waits
+    # for the tree only when `lookahead` (> 0) results are still undelivered.
+    def _ready_to_register(self) -> bool:
+        return self.enabled and bool(self.queue) and not self._results_full()
+
+    def _results_full(self) -> bool:
+        return 0 < self.lookahead <= len(self.results)
+
     def _work(self) -> None:
         while not self.worker_stop.is_set():
             with self.arrived:
-                while not (self.enabled and self.queue and len(self.results) < self.lookahead):
+                while not self._ready_to_register():
                     if self.worker_stop.is_set():
                         return
+                    stalled = self.enabled and bool(self.queue)
+                    waited = time.perf_counter()
                     self.arrived.wait(0.1)
+                    if stalled:
+                        self.stalled_s += time.perf_counter() - waited
                 message = self.queue.popleft()
                 self.registering = True
                 if self.first_registration is None:
                     self.first_registration = time.monotonic()
+                    self.first_registration_cpu = time.process_time()
+                    self.queued_at_start = len(self.queue) + 1
             outcome = self.register(message)
             with self.arrived:
                 self.results.append(outcome)
                 self.registering = False
+                self.last_registered_at = time.monotonic()
                 self.arrived.notify_all()
 
     def register(self, message: PointCloud2) -> tuple[bool, dict[str, Any]]:
         stamp_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
         try:
+            started = time.perf_counter()
+            # A view on the message's buffer, converted once to the float64 arrays KISS-ICP takes.
             points, times = clouds.decode(
                 message.fields,
                 message.data,
@@ -201,9 +262,10 @@ class SlamSkillset(Skillset):
                 message.height,
                 message.is_bigendian,
             )
-            started = time.perf_counter()
+            decoded = time.perf_counter()
+            self.decode_s += decoded - started
             result = self.core.process(points, times, stamp_ns)
-            self.busy_s += time.perf_counter() - started
+            self.busy_s += time.perf_counter() - decoded
         except (ScanRejected, ValueError) as err:
             self.failed_scans += 1
             self.get_logger().warning(f"Rejected scan stamped {stamp_ns}: {err}")
@@ -219,6 +281,8 @@ class SlamSkillset(Skillset):
 
     # Services.
     def serve_set_localization(self, request: Any, response: Any, token: CancelToken) -> Any:
+        if request.data:
+            self._subscribe_points()
         with self.arrived:
             self.enabled = bool(request.data)
             self.arrived.notify_all()
@@ -239,23 +303,39 @@ class SlamSkillset(Skillset):
             return self.results.popleft()
 
     def serve_process_scan(self, request: Any, response: Any, token: CancelToken) -> Any:
-        """Hands out the next registered scan, plus those already registered behind it (up to
-        `scans_per_call`), so one behavior call can cover a burst of scans."""
+        """Hands out the next registered scan, plus those registered behind it (up to
+        `scans_per_call`), so one behavior call can cover a burst of scans.
+
+        While a backlog is being registered, the call waits up to `batch_wait_s` to fill its batch:
+        a tree that is ahead of registration would otherwise wake up and round-trip once per scan,
+        and on a small robot computer that chatter takes CPU from registration itself.
+        """
         if not self.enabled:
             response.success, response.message = False, json.dumps({"error": "localization is disabled"})
             return response
         success, payload = self._next_result(token)
         taken = 1 if success else 0
         with self.arrived:
-            while success and taken < self.scans_per_call and self.results and self.results[0][0]:
-                payload = self.results.popleft()[1]
-                taken += 1
+            deadline = time.monotonic() + self.batch_wait_s
+            while success and taken < self.scans_per_call:
+                if self.results and self.results[0][0]:
+                    payload = self.results.popleft()[1]
+                    taken += 1
+                    continue
+                remaining = deadline - time.monotonic()
+                # Wait only for scans already on their way: a live sensor's next scan is not.
+                backlog = not self.results and (self.queue or self.registering)
+                if not (backlog and self.enabled) or remaining <= 0 or token.cancelled:
+                    break
+                self.arrived.wait(remaining)
             self.arrived.notify_all()
         payload["taken"] = taken
+        self.process_calls += 1
         response.success, response.message = success, json.dumps(payload)
         if success:
             self.delivered += taken
             self.last_delivered_at = time.monotonic()
+            self.last_delivered_cpu = time.process_time()
             self.publish_status()
         return response
 
@@ -279,7 +359,7 @@ class SlamSkillset(Skillset):
         # Throughput figures for benchmarks: active_s runs from the first registration to the last
         # scan handed to the tree, so it excludes start-up (processes, discovery, StartSLAM) and
         # the mission's closing steps, as KISS-ICP's own figure excludes its start-up.
-        stats = {**self.status(), "registering_s": self.busy_s, "map_points": points}
+        stats = {**self.status(), **self.timings(), "map_points": points}
         path.with_suffix(".stats.json").write_text(json.dumps(stats, indent=2) + "\n")
         self.get_logger().info(
             f"Saved map of {points} points and {self.core.scans_processed} poses to {path}"
