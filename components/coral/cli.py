@@ -30,6 +30,7 @@ VERBS: dict[str, str] = {
     "operator": "coral_operator.cli:operator_command",
     "convert": "coral_operator.convert.cli:convert_command",
     "crds": "coral_operator.crds_cli:crds_command",
+    "rollout": "coral_operator.rollout_cli:rollout",
     "demo": "coral_testbed.missions.cli:demo_command",
 }
 

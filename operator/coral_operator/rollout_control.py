@@ -1,14 +1,15 @@
 """What `coral rollout` does to a CoralSystem, as a small library (also used by tests and tooling).
 
 Pause and resume set `spec.rollout.paused`, as `kubectl rollout pause` does for a Deployment.
-Resume also removes `status.rollout.failure`, the operator's record of a failed health gate, so the
-operator judges the robots afresh. Undo sets the `coral.dev/rollout-undo` annotation to the
-revision to roll back from; the operator then targets the revision before it until the spec makes a
-newer one. `describe` renders `status.rollout` for humans.
+Resume also names the recorded health-gate failure it acknowledges in the `coral.dev/rollout-resume`
+annotation, so the operator clears it and judges the robots afresh. Undo sets the
+`coral.dev/rollout-undo` annotation to the revision to roll back from; the operator then targets
+the revision before it until the spec makes a newer one. `describe` renders `status.rollout`.
 """
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 from kubernetes import client as k8s
@@ -17,6 +18,7 @@ from kubernetes.client.exceptions import ApiException
 
 GROUP, VERSION, PLURAL = "coral.dev", "v1alpha1", "coralsystems"
 UNDO_ANNOTATION = "coral.dev/rollout-undo"
+RESUME_ANNOTATION = "coral.dev/rollout-resume"
 
 
 class RolloutError(Exception):
@@ -35,7 +37,8 @@ class RolloutControl:
         try:
             k8s_config.load_incluster_config()
         except k8s_config.ConfigException:
-            k8s_config.load_kube_config()
+            # Read $KUBECONFIG now: the client's default location is fixed when it is imported.
+            k8s_config.load_kube_config(config_file=os.environ.get("KUBECONFIG"))
         return cls(k8s.ApiClient(), namespace)
 
     def read(self, name: str) -> dict[str, Any]:
@@ -57,28 +60,24 @@ class RolloutControl:
 
     def resume(self, name: str) -> None:
         body = self.read(name)
-        self._patch(name, {"spec": {"rollout": {"paused": False}}})
-        if ((body.get("status") or {}).get("rollout") or {}).get("failure"):
-            self.custom.patch_namespaced_custom_object_status(
-                GROUP,
-                VERSION,
-                self.namespace,
-                PLURAL,
-                name,
-                {"status": {"rollout": {"failure": None}}},
-                _content_type="application/merge-patch+json",
-            )
+        patch: dict[str, Any] = {"spec": {"rollout": {"paused": False}}}
+        failure = ((body.get("status") or {}).get("rollout") or {}).get("failure")
+        if failure and failure.get("time"):
+            patch["metadata"] = {"annotations": {RESUME_ANNOTATION: failure["time"]}}
+        self._patch(name, patch)
 
     def undo(self, name: str) -> str:
         """Roll back from the spec's newest revision; returns that revision."""
         body = self.read(name)
-        status = body.get("status") or {}
-        newest = status.get("revision")
-        history = (status.get("rollout") or {}).get("history") or []
-        if not newest:
+        rollout = (body.get("status") or {}).get("rollout") or {}
+        history = rollout.get("history") or []
+        if not history:
             raise RolloutError(f"coralsystem/{name} has no revision yet; nothing to undo")
-        if newest not in history or history.index(newest) == 0:
+        newest = history[-1]
+        if len(history) < 2:
             raise RolloutError(f"coralsystem/{name} has no revision before {newest} to return to")
+        if (rollout.get("rolledBack") or {}).get("fromRevision") == newest:
+            raise RolloutError(f"coralsystem/{name} is already rolled back from revision {newest}")
         self._patch(name, {"metadata": {"annotations": {UNDO_ANNOTATION: newest}}})
         return str(newest)
 

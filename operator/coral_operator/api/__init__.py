@@ -15,6 +15,13 @@ from coral_operator.api.instance import (
     TreeFailure,
     TreeState,
 )
+from coral_operator.api.rollout import (
+    CanaryStatus,
+    RolledBack,
+    RolloutCounts,
+    RolloutFailure,
+    RolloutStatus,
+)
 from coral_operator.api.system import (
     CanarySpec,
     CoralSystemSpec,
@@ -30,6 +37,11 @@ from coral_operator.api.system import (
 )
 
 __all__ = [
+    "RolloutStatus",
+    "RolloutFailure",
+    "RolloutCounts",
+    "RolledBack",
+    "CanaryStatus",
     "API_VERSION",
     "GROUP",
     "VERSION",

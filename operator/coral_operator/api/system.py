@@ -6,13 +6,15 @@ Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
 
 from __future__ import annotations
 
+import re
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.base import CamelModel
 from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector
 from coral_operator.api.components import Component
+from coral_operator.api.rollout import RolloutStatus
 
 MAX_COMPONENTS = 32
 
@@ -131,7 +133,20 @@ class RolloutSpec(CamelModel):
     instances move to the newest revision and when."""
 
     max_unavailable: int | str = Field(default="25%")
-    """How many robots may be updating at once: a count or a percentage of the matched robots."""
+    """How many robots may be unavailable (updating or not Ready) at once: a count, or a percentage of
+    the matched robots rounded up; at least 1."""
+
+    @field_validator("max_unavailable")
+    @classmethod
+    def _count_or_percent(cls, value: int | str) -> int | str:
+        if isinstance(value, int):
+            if value < 0:
+                raise ValueError("must be a count of at least 0 or a percentage like '10%'")
+            return value
+        if not re.fullmatch(r"(100|[1-9]?[0-9])%|[0-9]+", value.strip()):
+            raise ValueError(f"must be a count or a percentage like '10%', got {value!r}")
+        return value
+
     canary: CanarySpec | None = None
     """Robots updated first, as a health check for the rest."""
     paused: bool = False
@@ -244,3 +259,5 @@ class CoralSystemStatus(CamelModel):
     """Robot counts."""
     trees: TreeCounts = Field(default_factory=TreeCounts)
     """Tree root states over the robots."""
+    rollout: RolloutStatus | None = None
+    """Progress of the fleet rollout: target revision, counts, canaries, failure, rollback."""

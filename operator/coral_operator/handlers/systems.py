@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from coral_operator import config
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
-from coral_operator.handlers import events, triggers
+from coral_operator.handlers import events, rollouts, triggers
 from coral_operator.handlers.indexing import ALL_ROBOTS
 from coral_operator.kube import applying
 from coral_operator.planning import configmaps, instances, policy, selection, validation
@@ -119,7 +119,14 @@ def reconcile_system(
     if type == "DELETED":
         triggers.forget(uid)
         return
-    inputs = (meta.get("generation"), (meta.get("annotations") or {}).get(triggers.ANNOTATION))
+    annotations = meta.get("annotations") or {}
+    # `coral rollout undo` and `resume` (annotations) are inputs too.
+    inputs = (
+        meta.get("generation"),
+        annotations.get(triggers.ANNOTATION),
+        annotations.get(rollouts.UNDO_ANNOTATION),
+        annotations.get(rollouts.RESUME_ANNOTATION),
+    )
     if triggers.already_handled(uid, inputs):
         return
     try:
@@ -148,6 +155,7 @@ def _reconcile_system(
     problem: system_status.Problem | None = None
     matched = len(observed)
     revision = status.get("revision")
+    fleet: rollouts.FleetPlan | None = None
     try:
         parsed = CoralSystemSpec.model_validate(dict(spec))
     except ValidationError as error:
@@ -158,17 +166,28 @@ def _reconcile_system(
         if isinstance(prepared, system_status.Problem):
             problem = prepared
         else:
-            problem, matched, revision = (
-                None,
-                *_deploy(body, name, namespace, uid, parsed, prepared, observed, robot_nodes),
+            matched, fleet = _deploy(
+                body, name, namespace, uid, parsed, prepared, observed, robot_nodes, status
             )
+            # Counts and Ready follow the revision robots are moved to (an earlier one after undo).
+            revision = fleet.target
+            if fleet.failed:
+                problem = system_status.Problem(Reason.HEALTH_GATE_FAILED, fleet.status.get("message", ""))
     # Instances stopping because their robot left are no longer part of the system's counts.
     counted = [instance for instance in observed if not instance.spec.get("retiring")]
-    view = system_status.SystemView(matched=matched, instances=counted, revision=revision, problem=problem)
+    view = system_status.SystemView(
+        matched=matched,
+        instances=counted,
+        revision=revision,
+        problem=problem,
+        rollout=fleet.verdict if fleet is not None else None,
+    )
     new = system_status.build_system_status(
         view, old_conditions=list(status.get("conditions") or []), generation=meta.get("generation"), now=now
     )
     events.on_condition_changes(body, list(status.get("conditions") or []), new["conditions"])
+    if fleet is not None:
+        new["rollout"] = fleet.status
     for key, value in new.items():
         if status.get(key) != value:
             patch.status[key] = value
@@ -183,8 +202,9 @@ def _deploy(
     files: tuple[str, str],
     observed: list[Any],
     robot_nodes: kopf.Index,
-) -> tuple[int, str]:
-    """Make the instances match the robots; returns (matched robots, newest revision)."""
+    status: kopf.Status,
+) -> tuple[int, rollouts.FleetPlan]:
+    """Make the instances follow the robots and the rollout; returns (matched robots, rollout plan)."""
     tree_cm = configmaps.build_config_map(
         system=name, namespace=namespace, system_uid=uid, kind="tree", key=configmaps.TREE_KEY, text=files[0]
     )
@@ -197,23 +217,28 @@ def _deploy(
         text=files[1],
     )
     template = instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"])
-    revision = instances.revision_of(template)
     robots = selection.select_robots(spec.robots, robot_nodes.get(ALL_ROBOTS, []))
-    desired = [
-        instances.build_instance(
-            system=name, namespace=namespace, system_uid=uid, robot=robot, template=template
-        )
-        for robot in robots
-    ]
+    fleet = rollouts.plan_fleet(
+        body=body,
+        name=name,
+        namespace=namespace,
+        uid=uid,
+        spec=spec,
+        template=template,
+        robots=robots,
+        observed=observed,
+        status=status,
+        now=datetime.now(UTC),
+    )
     reachable = {node.node_name for node in robot_nodes.get(ALL_ROBOTS, []) if node.ready}
-    plan = instances.plan_instances(desired, observed, reachable)
+    plan = instances.plan_instances(fleet.desired, observed, reachable)
     if plan.empty:
-        return len(robots), revision
+        return len(robots), fleet
     # ConfigMaps first: an instance must never point at a file that does not exist yet.
     applying.create_config_map(tree_cm)
     applying.create_config_map(params_cm)
     _apply_plan(body, namespace, plan)
-    in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}
+    in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"], *fleet.in_use}
     for instance in observed:
         in_use.add((instance.spec.get("tree") or {}).get("configMap", ""))
         in_use.add((instance.spec.get("parameters") or {}).get("configMap", ""))
@@ -221,4 +246,4 @@ def _deploy(
         applying.list_system_config_maps(namespace, name), in_use
     ):
         applying.delete_config_map(namespace, stale)
-    return len(robots), revision
+    return len(robots), fleet

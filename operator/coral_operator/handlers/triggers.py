@@ -73,17 +73,39 @@ def _pods_digest(pods: list[ObservedPod]) -> str:
     )
 
 
+# A robot's pods change together (three deleted at once, a stage created, kwok reporting them);
+# one poke covers what changed within this window instead of one patch per pod event.
+INSTANCE_POKE_DELAY_S = 0.1
+_pending_instances: set[tuple[str, str]] = set()
+
+
+def _poke_instance_soon(namespace: str, instance: str, coral_pods: kopf.Index) -> None:
+    key = (namespace, instance)
+    with _lock:
+        if key in _pending_instances:
+            return
+        _pending_instances.add(key)
+
+    def fire() -> None:
+        with _lock:
+            _pending_instances.discard(key)
+        try:
+            pods = list(coral_pods.get(key, []))
+        except RuntimeError:
+            _poke_instance_soon(namespace, instance, coral_pods)
+            return
+        poke("coralinstances", namespace, instance, "pods-" + _pods_digest(pods))
+
+    timer = threading.Timer(INSTANCE_POKE_DELAY_S, fire)
+    timer.daemon = True
+    timer.start()
+
+
 @kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
 def poke_instance_on_pod_change(
     namespace: str, labels: kopf.Labels, coral_pods: kopf.Index, **_: Any
 ) -> None:
-    instance = labels[naming.LABEL_INSTANCE]
-    poke(
-        "coralinstances",
-        namespace,
-        instance,
-        "pods-" + _pods_digest(list(coral_pods.get((namespace, instance), []))),
-    )
+    _poke_instance_soon(namespace, labels[naming.LABEL_INSTANCE], coral_pods)
 
 
 def _selected_digest(spec: dict[str, Any], robots: list[RobotNode]) -> str | None:
@@ -125,10 +147,39 @@ def poke_on_robot_change(
 def _instances_digest(instances: list[ObservedInstance]) -> str:
     return naming.content_hash(
         sorted(
-            (i.name, i.revision, i.ready, i.reachable, i.tree_root, bool(i.spec.get("retiring")))
+            (i.name, i.revision, i.ready, i.reachable, i.tree_root, i.stalled, bool(i.spec.get("retiring")))
             for i in instances
         )
     )
+
+
+# A fleet's instances change in bursts (a wave of robots becoming Ready); the system needs one
+# pass per burst, not one per instance, so its poke waits this long and then covers them all.
+SYSTEM_POKE_DELAY_S = 0.5
+_pending_systems: set[tuple[str, str]] = set()
+
+
+def _poke_system_soon(namespace: str, system: str, coral_instances: kopf.Index) -> None:
+    key = (namespace, system)
+    with _lock:
+        if key in _pending_systems:
+            return
+        _pending_systems.add(key)
+
+    def fire() -> None:
+        with _lock:
+            _pending_systems.discard(key)
+        try:
+            observed = list(coral_instances.get(key, []))
+        except RuntimeError:
+            # The index changed while it was read: try again a moment later.
+            _poke_system_soon(namespace, system, coral_instances)
+            return
+        poke("coralsystems", namespace, system, "instances-" + _instances_digest(observed))
+
+    timer = threading.Timer(SYSTEM_POKE_DELAY_S, fire)
+    timer.daemon = True
+    timer.start()
 
 
 @kopf.on.event("coral.dev", "v1alpha1", "coralinstances")
@@ -137,8 +188,7 @@ def poke_system_on_instance_change(
 ) -> None:
     system = spec.get("system")
     if system:
-        observed = list(coral_instances.get((namespace, system), []))
-        poke("coralsystems", namespace, system, "instances-" + _instances_digest(observed))
+        _poke_system_soon(namespace, system, coral_instances)
 
 
 @kopf.on.event("configmaps")

@@ -71,6 +71,7 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
     spec = dict(body.get("spec") or {})
     status = body.get("status") or {}
     ready = _condition(status.get("conditions"), "Ready")
+    stalled = _condition(status.get("conditions"), "Stalled")
     robot = status.get("robot") or {}
     return ObservedInstance(
         name=metadata.get("name", ""),
@@ -85,4 +86,9 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
         reachable=robot.get("reachable"),
         tree_root=(status.get("tree") or {}).get("rootStatus"),
         labels=dict(metadata.get("labels") or {}),
+        stalled=bool(
+            stalled
+            and stalled.get("status") == "True"
+            and stalled.get("observedGeneration") == metadata.get("generation")
+        ),
     )

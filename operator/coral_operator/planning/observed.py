@@ -49,3 +49,5 @@ class ObservedInstance:
     reachable: bool | None = None
     tree_root: str | None = None
     labels: dict[str, str] = field(default_factory=dict)
+    stalled: bool = False
+    """The instance is Stalled at its current generation (a component failed, or startup timed out)."""

@@ -188,7 +188,9 @@ def build_pod(
         "hostNetwork": host,
         "hostIPC": host,
         "dnsPolicy": "ClusterFirstWithHostNet" if host else "ClusterFirst",
-        "restartPolicy": "OnFailure" if component.transient else "Always",
+        # An executor runs a mission: once its tree succeeded (exit 0) the pod stays Succeeded, like
+        # a Job, instead of starting the mission over; a failed or crashed mission is retried.
+        "restartPolicy": "OnFailure" if component.transient or role == "executor" else "Always",
         "enableServiceLinks": False,
         "automountServiceAccountToken": role == "executor",
         "containers": [container],

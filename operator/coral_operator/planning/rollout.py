@@ -42,7 +42,9 @@ from coral_operator.api.rollout import (
     RolloutStatus,
 )
 from coral_operator.api.system import RolloutSpec
+from coral_operator.planning import rollout_report
 
+RolloutEvent = rollout_report.RolloutEvent
 _PERCENT = re.compile(r"^(\d{1,3})%$")
 FIELD = "spec.rollout.maxUnavailable"
 
@@ -66,15 +68,6 @@ class RobotView:
     """The robot matches `spec.rollout.canary.robots`."""
 
 
-@dataclass(frozen=True)
-class RolloutEvent:
-    """An Event to post on the CoralSystem."""
-
-    reason: str
-    message: str
-    warning: bool = False
-
-
 @dataclass
 class RolloutDecision:
     """What to do in this pass."""
@@ -86,7 +79,7 @@ class RolloutDecision:
     moves: dict[str, str] = field(default_factory=dict)
     """Robot name -> revision to move it to now."""
     status: RolloutStatus = field(default_factory=RolloutStatus)
-    events: list[RolloutEvent] = field(default_factory=list)
+    events: list[rollout_report.RolloutEvent] = field(default_factory=list)
     wake_at: datetime | None = None
     """When the decision should be made again even if nothing changes (the canary hold ends)."""
 
@@ -140,11 +133,6 @@ def _names(robots: Sequence[RobotView]) -> list[str]:
     return sorted(r.robot for r in robots)[:MAX_NAMED]
 
 
-def _shown(names: Sequence[str], total: int) -> str:
-    more = f" and {total - len(names)} more" if total > len(names) else ""
-    return ", ".join(names) + more
-
-
 def passes_gate(robot: RobotView, target: str) -> bool:
     """On the target, instance Ready, tree not failed."""
     return robot.revision == target and robot.ready and robot.tree_root != "FAILURE"
@@ -184,6 +172,8 @@ class RolloutRequest:
     now: datetime
     undo_from: str | None = None
     """Set by `coral rollout undo`: roll back from this revision."""
+    resumed: str | None = None
+    """Set by `coral rollout resume`: the time of the recorded failure to clear."""
 
 
 def _canary(
@@ -231,33 +221,40 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
     counted = [r for r in request.robots if r.revision is not None]
     max_unavailable = resolve_max_unavailable(policy.max_unavailable, len(counted))
     before = revision_before(request.history, target)
-    events: list[RolloutEvent] = []
+    events: list[rollout_report.RolloutEvent] = []
 
     # A failure is judged only while a rollout is under way and there is somewhere to go back to.
     under_way = any(r.revision != target for r in counted) or (same_target and not previous.complete)
     failure = (
         previous.failure if previous and previous.failure and previous.failure.revision == target else None
     )
+    if failure is not None and request.resumed is not None and request.resumed == failure.time:
+        # Resumed by a human: judge the robots afresh (a robot still failing fails it again).
+        failure = None
     failing = [r for r in counted if fails_gate(r, target)]
     if failure is None and under_way and failing and before is not None and rolled_back is None:
         names = _names(failing)
         message = (
             f"Revision {target} failed the health gate on {len(failing)} robots "
-            f"({_shown(names, len(failing))})."
+            f"({rollout_report.shown(names, len(failing))})."
         )
         if policy.on_failure == "Rollback":
             rolled_back = RolledBack(from_revision=target, to_revision=before, reason="HealthGateFailed")
             events.append(
-                RolloutEvent("RolloutRolledBack", f"{message} Rolling back to revision {before}.", True)
+                rollout_report.RolloutEvent(
+                    "RolloutRolledBack", f"{message} Rolling back to revision {before}.", True
+                )
             )
             target, same_target = before, previous is not None and previous.revision == before
             before = revision_before(request.history, target)
         else:
             failure = RolloutFailure(revision=target, robots=names, message=message, time=_stamp(request.now))
-            events.append(RolloutEvent("RolloutFailed", f"{message} The rollout is paused.", True))
+            events.append(
+                rollout_report.RolloutEvent("RolloutFailed", f"{message} The rollout is paused.", True)
+            )
     elif rolled_back is not None and (previous is None or previous.rolled_back != rolled_back):
         events.append(
-            RolloutEvent(
+            rollout_report.RolloutEvent(
                 "RolloutRolledBack",
                 f"Rolling back from revision {rolled_back.from_revision} to {rolled_back.to_revision}.",
                 True,
@@ -275,7 +272,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
     ):
         if canary.robots and rolled_back is None:
             events.append(
-                RolloutEvent(
+                rollout_report.RolloutEvent(
                     "CanaryPromoted",
                     f"{canary.healthy} canary robots stayed healthy on revision {target}; "
                     "the rest of the fleet follows.",
@@ -333,7 +330,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
         failure=failure,
         rolled_back=rolled_back,
         waiting_for=_names(waiting),
-        message=_message(
+        message=rollout_report.build_message(
             target,
             counts,
             complete,
@@ -343,11 +340,20 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
             canary,
             canaries_done,
             mode,
-            offline_pending,
-            locked,
+            sorted(r.robot for r in offline_pending),
+            sorted(r.robot for r in locked),
         ),
     )
-    events.extend(_transition_events(previous, status, moves, locked, offline_pending, mode))
+    events.extend(
+        rollout_report.build_events(
+            previous,
+            status,
+            moves,
+            sorted(r.robot for r in locked),
+            sorted(r.robot for r in offline_pending),
+            mode,
+        )
+    )
     create_revision = before if failure is not None and before is not None else target
     return RolloutDecision(
         target=target,
@@ -361,101 +367,3 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
 
 def _was_ready(robots: Sequence[RobotView], name: str) -> bool:
     return any(r.robot == name and r.ready for r in robots)
-
-
-def _message(
-    target: str,
-    counts: RolloutCounts,
-    complete: bool,
-    paused_by_spec: bool,
-    failure: RolloutFailure | None,
-    rolled_back: RolledBack | None,
-    canary: CanaryStatus | None,
-    canaries_done: bool,
-    mode: str,
-    offline: Sequence[RobotView],
-    locked: Sequence[RobotView],
-) -> str:
-    progress = f"{counts.healthy} of {counts.total} robots healthy on revision {target}"
-    if failure is not None:
-        return (
-            f"{failure.message} Paused; fix the robots and `coral rollout resume`, or `coral rollout undo`."
-        )
-    parts = [progress]
-    if rolled_back is not None:
-        parts.append(f"rolled back from revision {rolled_back.from_revision} ({rolled_back.reason})")
-    if paused_by_spec:
-        parts.append("paused (spec.rollout.paused)")
-    if canary is not None and not canaries_done:
-        if canary.healthy_since:
-            parts.append(f"canaries healthy since {canary.healthy_since}, holding")
-        else:
-            parts.append(f"canaries {canary.healthy} of {canary.robots} healthy")
-    if locked:
-        parts.append(f"{len(locked)} waiting for running trees ({_shown(_names(locked), len(locked))})")
-    if offline:
-        verb = {"Skip": "skipped", "Wait": "waited for", "CountUnavailable": "counted unavailable"}[mode]
-        parts.append(f"{len(offline)} offline robots {verb} ({_shown(_names(offline), len(offline))})")
-    if complete:
-        parts.append("complete")
-    return "; ".join(parts) + "."
-
-
-def _transition_events(
-    previous: RolloutStatus | None,
-    status: RolloutStatus,
-    moves: dict[str, str],
-    locked: Sequence[RobotView],
-    offline: Sequence[RobotView],
-    mode: str,
-) -> list[RolloutEvent]:
-    events = []
-    same = previous is not None and previous.revision == status.revision
-    if not same and moves:
-        events.append(
-            RolloutEvent(
-                "RolloutStarted",
-                f"Rolling out revision {status.revision} over {status.counts.total} robots, "
-                f"at most {status.counts.max_unavailable} unavailable at a time.",
-            )
-        )
-    if moves:
-        names = sorted(moves)
-        events.append(
-            RolloutEvent(
-                "RobotsUpdating",
-                f"Moving {len(names)} robots to revision {status.revision}: "
-                f"{_shown(names[:MAX_NAMED], len(names))}.",
-            )
-        )
-    was_paused = bool(same and previous and previous.paused)
-    if status.paused and not was_paused and status.failure is None:
-        events.append(RolloutEvent("RolloutPaused", f"Rollout of revision {status.revision} paused."))
-    if was_paused and not status.paused:
-        events.append(RolloutEvent("RolloutResumed", f"Rollout of revision {status.revision} resumed."))
-    if locked and not (same and previous and previous.counts.locked):
-        events.append(
-            RolloutEvent(
-                "WaitingForRunningTrees",
-                f"{len(locked)} robots keep their revision until their tree finishes: "
-                f"{_shown(_names(locked), len(locked))}.",
-            )
-        )
-    if offline and mode == "Wait" and not (same and previous and previous.counts.offline):
-        events.append(
-            RolloutEvent(
-                "WaitingForOfflineRobots",
-                "No robot moves until these offline robots are back: "
-                f"{_shown(_names(offline), len(offline))}.",
-                True,
-            )
-        )
-    if status.complete and not (same and previous and previous.complete) and (previous is not None):
-        events.append(
-            RolloutEvent(
-                "RolloutComplete",
-                f"{status.counts.healthy} robots run revision {status.revision}"
-                + (f"; {status.counts.offline} offline robots skipped." if status.counts.offline else "."),
-            )
-        )
-    return events

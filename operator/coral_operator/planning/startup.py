@@ -50,10 +50,10 @@ def plan_shutdown(observed: list[ObservedPod]) -> list[str]:
 
 
 def counts_as_ready(pod: ObservedPod | None, transient: bool) -> bool:
-    """Ready, or for a transient component finished successfully."""
+    """Ready, or for a transient component or an executor (a finished mission) finished successfully."""
     if pod is None or pod.deleting:
         return False
-    return pod.ready or (transient and pod.phase == "Succeeded")
+    return pod.ready or ((transient or pod.role == "executor") and pod.phase == "Succeeded")
 
 
 def _current(pod: ObservedPod | None, desired: dict[str, Any]) -> bool:
@@ -117,7 +117,14 @@ def plan_startup(
         if not unready:
             continue
         plan.waiting_for = stage
-        created = [by_name[n].created for n in unready if n in by_name and by_name[n].created]
+        # Only pods of the current spec count: a replaced pod still terminating was created for the
+        # previous revision, and its age says nothing about how long the new one has waited.
+        manifests = {m["metadata"]["name"]: m for m in members}
+        created = [
+            by_name[n].created
+            for n in unready
+            if n in by_name and by_name[n].created and _current(by_name[n], manifests[n])
+        ]
         waited = (now - min(created)).total_seconds() if len(created) == len(unready) else 0.0
         what = f"{_STAGE_NAMES[stage].capitalize()} not ready"
         if waited < startup.health_timeout_seconds:

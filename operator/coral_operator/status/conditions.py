@@ -93,3 +93,5 @@ class Reason(StrEnum):
     """The tree's root returned FAILURE."""
     TREE_OK = "TreeOk"
     """The tree's root has not failed."""
+    HEALTH_GATE_FAILED = "HealthGateFailed"
+    """Robots on a new revision failed the rollout's health gate; the rollout is paused."""

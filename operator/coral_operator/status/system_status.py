@@ -34,6 +34,8 @@ class SystemView:
     instances: list[ObservedInstance]
     revision: str | None
     problem: Problem | None = None
+    rollout: Verdict | None = None
+    """The `RolloutComplete` condition from `status.rollout`, when the system deploys."""
 
 
 def count_robots(view: SystemView) -> dict[str, int]:
@@ -64,7 +66,9 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
         return Verdict(C.READY, False, view.problem.reason, view.problem.message)
     if view.matched == 0:
         return Verdict(C.READY, False, R.NO_MATCHING_ROBOTS, "No robot Node matches spec.robots.")
-    if len(view.instances) != view.matched or robots["updated"] < view.matched:
+    # Offline robots update when they come back; they do not hold the rest of the fleet's Ready.
+    behind = [i for i in view.instances if i.revision != view.revision and i.reachable is not False]
+    if len(view.instances) != view.matched or behind:
         return Verdict(
             C.READY,
             False,
@@ -119,6 +123,7 @@ def build_system_status(
             view.problem.message if view.problem else "",
         ),
         reach,
+        *([view.rollout] if view.rollout is not None else []),
     ]
     status: dict[str, Any] = {
         "observedGeneration": generation,

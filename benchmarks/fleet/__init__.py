@@ -1,0 +1,1 @@
+"""Helpers of `benchmarks/bench_fleet.py`: robots, audit counting, the DaemonSet and CoralSystem runs."""
