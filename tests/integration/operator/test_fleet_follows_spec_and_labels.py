@@ -72,9 +72,14 @@ def test_spec_changes_labels_and_deletion(
 
     # Deleting the system removes everything through owner references (no finalizers).
     coral.delete_system("fleet")
+    # The executors' ServiceAccounts hang off the instances, so they go one collection later.
     wait(
-        lambda: not coral.instances() and not coral.pods() and not coral.config_maps(),
-        "instances, pods and ConfigMaps to be garbage collected",
+        lambda: (
+            not coral.instances()
+            and not coral.pods()
+            and not coral.config_maps()
+            and [a.metadata.name for a in coral.core.list_namespaced_service_account(namespace).items]
+            == ["default"]
+        ),
+        "instances, pods, ConfigMaps and the executors' ServiceAccounts to be garbage collected",
     )
-    accounts = coral.core.list_namespaced_service_account(namespace).items
-    assert [a.metadata.name for a in accounts] == ["default"]

@@ -49,4 +49,4 @@ def test_a_restarted_operator_picks_up_where_it_stopped(
     # The system went Updating and back to Ready for the new robot; conditions that did not flip keep
     # the times the first operator wrote.
     assert condition(coral.system("fleet"), "Stalled")["lastTransitionTime"] <= ready_since
-    assert "Traceback" not in coral_operator.log()
+    assert "Traceback" not in coral_operator.logs()
