@@ -39,15 +39,30 @@ def interrupt(process: subprocess.Popen[Any]) -> None:
     process.send_signal(signal.SIGINT)
 
 
-def tree_running(env: dict[str, str]) -> bool:
-    """True once an executor of a recorded run reported its tree RUNNING."""
-    root = Path(env["CORAL_STATE_DIR"]) / "runs"
-    for status in root.glob("*/status-*.jsonl"):
+def _status_records(env: dict[str, str]) -> list[dict[str, Any]]:
+    records: list[dict[str, Any]] = []
+    for status in (Path(env["CORAL_STATE_DIR"]) / "runs").glob("*/status-*.jsonl"):
         for line in status.read_text().splitlines():
             try:
-                record = json.loads(line)
+                records.append(json.loads(line))
             except ValueError:
                 continue
-            if record.get("event") == "status" and record.get("root") == "RUNNING":
-                return True
-    return False
+    return records
+
+
+def node_successes(env: dict[str, str], node_id: str) -> int:
+    """How often nodes of type `node_id` succeeded so far, from the executors' status records."""
+    return sum(
+        1
+        for record in _status_records(env)
+        if record.get("event") == "transition"
+        and record.get("node_id") == node_id
+        and record.get("status") == "SUCCESS"
+    )
+
+
+def tree_running(env: dict[str, str]) -> bool:
+    """True once an executor of a recorded run reported its tree RUNNING."""
+    return any(
+        record.get("event") == "status" and record.get("root") == "RUNNING" for record in _status_records(env)
+    )

@@ -12,7 +12,7 @@ import yaml
 from coral.lidar import demo
 from coral_testbed.waiting import wait_for
 from fixtures.processes import Spawn
-from run_helpers import alive, component_pids, coral, run_records, tree_running
+from run_helpers import alive, component_pids, coral, node_successes, run_records
 
 # Measured on this 40-scan bag through Coral: 0.04 m (the same as KISS-ICP's own pipeline).
 ATE_BOUND_M = 0.25
@@ -70,7 +70,13 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
         stderr=subprocess.STDOUT,
         text=True,
     )
-    wait_for(lambda: tree_running(run_env), timeout=120, message="the mission to be running")
+    # Two ProcessScan successes mean at least two registered scans, the fewest a trajectory
+    # error can be computed from; a stop sent earlier would leave nothing to score.
+    wait_for(
+        lambda: node_successes(run_env, "ProcessScan") >= 2,
+        timeout=120,
+        message="the mission to have processed scans",
+    )
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
