@@ -42,3 +42,8 @@ def coral_systems(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[
 @kopf.index("coral.dev", "v1alpha1", "coralinstances")
 def instances_by_node(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
     return {spec.get("nodeName", ""): (namespace, name)}
+
+
+@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+def instance_records(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
+    return {(namespace, name): observing.instance_record(body)}

@@ -1,15 +1,18 @@
 """Reconciles a CoralInstance: the executor's identity, ordered pod startup, per-robot status.
 
-One idempotent, level-based pass on every event of the CoralInstance: its own changes (including
-the executor's status patches) and the pokes `handlers.triggers` gives it when its pods or its
-Node change or a startup stage's health timeout falls due. No timers, so no finalizer. Pods are
-planned by
-`planning.startup`, status by `status.instance_status`; the executor's own fields (`tree`,
-`plugins`) are read, never written.
+A fleet has thousands of instances whose pods change in bursts, so the passes do not run inside
+kopf's per-event handlers. The handlers here only name the instance that needs a pass (its own
+changes, its pods', its robot Node's) on a keyed work queue (`kube.workqueue`); a few worker
+threads run one idempotent, level-based pass per instance from kopf's in-memory indexes
+(`handlers.indexing`), spaced so a burst of events costs one pass. Pods are planned by
+`planning.startup`, status by `status.instance_status` and written with one merge patch when
+it changed; the executor's own fields (`tree`, `plugins`) are read, never written. No timers
+of kopf's, so no finalizer.
 """
 
 from __future__ import annotations
 
+import threading
 from datetime import UTC, datetime
 from typing import Any
 
@@ -17,17 +20,156 @@ import kopf
 from pydantic import ValidationError
 
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.handlers import events, triggers
+from coral_operator.handlers import events
 from coral_operator.kube import applying
+from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, pods, rbac, startup
+from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 from coral_operator.status import instance_status
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.transitions import Verdict, merge_conditions
 
 CORAL = ("coral.dev", "v1alpha1", "coralinstances")
+# Passes of one instance at most this often: a stage's pod is created, scheduled and started in
+# quick succession, and one pass (one status write) after the burst is enough.
+PASS_INTERVAL_S = 0.2
+WORKERS = 8
+
+Key = tuple[str, str]
 
 
-def _invalid(error: ValidationError, status: kopf.Status, generation: int | None, patch: kopf.Patch) -> None:
+_lock = threading.Lock()
+# kopf's indexes, handed to every handler; the worker threads read them between events.
+_indices: dict[str, Any] = {}
+# The status this process last wrote per instance uid: the index may still hold the body from
+# before that write, and a pass must neither write the same thing twice nor compute conditions'
+# transition times from an older state.
+_written: dict[str, dict[str, Any]] = {}
+# Inputs of an instance's own events that call for a pass (spec generation, executor reports);
+# the operator's own status writes are not among them.
+_inputs: dict[str, tuple[Any, ...]] = {}
+# Executor identities created by this process, so each robot's is created once, not per pass.
+_accounts: set[str] = set()
+_node_ready: dict[str, bool] = {}
+
+
+def _read(index_name: str, key: Any) -> list[Any]:
+    """The values under `key` of a kopf index, read from a worker thread.
+
+    kopf changes the index on its event loop; a read that meets a change in flight is repeated.
+    """
+    index = _indices.get(index_name)
+    if index is None:
+        return []
+    while True:
+        try:
+            return list(index.get(key, []))
+        except RuntimeError:
+            continue
+
+
+def _reconcile_key(key: Key) -> None:
+    records = _read("records", key)
+    if not records:
+        return
+    _reconcile(records[0])
+
+
+QUEUE: WorkQueue[Key] = WorkQueue(
+    _reconcile_key, workers=WORKERS, min_interval_s=PASS_INTERVAL_S, name="coralinstance"
+)
+
+
+_started = threading.Event()
+
+
+@kopf.on.cleanup()
+def stop_instance_workers(**_: Any) -> None:
+    QUEUE.stop()
+    _started.clear()
+
+
+def _remember_indices(**indices: Any) -> None:
+    """Keep kopf's indexes for the workers, and start the workers on the first event.
+
+    Started from a resource handler, not at startup: only there does the context hold kopf's
+    Event poster, which each worker thread inherits.
+    """
+    _indices.update(indices)
+    if not _started.is_set():
+        with _lock:
+            if not _started.is_set():
+                QUEUE.start()
+                _started.set()
+
+
+@kopf.on.event(*CORAL)
+async def instance_changed(
+    type: str | None,
+    uid: str,
+    name: str,
+    namespace: str,
+    meta: kopf.Meta,
+    status: kopf.Status,
+    instance_records: kopf.Index,
+    coral_pods: kopf.Index,
+    robot_nodes: kopf.Index,
+    **_: Any,
+) -> None:
+    """Queue a pass on the instance's own changes: its spec, or what its executor reports."""
+    _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
+    key = (namespace, name)
+    if type == "DELETED":
+        with _lock:
+            _written.pop(uid, None)
+            _inputs.pop(uid, None)
+            _accounts.discard(uid)
+        QUEUE.forget(key)
+        return
+    inputs = (meta.get("generation"), naming.content_hash([status.get("tree"), status.get("plugins")]))
+    with _lock:
+        if _inputs.get(uid) == inputs:
+            return
+        _inputs[uid] = inputs
+    QUEUE.add(key)
+
+
+@kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+async def pod_changed(
+    namespace: str,
+    labels: kopf.Labels,
+    instance_records: kopf.Index,
+    coral_pods: kopf.Index,
+    robot_nodes: kopf.Index,
+    **_: Any,
+) -> None:
+    _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
+    QUEUE.add((namespace, labels[naming.LABEL_INSTANCE]))
+
+
+@kopf.on.event("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+async def robot_node_changed(
+    type: str | None,
+    name: str,
+    robot_nodes: kopf.Index,
+    instances_by_node: kopf.Index,
+    instance_records: kopf.Index,
+    coral_pods: kopf.Index,
+    **_: Any,
+) -> None:
+    """Queue the robot's instances when it comes or goes; heartbeats alone change nothing here."""
+    _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
+    robot: RobotNode | None = next(iter(robot_nodes.get(("node", name), [])), None)
+    ready = type != "DELETED" and robot is not None and robot.ready
+    with _lock:
+        if _node_ready.get(name) == ready:
+            return
+        _node_ready[name] = ready
+    for namespace, instance in list(instances_by_node.get(name, [])):
+        QUEUE.add((namespace, instance))
+
+
+def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, Any]) -> dict[str, Any]:
     message = "; ".join(f"spec.{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
     conditions = merge_conditions(
         list(status.get("conditions") or []),
@@ -36,114 +178,101 @@ def _invalid(error: ValidationError, status: kopf.Status, generation: int | None
             Verdict(ConditionType.RECONCILING, False, Reason.INVALID_SPEC),
             Verdict(ConditionType.STALLED, True, Reason.INVALID_SPEC, message),
         ],
-        generation=generation,
+        generation=record.generation,
         now=datetime.now(UTC),
     )
-    if status.get("conditions") != conditions:
-        patch.status["conditions"] = conditions
-        patch.status["observedGeneration"] = generation
+    return {"conditions": conditions, "observedGeneration": record.generation}
 
 
-def _apply(
-    body: kopf.Body, name: str, namespace: str, uid: str, spec: CoralInstanceSpec, plan: startup.StartupPlan
-) -> None:
+def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> None:
+    namespace, name = record.namespace, record.name
     if any(m["metadata"]["labels"][naming.LABEL_ROLE] == "executor" for m in plan.create):
-        # The ServiceAccount must exist before a pod naming it is admitted.
-        applying.apply_rbac(
-            rbac.build_executor_rbac(
-                instance=name, namespace=namespace, instance_uid=uid, system=spec.system, robot=spec.robot
+        with _lock:
+            known = record.uid in _accounts
+        if not known:
+            # The ServiceAccount must exist before a pod naming it is admitted.
+            applying.apply_rbac(
+                rbac.build_executor_rbac(
+                    instance=name,
+                    namespace=namespace,
+                    instance_uid=record.uid,
+                    system=spec.system,
+                    robot=spec.robot,
+                )
             )
-        )
+            with _lock:
+                _accounts.add(record.uid)
     for pod_name in plan.delete:
         applying.delete_pod(namespace, pod_name)
-        events.info(body, "PodDeleted", f"Deleted pod {pod_name} to replace or remove it")
+    if plan.delete:
+        # One Event per pass, not per pod: a fleet update replaces thousands of pods.
+        events.info(
+            record.reference,
+            "PodsReplaced",
+            f"Stopping {', '.join(plan.delete)} to start revision {spec.revision or '?'}",
+        )
     for manifest in plan.create:
-        if applying.create_pod(manifest):
-            labels = manifest["metadata"]["labels"]
-            events.info(
-                body,
-                "PodCreated",
-                f"Created pod {manifest['metadata']['name']} for "
-                f"{labels[naming.LABEL_ROLE]} {labels[naming.LABEL_COMPONENT]}",
-            )
+        applying.create_pod(manifest)
     for pod_name, labels in plan.relabel:
         applying.patch_pod_labels(namespace, pod_name, labels)
 
 
-def _retire(body: kopf.Body, name: str, namespace: str, observed: list[Any], reachable: bool) -> None:
+def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool) -> None:
     """Stop the robot's components in reverse startup order, then remove the instance."""
     if not observed or not reachable:
         # Nothing left to stop, or no kubelet to stop it: garbage collection takes the rest.
-        applying.delete_instance(namespace, name)
-        events.info(body, "InstanceDeleted", f"Deleted CoralInstance {name} after stopping its components")
+        applying.delete_instance(record.namespace, record.name)
+        events.info(
+            record.reference,
+            "InstanceDeleted",
+            f"Deleted CoralInstance {record.name} after stopping its components",
+        )
         return
-    for pod_name in startup.plan_shutdown(observed):
-        applying.delete_pod(namespace, pod_name)
-        events.info(body, "PodDeleted", f"Stopped pod {pod_name} (reverse startup order)")
+    stopping = startup.plan_shutdown(observed)
+    for pod_name in stopping:
+        applying.delete_pod(record.namespace, pod_name)
+    if stopping:
+        events.info(record.reference, "PodsStopped", f"Stopped {', '.join(stopping)} (reverse startup order)")
 
 
-@kopf.on.event(*CORAL)
-def reconcile_instance(
-    type: str | None,
-    uid: str,
-    name: str,
-    namespace: str,
-    meta: kopf.Meta,
-    status: kopf.Status,
-    **kwargs: Any,
-) -> None:
-    """Reconcile on the instance's own changes (spec, executor reports) and on pokes."""
-    if type == "DELETED":
-        triggers.forget(uid)
+def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
+    changes = {key: value for key, value in new.items() if current.get(key) != value}
+    if not changes:
         return
-    inputs = (
-        meta.get("generation"),
-        (meta.get("annotations") or {}).get(triggers.ANNOTATION),
-        naming.content_hash([status.get("tree"), status.get("plugins")]),
-    )
-    if triggers.already_handled(uid, inputs):
-        return
-    try:
-        _reconcile_instance(name=name, namespace=namespace, uid=uid, meta=meta, status=status, **kwargs)
-    except Exception:
-        triggers.retry_later("coralinstances", namespace, name, uid)
-        raise
-    triggers.handled(uid, inputs)
+    if applying.patch_instance_status(record.namespace, record.name, changes):
+        with _lock:
+            _written[record.uid] = {**_written.get(record.uid, {}), **changes}
 
 
-def _reconcile_instance(
-    name: str,
-    namespace: str,
-    uid: str,
-    spec: kopf.Spec,
-    status: kopf.Status,
-    meta: kopf.Meta,
-    body: kopf.Body,
-    patch: kopf.Patch,
-    robot_nodes: kopf.Index,
-    coral_pods: kopf.Index,
-    **_: Any,
-) -> None:
+def _reconcile(record: InstanceRecord) -> None:
+    """One pass over one instance: plan and apply its pods, then write its status if it changed."""
     now = datetime.now(UTC)
-    generation = meta.get("generation")
+    with _lock:
+        written = _written.get(record.uid, {})
+    # Only this process writes these keys (the executor writes `tree` and `plugins`), so what it
+    # wrote last is newer than, or the same as, what the index holds.
+    status = {**record.status, **written}
     try:
-        parsed = CoralInstanceSpec.model_validate(dict(spec))
+        parsed = CoralInstanceSpec.model_validate(record.spec)
     except ValidationError as error:
-        _invalid(error, status, generation, patch)
+        _write_status(record, status, _invalid(error, record, status))
         return
-    node = next(iter(robot_nodes.get(("node", parsed.node_name), [])), None)
-    observed = list(coral_pods.get((namespace, name), []))
+    node = next(iter(_read("nodes", ("node", parsed.node_name))), None)
+    observed: list[ObservedPod] = _read("pods", (record.namespace, record.name))
     if parsed.retiring:
-        _retire(body, name, namespace, observed, node is not None and node.ready)
+        _retire(record, observed, node is not None and node.ready)
         return
-    desired = pods.build_pods(spec=parsed, instance=name, namespace=namespace, instance_uid=uid)
+    desired = pods.build_pods(
+        spec=parsed, instance=record.name, namespace=record.namespace, instance_uid=record.uid
+    )
     transient = {c.name for c in parsed.drivers + parsed.skillsets + parsed.executors if c.transient}
     plan = startup.plan_startup(
         desired=desired, observed=observed, transient=transient, startup=parsed.startup, now=now
     )
-    _apply(body, name, namespace, uid, parsed, plan)
+    _apply(record, parsed, plan)
     if plan.wake_at is not None:
-        triggers.wake_instance_at(namespace, name, plan.wake_at, now)
+        # Pass again when the waiting stage's health timeout falls due, even if nothing changes.
+        QUEUE.add((record.namespace, record.name), max((plan.wake_at - now).total_seconds(), 0.0) + 0.5)
     view = instance_status.InstanceView(
         spec=parsed,
         node=node,
@@ -156,9 +285,7 @@ def _reconcile_instance(
     )
     old_conditions = list(status.get("conditions") or [])
     new = instance_status.build_instance_status(
-        view, old_conditions=old_conditions, generation=generation, now=now
+        view, old_conditions=old_conditions, generation=record.generation, now=now
     )
-    events.on_condition_changes(body, old_conditions, new["conditions"])
-    for key, value in new.items():
-        if status.get(key) != value:
-            patch.status[key] = value
+    events.on_condition_changes(record.reference, old_conditions, new["conditions"])
+    _write_status(record, status, new)

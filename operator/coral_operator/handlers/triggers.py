@@ -1,16 +1,17 @@
-"""Makes a CoralSystem or CoralInstance reconcile when something it depends on changes.
+"""Makes a CoralSystem reconcile when something it depends on changes.
 
-The reconcilers run on every event of their own object (`on.event`, so kopf adds no finalizer).
-What they depend on but do not own (pods, robot Nodes, instances, source ConfigMaps, the clock)
-reaches them as a "poke": the `coral.dev/observed` annotation set to a digest of what changed,
-written only when the digest differs, so one pod transition costs one small patch.
+The system reconciler runs on every event of its own object (`on.event`, so kopf adds no
+finalizer). What it depends on but does not own (robot Nodes, its instances, source ConfigMaps,
+the clock) reaches it as a "poke": the `coral.dev/observed` annotation set to a digest of what
+changed, written only when the digest differs. A fleet has one system and thousands of instances,
+so pokes are batched (`SYSTEM_POKE_DELAY_S`); instances are queued in-process instead
+(`handlers.instances`).
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from datetime import datetime
 from typing import Any
 
 import kopf
@@ -18,14 +19,12 @@ import kopf
 from coral_operator.api.common import LabelSelector
 from coral_operator.kube import applying
 from coral_operator.planning import naming, selection
-from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.observed import ObservedInstance, RobotNode
 
 ANNOTATION = "coral.dev/observed"
 _lock = threading.Lock()
 _poked: dict[tuple[str, str, str], str] = {}
 _nodes: dict[str, tuple[Any, ...]] = {}
-_wakeups: set[tuple[str, str, str]] = set()
-_wakeups: set[tuple[str, str, str]] = set()
 
 
 def poke(plural: str, namespace: str, name: str, digest: str) -> None:
@@ -67,47 +66,6 @@ def retry_later(plural: str, namespace: str, name: str, uid: str, delay_s: float
     timer.start()
 
 
-def _pods_digest(pods: list[ObservedPod]) -> str:
-    return naming.content_hash(
-        sorted((p.name, p.phase, p.ready, p.deleting, p.pod_hash, p.restarts) for p in pods)
-    )
-
-
-# A robot's pods change together (three deleted at once, a stage created, kwok reporting them);
-# one poke covers what changed within this window instead of one patch per pod event.
-INSTANCE_POKE_DELAY_S = 0.1
-_pending_instances: set[tuple[str, str]] = set()
-
-
-def _poke_instance_soon(namespace: str, instance: str, coral_pods: kopf.Index) -> None:
-    key = (namespace, instance)
-    with _lock:
-        if key in _pending_instances:
-            return
-        _pending_instances.add(key)
-
-    def fire() -> None:
-        with _lock:
-            _pending_instances.discard(key)
-        try:
-            pods = list(coral_pods.get(key, []))
-        except RuntimeError:
-            _poke_instance_soon(namespace, instance, coral_pods)
-            return
-        poke("coralinstances", namespace, instance, "pods-" + _pods_digest(pods))
-
-    timer = threading.Timer(INSTANCE_POKE_DELAY_S, fire)
-    timer.daemon = True
-    timer.start()
-
-
-@kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
-def poke_instance_on_pod_change(
-    namespace: str, labels: kopf.Labels, coral_pods: kopf.Index, **_: Any
-) -> None:
-    _poke_instance_soon(namespace, labels[naming.LABEL_INSTANCE], coral_pods)
-
-
 def _selected_digest(spec: dict[str, Any], robots: list[RobotNode]) -> str | None:
     try:
         selector = LabelSelector.model_validate(spec.get("robots") or {})
@@ -124,7 +82,6 @@ def poke_on_robot_change(
     labels: kopf.Labels,
     robot_nodes: kopf.Index,
     coral_systems: kopf.Index,
-    instances_by_node: kopf.Index,
     **_: Any,
 ) -> None:
     robot = next(iter(robot_nodes.get(("node", name), [])), None)
@@ -140,8 +97,6 @@ def poke_on_robot_change(
         digest = _selected_digest(node_name[1], list(robot_nodes.get("all", [])))
         if digest is not None:
             poke("coralsystems", namespace, node_name[0], "robots-" + digest)
-    for namespace, instance in instances_by_node.get(name, []):
-        poke("coralinstances", namespace, instance, "node-" + naming.content_hash(summary))
 
 
 def _instances_digest(instances: list[ObservedInstance]) -> str:
@@ -200,16 +155,3 @@ def poke_systems_on_source_change(
         if name in refs:
             digest = naming.content_hash([type == "DELETED", body.get("data")])
             poke("coralsystems", namespace, system, f"configmap-{name}-{digest}")
-
-
-def wake_instance_at(namespace: str, name: str, when: datetime, now: datetime) -> None:
-    """Reconcile the instance again when a startup stage's health timeout falls due."""
-    key = (namespace, name, when.isoformat())
-    with _lock:
-        if key in _wakeups:
-            return
-        _wakeups.add(key)
-    delay = max((when - now).total_seconds(), 0.0) + 0.5
-    timer = threading.Timer(delay, poke, args=("coralinstances", namespace, name, f"clock-{key[2]}"))
-    timer.daemon = True
-    timer.start()

@@ -32,10 +32,21 @@ def _ignore(error: ApiException, *codes: int) -> None:
         raise error
 
 
+def _drain(response: Any) -> int:
+    """Read an answer left raw, so its connection goes back to the pool; returns its size."""
+    return len(response.data)
+
+
 def create_pod(manifest: dict[str, Any]) -> bool:
     """Create a pod; False when it already existed."""
     try:
-        client.core().create_namespaced_pod(manifest["metadata"]["namespace"], manifest)
+        # The answer is left raw: nothing reads it, and at fleet scale turning it into the
+        # client's model objects costs more CPU than the request.
+        _drain(
+            client.core().create_namespaced_pod(
+                manifest["metadata"]["namespace"], manifest, _preload_content=False
+            )
+        )
     except ApiException as error:
         _ignore(error, 409)
         return False
@@ -44,7 +55,7 @@ def create_pod(manifest: dict[str, Any]) -> bool:
 
 def delete_pod(namespace: str, name: str) -> None:
     try:
-        client.core().delete_namespaced_pod(name, namespace)
+        _drain(client.core().delete_namespaced_pod(name, namespace, _preload_content=False))
     except ApiException as error:
         _ignore(error, 404)
 
@@ -56,6 +67,27 @@ def patch_pod_labels(namespace: str, name: str, labels: dict[str, str]) -> None:
         )
     except ApiException as error:
         _ignore(error, 404)
+
+
+def patch_instance_status(namespace: str, name: str, changes: dict[str, Any]) -> bool:
+    """Merge `changes` into an instance's status; False when the instance is gone."""
+    try:
+        _drain(
+            client.custom().patch_namespaced_custom_object_status(
+                GROUP,
+                VERSION,
+                namespace,
+                "coralinstances",
+                name,
+                {"status": changes},
+                _content_type="application/merge-patch+json",
+                _preload_content=False,
+            )
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+        return False
+    return True
 
 
 def create_config_map(manifest: dict[str, Any]) -> None:

@@ -11,7 +11,7 @@ from datetime import datetime
 from typing import Any
 
 from coral_operator.planning import naming
-from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
 
 
 def parse_time(text: str | None) -> datetime | None:
@@ -91,4 +91,17 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
             and stalled.get("status") == "True"
             and stalled.get("observedGeneration") == metadata.get("generation")
         ),
+    )
+
+
+def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
+    """A CoralInstance as its own reconciler reads it."""
+    metadata = body.get("metadata", {})
+    return InstanceRecord(
+        name=metadata.get("name", ""),
+        namespace=metadata.get("namespace", ""),
+        uid=metadata.get("uid", ""),
+        generation=metadata.get("generation"),
+        spec=dict(body.get("spec") or {}),
+        status=dict(body.get("status") or {}),
     )

@@ -25,6 +25,9 @@ ANNOTATION_POD_HASH = "coral.dev/pod-hash"
 FIELD_MANAGER = "coral-operator"
 
 _MAX_LABEL = 63
+_MAX_SUBDOMAIN = 253
+_POD_SUFFIX_LENGTH = 5
+_SUFFIX_ALPHABET = "bcdfghjklmnpqrstvwxz2456789"
 
 
 def content_hash(value: Any, length: int = 10) -> str:
@@ -54,9 +57,28 @@ def instance_name(system: str, robot: str) -> str:
     return dns_label(f"{system}-{robot}")
 
 
-def pod_name(instance: str, component: str) -> str:
-    """Pod of one component on one robot; stable, so a restarted operator finds it again."""
-    return f"{instance}-{component}"
+def pod_name(instance: str, component: str, pod_hash: str) -> str:
+    """Pod of one component on one robot, named after its content like a ReplicaSet's pods.
+
+    A name that changes with the content means a delete sent for a replaced pod can never hit its
+    replacement, even when it is acted on late (kwok, for one, can act on it after the replacement
+    exists). A restarted operator finds its pods by their labels and `ANNOTATION_POD_HASH`
+    (`planning.startup`), not by name, so the name only has to be unique and valid.
+    """
+    suffix = _name_suffix(pod_hash)
+    prefix = dns_label(f"{instance}-{component}", _MAX_SUBDOMAIN - len(suffix) - 1)
+    return f"{prefix}-{suffix}"
+
+
+def _name_suffix(pod_hash: str) -> str:
+    # Spread the whole hash over the alphabet ReplicaSets use for their pod suffixes: no vowels and
+    # no look-alike digits, so a suffix never spells a word and reads back unambiguously.
+    number = int(hashlib.sha256(pod_hash.encode()).hexdigest(), 16)
+    digits: list[str] = []
+    for _ in range(_POD_SUFFIX_LENGTH):
+        number, digit = divmod(number, len(_SUFFIX_ALPHABET))
+        digits.append(_SUFFIX_ALPHABET[digit])
+    return "".join(digits)
 
 
 def executor_account_name(instance: str) -> str:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -51,3 +52,24 @@ class ObservedInstance:
     labels: dict[str, str] = field(default_factory=dict)
     stalled: bool = False
     """The instance is Stalled at its current generation (a component failed, or startup timed out)."""
+
+
+@dataclass(frozen=True)
+class InstanceRecord:
+    """What a CoralInstance pass reads of its own object."""
+
+    name: str
+    namespace: str
+    uid: str
+    generation: int | None
+    spec: dict[str, Any]
+    status: dict[str, Any]
+
+    @property
+    def reference(self) -> dict[str, Any]:
+        """Enough of a body for an Event to name its object."""
+        return {
+            "apiVersion": "coral.dev/v1alpha1",
+            "kind": "CoralInstance",
+            "metadata": {"name": self.name, "namespace": self.namespace, "uid": self.uid},
+        }

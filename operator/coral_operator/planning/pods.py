@@ -157,7 +157,8 @@ def build_pod(
     """The pod manifest of one component, with its content hash in an annotation.
 
     The hash covers everything but the revision label, so a new revision that leaves this
-    component unchanged relabels the pod instead of restarting it.
+    component unchanged relabels the pod instead of restarting it; the name ends in a digest of the
+    hash, so a changed pod comes back under a new name.
     """
     volumes, mounts = _volumes(spec, namespace, component, role)
     container: dict[str, Any] = {
@@ -200,16 +201,16 @@ def build_pod(
         pod_spec["serviceAccountName"] = naming.executor_account_name(instance)
     labels = naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision)
     unhashed = {k: v for k, v in labels.items() if k != naming.LABEL_REVISION}
+    # The name is derived from the hash, so the hash must not cover the name.
+    pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
     return {
         "apiVersion": "v1",
         "kind": "Pod",
         "metadata": {
-            "name": naming.pod_name(instance, component.name),
+            "name": naming.pod_name(instance, component.name, pod_hash),
             "namespace": namespace,
             "labels": labels,
-            "annotations": {
-                naming.ANNOTATION_POD_HASH: naming.content_hash({"labels": unhashed, "spec": pod_spec})
-            },
+            "annotations": {naming.ANNOTATION_POD_HASH: pod_hash},
             "ownerReferences": [naming.owner_reference(API_VERSION, "CoralInstance", instance, instance_uid)],
         },
         "spec": pod_spec,

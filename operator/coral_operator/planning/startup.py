@@ -2,8 +2,15 @@
 
 A stage's pods are created only when every pod of the earlier stages is Ready (a transient one:
 Succeeded). A stage that stays unready longer than the health timeout either blocks the next stage
-(`Block`, said in the plan's verdict) or lets it start (`Proceed`). A pod whose content hash
-changed is deleted, and created again by a later pass once it is gone, gated like any other.
+(`Block`, said in the plan's verdict) or lets it start (`Proceed`).
+
+Pods are matched to components by their `coral.dev/component` label and content hash, never by
+name: a pod's name ends in a digest of its content (`naming.pod_name`), so a changed component's
+new pod has a new name. A pod whose component is no longer wanted, or whose content hash changed,
+is deleted. A component's pod is created only once no pod of that component is left, not even a
+terminating one (a driver holds hardware, so two must never run at once), and then gated like any
+other. A current pod of an older revision is relabelled, not restarted.
+
 Pure; called by the instance handler with the clock injected.
 """
 
@@ -56,12 +63,26 @@ def counts_as_ready(pod: ObservedPod | None, transient: bool) -> bool:
     return pod.ready or ((transient or pod.role == "executor") and pod.phase == "Succeeded")
 
 
-def _current(pod: ObservedPod | None, desired: dict[str, Any]) -> bool:
-    return (
-        pod is not None
-        and not pod.deleting
-        and pod.pod_hash == desired["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
-    )
+def _component(manifest: dict[str, Any]) -> str:
+    return manifest["metadata"]["labels"][naming.LABEL_COMPONENT]
+
+
+def _pod_hash(manifest: dict[str, Any]) -> str:
+    return manifest["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
+
+
+def current_pod(manifest: dict[str, Any], observed: list[ObservedPod]) -> ObservedPod | None:
+    """The live pod of `manifest`'s component with `manifest`'s content, whatever its name.
+
+    Matched by component label and content hash, not by name, so a pod created under an older
+    naming scheme with the same content still counts as current.
+    """
+    matches = [
+        pod
+        for pod in observed
+        if pod.component == _component(manifest) and pod.pod_hash == _pod_hash(manifest) and not pod.deleting
+    ]
+    return min(matches, key=lambda pod: pod.name, default=None)
 
 
 def plan_startup(
@@ -82,49 +103,38 @@ def plan_startup(
         now: the clock.
     """
     plan = StartupPlan()
-    by_name = {pod.name: pod for pod in observed}
-    wanted = {manifest["metadata"]["name"] for manifest in desired}
+    wanted = {_component(m): _pod_hash(m) for m in desired}
     for pod in observed:
-        if pod.name not in wanted and not pod.deleting:
+        if not pod.deleting and wanted.get(pod.component) != pod.pod_hash:
             plan.delete.append(pod.name)
+    # Terminating pods count too: the replacement must not run beside the pod it replaces.
+    present = {pod.component for pod in observed}
     gate_open = True
     for stage in STAGES:
         members = [m for m in desired if m["metadata"]["labels"][naming.LABEL_ROLE] == stage]
+        current = {_component(m): current_pod(m, observed) for m in members}
         for manifest in members:
-            name = manifest["metadata"]["name"]
-            pod = by_name.get(name)
-            if pod is not None and not pod.deleting and not _current(pod, manifest):
-                plan.delete.append(name)
-            elif _current(pod, manifest):
-                labels = manifest["metadata"]["labels"]
-                if pod is not None and pod.revision != labels[naming.LABEL_REVISION]:
-                    plan.relabel.append((name, {naming.LABEL_REVISION: labels[naming.LABEL_REVISION]}))
-            elif pod is None and gate_open:
+            pod = current[_component(manifest)]
+            revision = manifest["metadata"]["labels"][naming.LABEL_REVISION]
+            if pod is not None:
+                if pod.revision != revision:
+                    plan.relabel.append((pod.name, {naming.LABEL_REVISION: revision}))
+            elif gate_open and _component(manifest) not in present:
                 plan.create.append(manifest)
         if not gate_open or stage == "executor":
             continue
         unready = [
-            m["metadata"]["name"]
+            _component(m)
             for m in members
-            if not (
-                _current(by_name.get(m["metadata"]["name"]), m)
-                and counts_as_ready(
-                    by_name.get(m["metadata"]["name"]),
-                    m["metadata"]["labels"][naming.LABEL_COMPONENT] in transient,
-                )
-            )
+            if not counts_as_ready(current[_component(m)], _component(m) in transient)
         ]
         if not unready:
             continue
         plan.waiting_for = stage
         # Only pods of the current spec count: a replaced pod still terminating was created for the
         # previous revision, and its age says nothing about how long the new one has waited.
-        manifests = {m["metadata"]["name"]: m for m in members}
-        created = [
-            by_name[n].created
-            for n in unready
-            if n in by_name and by_name[n].created and _current(by_name[n], manifests[n])
-        ]
+        live = [current[c] for c in unready]
+        created = [pod.created for pod in live if pod is not None and pod.created]
         waited = (now - min(created)).total_seconds() if len(created) == len(unready) else 0.0
         what = f"{_STAGE_NAMES[stage].capitalize()} not ready"
         if waited < startup.health_timeout_seconds:

@@ -14,7 +14,7 @@ from typing import Any
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedPod, RobotNode
-from coral_operator.planning.startup import StartupPlan, counts_as_ready
+from coral_operator.planning.startup import StartupPlan, counts_as_ready, current_pod
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
 from coral_operator.status.transitions import Verdict, merge_conditions, rfc3339
@@ -52,7 +52,6 @@ def _robot_verdict(view: InstanceView) -> Verdict:
 
 
 def _components_verdict(view: InstanceView) -> Verdict:
-    by_name = {p.name: p for p in view.pods}
     crashing = [
         p.component
         for p in view.pods
@@ -79,7 +78,7 @@ def _components_verdict(view: InstanceView) -> Verdict:
     unready = []
     for manifest in view.desired:
         labels = manifest["metadata"]["labels"]
-        pod = by_name.get(manifest["metadata"]["name"])
+        pod = current_pod(manifest, view.pods)
         if not counts_as_ready(pod, labels[naming.LABEL_COMPONENT] in view.transient):
             unready.append(labels[naming.LABEL_COMPONENT])
     if unready:
@@ -140,11 +139,13 @@ def evaluate_ready(view: InstanceView) -> Verdict:
 
 def build_components(view: InstanceView) -> list[dict[str, Any]]:
     """One entry per component in startup order."""
-    by_name = {p.name: p for p in view.pods}
     entries = []
     for manifest in view.desired:
         labels = manifest["metadata"]["labels"]
-        pod = by_name.get(manifest["metadata"]["name"])
+        # The pod of this content, else the older one still stopping to make way for it.
+        pod = current_pod(manifest, view.pods) or next(
+            (p for p in view.pods if p.component == labels[naming.LABEL_COMPONENT]), None
+        )
         entry: dict[str, Any] = {"name": labels[naming.LABEL_COMPONENT], "role": labels[naming.LABEL_ROLE]}
         if pod is not None:
             entry |= {

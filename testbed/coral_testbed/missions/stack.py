@@ -155,7 +155,8 @@ class MissionStack:
         """The runner's folder of `component`'s pod on `robot` (logs, working directory), if any."""
         assert self.runner is not None
         pods = self.runner.robot_dir(robot) / "pods"
-        found = sorted(pods.glob(f"{self.namespace}_*-{component}"), key=lambda p: p.stat().st_mtime)
+        # Pod names end in a five-character digest of their content (`<instance>-<component>-<hash>`).
+        found = sorted(pods.glob(f"{self.namespace}_*-{component}-?????"), key=lambda p: p.stat().st_mtime)
         return found[-1] if found else None
 
     def log_tail(self, robot: str, component: str, chars: int = 2000) -> str:

@@ -64,7 +64,11 @@ def test_a_tree_from_a_config_map_is_followed_and_a_broken_edit_is_refused(
         ),
         "the edited tree to become a new revision that is Ready",
     )
-    executor = next(p for n, p in coral.pods().items() if n.endswith("-executor"))
+    executor = next(
+        p
+        for p in coral.pods().values()
+        if p.metadata.labels["coral.dev/role"] == "executor" and p.metadata.deletion_timestamp is None
+    )
     tree_maps = [s.config_map.name for s in executor.spec.volumes[1].projected.sources]
     stored = coral.core.read_namespaced_config_map(tree_maps[-1], namespace).data["tree.xml"]
     assert 'msec="250"' in stored

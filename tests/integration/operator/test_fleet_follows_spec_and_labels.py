@@ -11,12 +11,21 @@ from coral_api import Coral, fleet_mission, is_current_and_true
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def _uids(coral: Coral) -> dict[str, str]:
+def _key(pod: Any) -> tuple[str, str]:
+    # A replaced pod gets a new name (it ends in a content digest), so pods are compared by what they run.
+    return pod.metadata.labels["coral.dev/robot"], pod.metadata.labels["coral.dev/component"]
+
+
+def _uids(coral: Coral) -> dict[tuple[str, str], str]:
     return {
-        name: pod.metadata.uid
-        for name, pod in coral.pods().items()
+        _key(pod): pod.metadata.uid
+        for pod in coral.pods().values()
         if pod.metadata.deletion_timestamp is None
     }
+
+
+def _is_executor(pod: Any) -> bool:
+    return pod.metadata.labels["coral.dev/role"] == "executor"
 
 
 def test_spec_changes_labels_and_deletion(
@@ -44,16 +53,16 @@ def test_spec_changes_labels_and_deletion(
     def updated() -> bool:
         system = coral.system("fleet")
         pods = coral.pods()
-        images = {p.spec.containers[0].image for n, p in pods.items() if n.endswith("-executor")}
+        images = {p.spec.containers[0].image for p in pods.values() if _is_executor(p)}
         return is_current_and_true(system, "Ready") and images == {"coral-on-kubernetes/executor:0.2.0"}
 
     wait(updated, "the executors to run the new image and the system to be Ready again")
     after = _uids(coral)
-    for name, uid in before.items():
-        if name.endswith("-executor"):
-            assert after[name] != uid, f"{name} was not replaced"
+    for key, uid in before.items():
+        if key[1] == "executor":
+            assert after[key] != uid, f"{key} was not replaced"
         else:
-            assert after[name] == uid, f"{name} was restarted although its component did not change"
+            assert after[key] == uid, f"{key} was restarted although its component did not change"
     revision = coral.system("fleet")["status"]["revision"]
     assert {i["spec"]["revision"] for i in coral.instances().values()} == {revision}
     assert {p.metadata.labels["coral.dev/revision"] for p in coral.pods().values()} == {revision}
@@ -67,7 +76,7 @@ def test_spec_changes_labels_and_deletion(
         ),
         "the unlabelled robot's instance and pods to be gone",
     )
-    assert all(after[n] == p.metadata.uid for n, p in coral.pods().items())
+    assert all(after[_key(p)] == p.metadata.uid for p in coral.pods().values())
     wait(lambda: (coral.system("fleet")["status"]["robots"]["matched"]) == 1, "the system to count one robot")
 
     # Deleting the system removes everything through owner references (no finalizers).

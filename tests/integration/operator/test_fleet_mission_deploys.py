@@ -55,8 +55,13 @@ def test_the_fleet_example_runs_on_every_matching_robot(
         volumes = {v.name: v for v in pod.spec.volumes}
         assert volumes["plugins"].host_path.path == f"/var/lib/coral/plugins/{namespace}/fleet"
 
+    # Pod names end in a content digest; the labels say which robot and component a pod runs.
+    by_component = {
+        (pod.metadata.labels["coral.dev/robot"], pod.metadata.labels["coral.dev/component"]): pod
+        for pod in pods.values()
+    }
     for robot in fleet:
-        driver, slam, executor = (pods[f"fleet-{robot}-{c}"] for c in ("lidar-driver", "slam", "executor"))
+        driver, slam, executor = (by_component[(robot, c)] for c in ("lidar-driver", "slam", "executor"))
         # Ordered startup: each stage is created only after the previous one reported Ready.
         assert slam.metadata.creation_timestamp >= pod_ready_since(driver)
         assert executor.metadata.creation_timestamp >= pod_ready_since(slam)

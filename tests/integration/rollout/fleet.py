@@ -87,8 +87,9 @@ class Fleet:
         )
 
     def pod_uids(self, robot: str) -> dict[str, str]:
+        """Component name to pod uid on one robot (a replaced pod has a new uid)."""
         pods = self.core.list_namespaced_pod(self.namespace, label_selector=f"coral.dev/robot={robot}").items
-        return {p.metadata.name: p.metadata.uid for p in pods}
+        return {p.metadata.labels["coral.dev/component"]: p.metadata.uid for p in pods}
 
     def events(self, reason: str) -> list[str]:
         try:

@@ -52,13 +52,13 @@ def _plan(
     )
 
 
-def _names(manifests: list[dict[str, Any]]) -> list[str]:
-    return [m["metadata"]["name"] for m in manifests]
+def _components(manifests: list[dict[str, Any]]) -> list[str]:
+    return [m["metadata"]["labels"][naming.LABEL_COMPONENT] for m in manifests]
 
 
 def test_a_new_robot_starts_with_its_drivers_only(spec_dict: Callable[..., dict[str, Any]]) -> None:
     plan = _plan(_desired(spec_dict()), [])
-    assert _names(plan.create) == ["sys-r1-lidar"]
+    assert _components(plan.create) == ["lidar"]
     assert plan.waiting_for == "driver"
 
 
@@ -74,26 +74,26 @@ def test_skillsets_wait_for_a_driver_that_is_running_but_not_ready(
 def test_skillsets_start_once_the_drivers_are_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired = _desired(spec_dict())
     plan = _plan(desired, [_observed(desired[0], ready=True)])
-    assert _names(plan.create) == ["sys-r1-slam"]
+    assert _components(plan.create) == ["slam"]
     assert plan.waiting_for == "skillset"
 
 
 def test_executors_start_once_the_skillsets_are_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired = _desired(spec_dict())
     plan = _plan(desired, [_observed(desired[0], ready=True), _observed(desired[1], ready=True)])
-    assert _names(plan.create) == ["sys-r1-executor"]
+    assert _components(plan.create) == ["executor"]
     assert plan.waiting_for is None
 
 
 def test_a_transient_driver_that_succeeded_counts_as_done(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired = _desired(spec_dict(drivers=[{"name": "lidar", "image": "l", "transient": True}]))
     plan = _plan(desired, [_observed(desired[0], ready=False, phase="Succeeded")], transient={"lidar"})
-    assert _names(plan.create) == ["sys-r1-slam"]
+    assert _components(plan.create) == ["slam"]
 
 
 def test_a_stage_without_components_does_not_block(spec_dict: Callable[..., dict[str, Any]]) -> None:
     plan = _plan(_desired(spec_dict(drivers=[])), [])
-    assert _names(plan.create) == ["sys-r1-slam"]
+    assert _components(plan.create) == ["slam"]
 
 
 @pytest.mark.parametrize(
@@ -102,7 +102,7 @@ def test_a_stage_without_components_does_not_block(spec_dict: Callable[..., dict
         ("Block", 10, [], False),
         ("Block", 200, [], True),
         ("Proceed", 10, [], False),
-        ("Proceed", 200, ["sys-r1-slam"], True),
+        ("Proceed", 200, ["slam"], True),
     ],
     ids=["block within timeout", "block after timeout", "proceed within timeout", "proceed after timeout"],
 )
@@ -120,7 +120,7 @@ def test_a_driver_that_never_becomes_ready(
         healthTimeoutSeconds=120,
         onTimeout=on_timeout,
     )
-    assert _names(plan.create) == created
+    assert _components(plan.create) == created
     assert plan.timed_out is timed_out
     if timed_out:
         assert f"onTimeout={on_timeout}" in plan.message
@@ -129,15 +129,54 @@ def test_a_driver_that_never_becomes_ready(
 def test_a_changed_component_is_deleted_then_recreated_when_gone(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
-    desired = _desired(spec_dict())
-    running = [_observed(m, ready=True) for m in desired]
-    stale = _observed(desired[2], ready=True, pod_hash="old")
-    plan = _plan(desired, [*running[:2], stale])
-    assert plan.delete == ["sys-r1-executor"] and plan.create == []
-    plan = _plan(desired, [*running[:2], _observed(desired[2], ready=True, pod_hash="old", deleting=True)])
+    before = _desired(spec_dict())
+    desired = _desired(spec_dict(executors=[{"name": "executor", "image": "example/executor:2"}]))
+    kept = [_observed(m, ready=True) for m in desired[:2]]
+    old = _observed(before[2], ready=True)
+    plan = _plan(desired, [*kept, old])
+    assert plan.delete == [old.name] and plan.create == []
+    # The replacement has another name, so only the component label can say the old pod is in its way.
+    terminating = _observed(before[2], ready=True, deleting=True)
+    plan = _plan(desired, [*kept, terminating])
     assert plan.delete == [] and plan.create == []
-    plan = _plan(desired, running[:2])
-    assert _names(plan.create) == ["sys-r1-executor"]
+    plan = _plan(desired, kept)
+    assert plan.create == [desired[2]]
+    assert plan.create[0]["metadata"]["name"] != old.name
+
+
+def test_a_changed_driver_never_runs_beside_its_replacement(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    before = _desired(spec_dict())
+    desired = _desired(spec_dict(drivers=[{"name": "lidar", "image": "example/lidar:2"}]))
+    terminating = _observed(before[0], ready=True, deleting=True)
+    plan = _plan(desired, [terminating])
+    assert plan.create == [] and plan.delete == []
+    assert plan.waiting_for == "driver" and plan.wake_at is None
+    assert _components(_plan(desired, []).create) == ["lidar"]
+
+
+def test_a_deleted_current_pod_comes_back_only_once_it_is_gone(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    plan = _plan(desired, [_observed(desired[0], ready=True, deleting=True)])
+    assert plan.create == [] and plan.delete == []
+    assert _components(_plan(desired, []).create) == ["lidar"]
+
+
+def test_a_current_pod_is_found_by_component_and_hash_not_by_name(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _desired(spec_dict())
+    # Same content under another name, as pods named before names carried the hash.
+    renamed = [
+        ObservedPod(**{**_observed(m, ready=True, revision="older").__dict__, "name": f"legacy-{i}"})
+        for i, m in enumerate(desired)
+    ]
+    plan = _plan(desired, renamed)
+    assert (plan.create, plan.delete, plan.waiting_for) == ([], [], None)
+    assert [name for name, _ in plan.relabel] == ["legacy-0", "legacy-1", "legacy-2"]
 
 
 def test_an_unchanged_pod_of_a_new_revision_is_relabelled_not_restarted(
@@ -147,7 +186,7 @@ def test_an_unchanged_pod_of_a_new_revision_is_relabelled_not_restarted(
     observed = [_observed(m, ready=True, revision="older") for m in desired]
     plan = _plan(desired, observed)
     assert plan.delete == [] and plan.create == []
-    assert [name for name, _ in plan.relabel] == ["sys-r1-lidar", "sys-r1-slam", "sys-r1-executor"]
+    assert [name for name, _ in plan.relabel] == [p.name for p in observed]
 
 
 def test_a_removed_component_loses_its_pod(spec_dict: Callable[..., dict[str, Any]]) -> None:
@@ -169,11 +208,12 @@ def test_a_retiring_robot_stops_executors_then_skillsets_then_drivers(
 ) -> None:
     desired = _desired(spec_dict())
     running = [_observed(m, ready=True) for m in desired]
-    assert startup.plan_shutdown(running) == ["sys-r1-executor"]
+    names = [p.name for p in running]
+    assert startup.plan_shutdown(running) == [names[2]]
     terminating = _observed(desired[2], ready=True, deleting=True)
     assert startup.plan_shutdown([*running[:2], terminating]) == []
-    assert startup.plan_shutdown(running[:2]) == ["sys-r1-slam"]
-    assert startup.plan_shutdown(running[:1]) == ["sys-r1-lidar"]
+    assert startup.plan_shutdown(running[:2]) == [names[1]]
+    assert startup.plan_shutdown(running[:1]) == [names[0]]
     assert startup.plan_shutdown([]) == []
 
 

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from typing import Any
 
+import pytest
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import instances, naming, pods
 from operator_specs import robot
+
+DNS_SUBDOMAIN = re.compile(r"[a-z0-9]([-a-z0-9]*[a-z0-9])?(\.[a-z0-9]([-a-z0-9]*[a-z0-9])?)*")
 
 
 def _instance_spec(spec: dict[str, Any]) -> CoralInstanceSpec:
@@ -31,7 +35,42 @@ def test_one_pod_per_component_in_startup_order(spec_dict: Callable[..., dict[st
     built = pods.build_pods(
         spec=_instance_spec(spec_dict()), instance="sys-r1", namespace="ns", instance_uid="u"
     )
-    assert [p["metadata"]["name"] for p in built] == ["sys-r1-lidar", "sys-r1-slam", "sys-r1-executor"]
+    assert [p["metadata"]["labels"][naming.LABEL_COMPONENT] for p in built] == ["lidar", "slam", "executor"]
+    for pod in built:
+        component = pod["metadata"]["labels"][naming.LABEL_COMPONENT]
+        assert re.fullmatch(rf"sys-r1-{component}-[a-z0-9]{{5}}", pod["metadata"]["name"])
+
+
+def test_pod_names_follow_the_content(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    before = _pods(spec_dict())
+    assert {k: v["metadata"]["name"] for k, v in _pods(spec_dict()).items()} == {
+        k: v["metadata"]["name"] for k, v in before.items()
+    }
+    after = _pods(spec_dict(executors=[{"name": "executor", "image": "example/executor:2"}]))
+    # A new revision alone renames nothing: the unchanged pods are relabelled, not replaced.
+    assert after["lidar"]["metadata"]["name"] == before["lidar"]["metadata"]["name"]
+    assert after["slam"]["metadata"]["name"] == before["slam"]["metadata"]["name"]
+    assert after["executor"]["metadata"]["name"] != before["executor"]["metadata"]["name"]
+    assert after["executor"]["metadata"]["name"].startswith("sys-r1-executor-")
+
+
+def test_the_pod_hash_does_not_cover_the_name(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    pod = _pods(spec_dict())["slam"]
+    assert pod["metadata"]["name"] == naming.pod_name(
+        "sys-r1", "slam", pod["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
+    )
+
+
+@pytest.mark.parametrize("instance", ["a" * 63, "b" * 250, "Fleet.Robot_7" * 30])
+def test_pod_names_stay_valid_for_long_instance_names(instance: str) -> None:
+    names = {
+        naming.pod_name(instance, c, h) for c in ("lidar", "l" * 40) for h in ("0123456789", "abcdef0123")
+    }
+    assert len(names) == 4
+    for name in names:
+        assert len(name) <= 253
+        assert DNS_SUBDOMAIN.fullmatch(name), name
+        assert re.fullmatch(r".*-[a-z0-9]{5}", name)
 
 
 def test_pods_are_pinned_to_the_robot_and_never_evicted(spec_dict: Callable[..., dict[str, Any]]) -> None:
