@@ -32,7 +32,7 @@ from coral_operator.status.transitions import Verdict, merge_conditions
 CORAL = ("coral.dev", "v1alpha1", "coralinstances")
 # Passes of one instance at most this often: a stage's pod is created, scheduled and started in
 # quick succession, and one pass (one status write) after the burst is enough.
-PASS_INTERVAL_S = 0.2
+PASS_INTERVAL_S = 0.1
 WORKERS = 8
 
 Key = tuple[str, str]
@@ -51,6 +51,9 @@ _inputs: dict[str, tuple[Any, ...]] = {}
 # Executor identities created by this process, so each robot's is created once, not per pass.
 _accounts: set[str] = set()
 _node_ready: dict[str, bool] = {}
+# The pods an instance's spec asks for, per uid, with the generation they were built for: a spec
+# changes only with its generation, and hashing every pod on every pass is the pass's main cost.
+_desired: dict[str, tuple[int | None, list[dict[str, Any]]]] = {}
 
 
 def _read(index_name: str, key: Any) -> list[Any]:
@@ -80,13 +83,9 @@ QUEUE: WorkQueue[Key] = WorkQueue(
 )
 
 
-_started = threading.Event()
-
-
 @kopf.on.cleanup()
 def stop_instance_workers(**_: Any) -> None:
     QUEUE.stop()
-    _started.clear()
 
 
 def _remember_indices(**indices: Any) -> None:
@@ -96,11 +95,7 @@ def _remember_indices(**indices: Any) -> None:
     Event poster, which each worker thread inherits.
     """
     _indices.update(indices)
-    if not _started.is_set():
-        with _lock:
-            if not _started.is_set():
-                QUEUE.start()
-                _started.set()
+    QUEUE.ensure_started()
 
 
 @kopf.on.event(*CORAL)
@@ -123,6 +118,7 @@ async def instance_changed(
         with _lock:
             _written.pop(uid, None)
             _inputs.pop(uid, None)
+            _desired.pop(uid, None)
             _accounts.discard(uid)
         QUEUE.forget(key)
         return
@@ -244,6 +240,19 @@ def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str
             _written[record.uid] = {**_written.get(record.uid, {}), **changes}
 
 
+def _desired_pods(record: InstanceRecord, spec: CoralInstanceSpec) -> list[dict[str, Any]]:
+    with _lock:
+        cached = _desired.get(record.uid)
+    if cached is not None and cached[0] == record.generation:
+        return cached[1]
+    desired = pods.build_pods(
+        spec=spec, instance=record.name, namespace=record.namespace, instance_uid=record.uid
+    )
+    with _lock:
+        _desired[record.uid] = (record.generation, desired)
+    return desired
+
+
 def _reconcile(record: InstanceRecord) -> None:
     """One pass over one instance: plan and apply its pods, then write its status if it changed."""
     now = datetime.now(UTC)
@@ -262,9 +271,7 @@ def _reconcile(record: InstanceRecord) -> None:
     if parsed.retiring:
         _retire(record, observed, node is not None and node.ready)
         return
-    desired = pods.build_pods(
-        spec=parsed, instance=record.name, namespace=record.namespace, instance_uid=record.uid
-    )
+    desired = _desired_pods(record, parsed)
     transient = {c.name for c in parsed.drivers + parsed.skillsets + parsed.executors if c.transient}
     plan = startup.plan_startup(
         desired=desired, observed=observed, transient=transient, startup=parsed.startup, now=now

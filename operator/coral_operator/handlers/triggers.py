@@ -18,6 +18,7 @@ import kopf
 
 from coral_operator.api.common import LabelSelector
 from coral_operator.kube import applying
+from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, selection
 from coral_operator.planning.observed import ObservedInstance, RobotNode
 
@@ -109,41 +110,44 @@ def _instances_digest(instances: list[ObservedInstance]) -> str:
 
 
 # A fleet's instances change in bursts (a wave of robots becoming Ready); the system needs one
-# pass per burst, not one per instance, so its poke waits this long and then covers them all.
+# pass per burst, not one per instance: the first change after a quiet spell pokes at once, later
+# ones at most this often, each poke covering all changes since the last.
 SYSTEM_POKE_DELAY_S = 0.5
-_pending_systems: set[tuple[str, str]] = set()
+_instances_index: dict[str, kopf.Index] = {}
 
 
-def _poke_system_soon(namespace: str, system: str, coral_instances: kopf.Index) -> None:
-    key = (namespace, system)
-    with _lock:
-        if key in _pending_systems:
-            return
-        _pending_systems.add(key)
-
-    def fire() -> None:
-        with _lock:
-            _pending_systems.discard(key)
+def _poke_system(key: tuple[str, str]) -> None:
+    index = _instances_index.get("index")
+    if index is None:
+        return
+    while True:
         try:
-            observed = list(coral_instances.get(key, []))
+            observed = list(index.get(key, []))
+            break
         except RuntimeError:
-            # The index changed while it was read: try again a moment later.
-            _poke_system_soon(namespace, system, coral_instances)
-            return
-        poke("coralsystems", namespace, system, "instances-" + _instances_digest(observed))
+            continue  # kopf changed the index while it was read
+    poke("coralsystems", key[0], key[1], "instances-" + _instances_digest(observed))
 
-    timer = threading.Timer(SYSTEM_POKE_DELAY_S, fire)
-    timer.daemon = True
-    timer.start()
+
+SYSTEM_POKES: WorkQueue[tuple[str, str]] = WorkQueue(
+    _poke_system, workers=2, min_interval_s=SYSTEM_POKE_DELAY_S, name="system-poke"
+)
+
+
+@kopf.on.cleanup()
+def stop_system_pokes(**_: Any) -> None:
+    SYSTEM_POKES.stop()
 
 
 @kopf.on.event("coral.dev", "v1alpha1", "coralinstances")
-def poke_system_on_instance_change(
+async def poke_system_on_instance_change(
     namespace: str, spec: kopf.Spec, coral_instances: kopf.Index, **_: Any
 ) -> None:
     system = spec.get("system")
     if system:
-        _poke_system_soon(namespace, system, coral_instances)
+        _instances_index["index"] = coral_instances
+        SYSTEM_POKES.ensure_started()
+        SYSTEM_POKES.add((namespace, system))
 
 
 @kopf.on.event("configmaps")

@@ -68,6 +68,13 @@ class WorkQueue(Generic[K]):
             thread.start()
             self._threads.append(thread)
 
+    def ensure_started(self) -> None:
+        """Start the workers unless they run already (see `start` for the context they get)."""
+        with self._cond:
+            if self._threads:
+                return
+            self.start()
+
     def stop(self, timeout: float = 5.0) -> None:
         with self._cond:
             self._stopping = True

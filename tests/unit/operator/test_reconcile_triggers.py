@@ -40,3 +40,15 @@ def test_a_failed_write_is_not_remembered(monkeypatch: pytest.MonkeyPatch) -> No
         with pytest.raises(RuntimeError):
             triggers.poke("coralsystems", "ns", "sys", "robots-1")
     assert calls == ["robots-1", "robots-1"]
+
+
+def test_the_operator_registers_no_change_handlers_so_it_needs_no_diff_base() -> None:
+    """The settings skip kopf's per-event essence; that is right only while no handler compares one."""
+    import kopf
+    from coral_operator import handlers  # noqa: F401  (registers every handler)
+    from coral_operator.handlers.settings import EssenceFreeDiffBase
+
+    registry = kopf.get_default_registry()
+    assert list(registry._changing.get_all_handlers()) == []
+    assert list(registry._watching.get_all_handlers()), "the event handlers are registered"
+    assert EssenceFreeDiffBase(prefix="coral.dev").build(body=kopf.Body({"spec": {"a": 1}})) == {}
