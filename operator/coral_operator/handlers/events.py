@@ -33,12 +33,15 @@ def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[d
         if key not in _NOTABLE:
             continue
         previous = before.get(condition["type"])
+        warning, reason = _NOTABLE[key]
+        if previous is None and not warning and condition["type"] != "Ready":
+            # Good news is news only as a recovery: a robot reachable from the start says nothing.
+            continue
         if (
             previous
             and previous.get("status") == condition["status"]
             and previous.get("message") == condition["message"]
         ):
             continue
-        warning, reason = _NOTABLE[key]
         message = condition["message"] or condition["reason"]
         kopf.event(body, type="Warning" if warning else "Normal", reason=reason, message=message)

@@ -13,6 +13,7 @@ of kopf's, so no finalizer.
 from __future__ import annotations
 
 import threading
+import time
 from datetime import UTC, datetime
 from typing import Any
 
@@ -33,6 +34,9 @@ CORAL = ("coral.dev", "v1alpha1", "coralinstances")
 # Passes of one instance at most this often: a stage's pod is created, scheduled and started in
 # quick succession, and one pass (one status write) after the burst is enough.
 PASS_INTERVAL_S = 0.1
+# Status writes that change no verdict (Ready, Stalled, observed generation) wait this long after
+# the previous write, so a robot's startup costs two or three writes instead of one per step.
+STATUS_INTERVAL_S = 1.0
 WORKERS = 8
 
 Key = tuple[str, str]
@@ -54,6 +58,7 @@ _node_ready: dict[str, bool] = {}
 # The pods an instance's spec asks for, per uid, with the generation they were built for: a spec
 # changes only with its generation, and hashing every pod on every pass is the pass's main cost.
 _desired: dict[str, tuple[int | None, list[dict[str, Any]]]] = {}
+_last_write: dict[str, float] = {}
 
 
 def _read(index_name: str, key: Any) -> list[Any]:
@@ -119,6 +124,7 @@ async def instance_changed(
             _written.pop(uid, None)
             _inputs.pop(uid, None)
             _desired.pop(uid, None)
+            _last_write.pop(uid, None)
             _accounts.discard(uid)
         QUEUE.forget(key)
         return
@@ -231,13 +237,31 @@ def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool
         events.info(record.reference, "PodsStopped", f"Stopped {', '.join(stopping)} (reverse startup order)")
 
 
+def _verdicts(status: dict[str, Any]) -> tuple[Any, ...]:
+    """What the system's rollout reads of an instance's status: written the moment it changes."""
+    states = {c.get("type"): c.get("status") for c in status.get("conditions") or []}
+    return status.get("observedGeneration"), states.get("Ready"), states.get("Stalled")
+
+
 def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
     changes = {key: value for key, value in new.items() if current.get(key) != value}
     if not changes:
         return
+    now = time.monotonic()
+    with _lock:
+        last = _last_write.get(record.uid, 0.0)
+    if _verdicts(current) == _verdicts(new) and now - last < STATUS_INTERVAL_S:
+        # Progress only (a stage started, a pod's phase): one write per interval carries it.
+        QUEUE.add((record.namespace, record.name), STATUS_INTERVAL_S - (now - last))
+        return
     if applying.patch_instance_status(record.namespace, record.name, changes):
         with _lock:
             _written[record.uid] = {**_written.get(record.uid, {}), **changes}
+            _last_write[record.uid] = now
+        # After the write, so a deferred or failed one cannot post the same transition twice.
+        events.on_condition_changes(
+            record.reference, list(current.get("conditions") or []), list(new.get("conditions") or [])
+        )
 
 
 def _desired_pods(record: InstanceRecord, spec: CoralInstanceSpec) -> list[dict[str, Any]]:
@@ -294,5 +318,4 @@ def _reconcile(record: InstanceRecord) -> None:
     new = instance_status.build_instance_status(
         view, old_conditions=old_conditions, generation=record.generation, now=now
     )
-    events.on_condition_changes(record.reference, old_conditions, new["conditions"])
     _write_status(record, status, new)

@@ -180,6 +180,7 @@ def plan_fleet(
     with _lock:
         _written[uid] = decision.status
     desired = []
+    builder = instances.InstanceBuilder(system=name, namespace=namespace, system_uid=uid)
     started = time.monotonic()
     for robot in robots:
         instance = by_robot.get(robot.robot)
@@ -188,9 +189,7 @@ def plan_fleet(
         )
         if chosen not in templates:
             chosen = revision
-        manifest = instances.build_instance(
-            system=name, namespace=namespace, system_uid=uid, robot=robot, template=templates[chosen]
-        )
+        manifest = builder.build(robot, templates[chosen])
         manifest["spec"]["revision"] = chosen
         desired.append(manifest)
         if robot.robot in decision.moves:
