@@ -43,8 +43,8 @@ CLIENT_LIMITS = ["--kube-api-qps=500", "--kube-api-burst=1000"]
 # not ready for good (kwok does not report them ready again) and neither run could finish. The
 # kubelet default grace period is 40-50 s; 300 s keeps the benchmark about rollouts, for both runs.
 NODE_GRACE = ["--node-monitor-grace-period=300s"]
-# kwok plays pod stages with a few workers by default; at thousands of pods its queue falls behind
-# and a stale "delete" can hit a recreated pod of the same name. More workers, for both runs.
+# kwok plays pod stages with a few workers by default and falls behind at thousands of pods.
+# More workers, for both runs.
 KWOK_CONFIG = """apiVersion: config.kwok.x-k8s.io/v1alpha1
 kind: KwokConfiguration
 options:
@@ -96,7 +96,9 @@ def run_size(count: int, work: Path) -> None:
             core.create_namespace({"metadata": {"name": namespace}})
 
         log.mark()
+        cpu_mark = _cpu(state)
         ds = daemonset.run_daemonset(api, "bench-daemonset", count, timeout)
+        note(f"daemonset n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}")
         time.sleep(2)  # let the batched audit backend flush the run's last requests before counting
         ds_requests = log.count_since_mark(audit.classify)
         note(
@@ -113,8 +115,10 @@ def run_size(count: int, work: Path) -> None:
         coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
         cpu_before = coral.cpu_seconds(operator.process.pid)
         log.mark()
+        cpu_mark = _cpu(state)
         result = coral.run_coral(api, "bench-coral", count, operator, timeout)
         cpu = coral.cpu_seconds(operator.process.pid) - cpu_before
+        note(f"coral n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}, operator {cpu:.1f}")
         time.sleep(2)
         kinds = log.count_since_mark(
             lambda e: audit.request_kind(e) if audit.classify(e) == "operator" else None
@@ -150,6 +154,16 @@ def run_size(count: int, work: Path) -> None:
         if operator is not None:
             operator.stop()
         controlplane.stop(work / "control-plane")
+
+
+def _cpu(state: controlplane.State) -> dict[str, float]:
+    return {p.name: coral.cpu_seconds(p.pid) for p in state.processes}
+
+
+def _cpu_since(state: controlplane.State, mark: dict[str, float]) -> str:
+    """CPU each control-plane process spent since `mark`: where a 2-core machine's time went."""
+    now = _cpu(state)
+    return ", ".join(f"{name}={now[name] - mark.get(name, 0.0):.1f}" for name in sorted(now))
 
 
 def _env(kubeconfig: Path) -> dict[str, str]:

@@ -36,7 +36,7 @@ CORAL = ("coral.dev", "v1alpha1", "coralinstances")
 PASS_INTERVAL_S = 0.1
 # Status writes that change no verdict (Ready, Stalled, observed generation) wait this long after
 # the previous write, so a robot's startup costs two or three writes instead of one per step.
-STATUS_INTERVAL_S = 1.0
+STATUS_INTERVAL_S = 2.0
 WORKERS = 8
 
 Key = tuple[str, str]
