@@ -143,7 +143,9 @@ def test_coral_system_runs_skillset_then_executor_on_a_runner_robot(
         ]
         return ((items[0].get("status") or {}).get("tree") or {}) if items else {}
 
-    executor_log = next((runner.robot_dir(r1) / "pods").glob(f"{namespace}_*executor/logs/executor.log"))
+    executor_log = (
+        runner.robot_dir(r1) / "pods" / f"{namespace}_{executor.metadata.name}" / "logs" / "executor.log"
+    )
     wait_for(
         lambda: tree_status().get("rootStatus") == "SUCCESS",
         timeout=120,
