@@ -16,6 +16,20 @@ from coral_operator.planning import naming
 ALL_ROBOTS = "all"
 
 
+def read_index(index: kopf.Index | None, key: Any) -> list[Any]:
+    """The values under `key` of a kopf index, read from a thread other than kopf's event loop.
+
+    kopf changes its indexes on the event loop; a read that meets a change in flight is repeated.
+    """
+    if index is None:
+        return []
+    while True:
+        try:
+            return list(index.get(key, []))
+        except RuntimeError:
+            continue
+
+
 @kopf.index("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
 def robot_nodes(name: str, labels: kopf.Labels, status: kopf.Status, **_: Any) -> dict[Any, Any]:
     robot = observing.robot_node(name, labels, status)

@@ -22,6 +22,7 @@ from pydantic import ValidationError
 
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
+from coral_operator.handlers.indexing import read_index
 from coral_operator.kube import applying
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, pods, rbac, startup
@@ -62,18 +63,7 @@ _last_write: dict[str, float] = {}
 
 
 def _read(index_name: str, key: Any) -> list[Any]:
-    """The values under `key` of a kopf index, read from a worker thread.
-
-    kopf changes the index on its event loop; a read that meets a change in flight is repeated.
-    """
-    index = _indices.get(index_name)
-    if index is None:
-        return []
-    while True:
-        try:
-            return list(index.get(key, []))
-        except RuntimeError:
-            continue
+    return read_index(_indices.get(index_name), key)
 
 
 def _reconcile_key(key: Key) -> None:

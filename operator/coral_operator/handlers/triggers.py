@@ -17,6 +17,7 @@ from typing import Any
 import kopf
 
 from coral_operator.api.common import LabelSelector
+from coral_operator.handlers.indexing import read_index
 from coral_operator.kube import applying
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, selection
@@ -120,12 +121,7 @@ def _poke_system(key: tuple[str, str]) -> None:
     index = _instances_index.get("index")
     if index is None:
         return
-    while True:
-        try:
-            observed = list(index.get(key, []))
-            break
-        except RuntimeError:
-            continue  # kopf changed the index while it was read
+    observed = read_index(index, key)
     poke("coralsystems", key[0], key[1], "instances-" + _instances_digest(observed))
 
 
