@@ -6,16 +6,17 @@ Used by `api.system` (the user's spec), `api.instance` (the per-robot copy) and
 
 from __future__ import annotations
 
-from typing import Literal
+import re
+from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from coral_operator.api.base import CamelModel
 
 DNS_LABEL = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"
 Role = Literal["driver", "skillset", "executor"]
 ROLES: tuple[Role, ...] = ("driver", "skillset", "executor")
-Quantity = int | str
+Quantity = int | Annotated[str, Field(max_length=64)]
 
 
 class EnvVar(CamelModel):
@@ -27,13 +28,52 @@ class EnvVar(CamelModel):
     """Variable value (literal; parameters belong in the system's parameters file)."""
 
 
+# A Kubernetes quantity as a string (`250m`, `1Gi`, `1e3`); whole numbers may be given as integers.
+QUANTITY = r"^[+]?([0-9]+([.][0-9]*)?|[.][0-9]+)(Ki|Mi|Gi|Ti|Pi|Ei|[numkMGTPE]|[eE][+-]?[0-9]+)?$"
+QUANTITY_SYNTAX = "must be quantities such as 250m, 256Mi or 2"
+
+
+def _quantities_rule(field: str) -> dict[str, str]:
+    # Int-or-string map values: integers at least 0, strings matching the quantity pattern.
+    rule = (
+        f"self.{field}.all(k, type(self.{field}[k]) == int ? int(self.{field}[k]) >= 0 : "
+        f"string(self.{field}[k]).matches('{QUANTITY}'))"
+    )
+    return {
+        "rule": f"!has(self.{field}) || {rule}",
+        "message": f"{field} {QUANTITY_SYNTAX}",
+        "fieldPath": f".{field}",
+    }
+
+
+def _check_quantities(values: dict[str, Quantity]) -> dict[str, Quantity]:
+    for name, value in values.items():
+        if (
+            isinstance(value, int)
+            and value < 0
+            or isinstance(value, str)
+            and not re.fullmatch(QUANTITY, value)
+        ):
+            raise ValueError(f"{name}: {value!r} {QUANTITY_SYNTAX}")
+    return values
+
+
 class Resources(CamelModel):
     """Compute resources of the component's container, as in a pod's container spec."""
 
-    requests: dict[str, Quantity] = Field(default_factory=dict)
+    model_config = CamelModel.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [_quantities_rule("requests"), _quantities_rule("limits")]
+        }
+    }
+
+    requests: dict[str, Quantity] = Field(default_factory=dict, max_length=16)
     """Minimum resources, for example `cpu: 250m`, `memory: 256Mi`."""
-    limits: dict[str, Quantity] = Field(default_factory=dict)
+    limits: dict[str, Quantity] = Field(default_factory=dict, max_length=16)
     """Maximum resources, for example `memory: 1Gi`."""
+
+    _requests_syntax = field_validator("requests")(_check_quantities)
+    _limits_syntax = field_validator("limits")(_check_quantities)
 
 
 class DeviceMount(CamelModel):
