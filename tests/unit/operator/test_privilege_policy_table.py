@@ -38,6 +38,8 @@ def _nothing(spec: dict[str, Any]) -> None:
     pass
 
 
+DEVICES = "(/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
+OUTSIDE = "is outside the allowed prefixes (/var/lib/coral)"
 HOST_NET_DENIED = "spec.ros.network: the host network (Host) is not allowed in namespace robots; use Pod"
 ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str]]] = [
     ("pod network needs nothing", _spec(**POD_NETWORK), {}, []),
@@ -78,25 +80,19 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
         "hostPath / by default",
         _driver(hostPaths=[{"hostPath": "/", "mountPath": "/host", "readOnly": False}]),
         OPEN_NETWORK,
-        [
-            "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path / is outside the allowed prefixes (/var/lib/coral)"
-        ],
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path / {OUTSIDE}"],
     ),
     (
         "a .. path climbing out of the allowed folder",
         _driver(hostPaths=[{"hostPath": "/var/lib/coral/../../../etc", "mountPath": "/x"}]),
         OPEN_NETWORK,
-        [
-            "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /etc is outside the allowed prefixes (/var/lib/coral)"
-        ],
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /etc {OUTSIDE}"],
     ),
     (
         "a look-alike prefix is not the folder",
         _driver(hostPaths=[{"hostPath": "/var/lib/coralx", "mountPath": "/x"}]),
         OPEN_NETWORK,
-        [
-            "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coralx is outside the allowed prefixes (/var/lib/coral)"
-        ],
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coralx {OUTSIDE}"],
     ),
     (
         "data under the allowed folder",
@@ -135,17 +131,13 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
         "/dev/mem",
         _driver(devices=[{"hostPath": "/dev/mem"}]),
         OPEN_NETWORK,
-        [
-            "spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device (/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
-        ],
+        [f"spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device {DEVICES}"],
     ),
     (
         "a device pattern does not cross folders",
         _driver(devices=[{"hostPath": "/dev/video0/../mem"}]),
         OPEN_NETWORK,
-        [
-            "spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device (/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
-        ],
+        [f"spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device {DEVICES}"],
     ),
     (
         "hostPathRoot /etc",
@@ -158,7 +150,8 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
         _spec(plugins={"hostPathRoot": "/var/lib/coral/plugins/victims"}),
         OPEN_NETWORK,
         [
-            "spec.plugins.hostPathRoot: /var/lib/coral/plugins/victims is not an allowed plugin root (/var/lib/coral/plugins)"
+            "spec.plugins.hostPathRoot: /var/lib/coral/plugins/victims is not an allowed plugin root "
+            "(/var/lib/coral/plugins)"
         ],
     ),
     (
@@ -175,7 +168,7 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
             HOST_NET_DENIED,
             "spec.drivers[0] (lidar): privileged is not allowed in namespace robots",
             "spec.drivers[0] (lidar): runAsRoot is not allowed in namespace robots",
-            "spec.drivers[0] (lidar): devices[0].hostPath /dev/sda is not an allowed device (/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)",
+            f"spec.drivers[0] (lidar): devices[0].hostPath /dev/sda is not an allowed device {DEVICES}",
         ],
     ),
 ]
