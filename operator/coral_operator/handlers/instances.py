@@ -259,10 +259,19 @@ def _verdicts(status: dict[str, Any]) -> tuple[Any, ...]:
     return status.get("observedGeneration"), states.get("Ready"), states.get("Stalled")
 
 
+def _patch_value(old: Any, new: Any) -> Any:
+    # A merge patch merges objects key by key: keys the new value lacks must be sent as null, or
+    # the old ones (or forged ones) would stay.
+    if isinstance(old, dict) and isinstance(new, dict):
+        return {**{key: None for key in old if key not in new}, **new}
+    return new
+
+
 def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
-    changes = {key: value for key, value in new.items() if current.get(key) != value}
-    if not changes:
+    changed = {key: value for key, value in new.items() if current.get(key) != value}
+    if not changed:
         return
+    changes = {key: _patch_value(current.get(key), value) for key, value in changed.items()}
     now = time.monotonic()
     with _lock:
         last = _last_write.get(record.uid, 0.0)
@@ -273,7 +282,8 @@ def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str
     version = applying.patch_instance_status(record.namespace, record.name, changes)
     if version is not None:
         with _lock:
-            _written[record.uid] = (version, ownership.operator_part({**current, **changes}))
+            after = {key: value for key, value in {**current, **changed}.items() if value is not None}
+            _written[record.uid] = (version, ownership.operator_part(after))
             _last_write[record.uid] = now
         # After the write, so a deferred or failed one cannot post the same transition twice.
         events.on_condition_changes(

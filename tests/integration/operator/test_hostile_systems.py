@@ -24,7 +24,7 @@ from typing import Any
 
 import pytest
 from coral_api import Coral, condition, fleet_mission, is_current_and_true
-from coral_testbed.waiting import wait_for
+from coral_testbed.waiting import holds_for, wait_for
 from fixtures.processes import stop_process_group
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
@@ -345,4 +345,21 @@ def test_a_forged_ready_condition_is_overwritten(stage: Stage) -> None:
         return ready.get("status") == "False" and ready.get("reason") == "PodRefused"
 
     wait_for(corrected, timeout=CLEAR_WITHIN_S, interval=0.3, message="the forged Ready to be overwritten")
+    stage.assert_still_serving()
+
+
+def test_settled_statuses_are_not_rewritten(stage: Stage) -> None:
+    """Overwriting forged fields must not turn into rewriting the operator's own ones forever."""
+    _baseline_instance(stage)
+    custom = k8s.CustomObjectsApi(stage.cluster.api_client)
+
+    def versions() -> dict[str, str]:
+        seen = {}
+        for namespace in (stage.healthy, stage.baseline):
+            items = custom.list_namespaced_custom_object("coral.dev", "v1alpha1", namespace, "coralinstances")
+            seen |= {i["metadata"]["name"]: i["metadata"]["resourceVersion"] for i in items["items"]}
+        return seen
+
+    before = versions()
+    holds_for(lambda: versions() == before, duration=6, message="instance statuses left alone once settled")
     stage.assert_still_serving()
