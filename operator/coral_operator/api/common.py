@@ -5,9 +5,10 @@ Used by `api.system`, `api.instance` and the status helpers in `status/`.
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.base import CamelModel
 
@@ -83,8 +84,19 @@ class LabelSelector(CamelModel):
         }
     }
 
-    match_labels: dict[LabelKey, LabelValue] = Field(default_factory=dict, max_length=64)
+    # Keys are checked by the validator below and the CEL rule above: a key pattern here would
+    # become `patternProperties`, which a structural schema does not allow.
+    match_labels: dict[str, LabelValue] = Field(default_factory=dict, max_length=64)
     """Labels a robot Node must carry with exactly these values."""
+
+    @field_validator("match_labels")
+    @classmethod
+    def _label_keys(cls, labels: dict[str, str]) -> dict[str, str]:
+        for key in labels:
+            if not (0 < len(key) <= 317 and re.fullmatch(LABEL_KEY, key)):
+                raise ValueError(f"{key!r} is not a Kubernetes label key")
+        return labels
+
     match_expressions: list[LabelSelectorRequirement] = Field(default_factory=list, max_length=32)
     """Set-based requirements a robot Node must meet."""
 

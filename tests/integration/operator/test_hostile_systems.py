@@ -188,8 +188,9 @@ def test_an_include_of_dev_zero_is_refused_without_reading_it(stage: Stage) -> N
 def test_an_include_of_a_host_file_reveals_nothing_about_it(stage: Stage) -> None:
     host = _attack(stage, "hostname", _including("/etc/hostname"))
     missing = _attack(stage, "missing", _including("/etc/no-such-file"))
-    assert host["message"].replace("/etc/hostname", "P") == missing["message"].replace(
-        "/etc/no-such-file", "P"
+    # The same words whether the host has such a file or not.
+    assert host["message"].replace("hostname", "X") == missing["message"].replace("missing", "X").replace(
+        "no-such-file", "X"
     )
     assert socket.gethostname() not in host["message"]
     stage.assert_still_serving()
