@@ -25,6 +25,7 @@ from typing import Any
 import pytest
 from coral_api import Coral, condition, fleet_mission, is_current_and_true
 from coral_testbed.waiting import holds_for, wait_for
+from fixtures.cluster import create_test_namespace
 from fixtures.processes import stop_process_group
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
@@ -69,33 +70,14 @@ class Stage:
         assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
 
 
-def _namespace(core: k8s.CoreV1Api, prefix: str, labels: dict[str, str] | None = None) -> str:
-    name = f"{prefix}-{uuid.uuid4().hex[:6]}"
-    core.create_namespace(
-        {"metadata": {"name": name, "labels": {"coral.dev/test": "true", **(labels or {})}}}
-    )
-
-    def has_default_account() -> bool:
-        try:
-            core.read_namespaced_service_account("default", name)
-        except ApiException as error:
-            if error.status == 404:
-                return False
-            raise
-        return True
-
-    wait_for(has_default_account, timeout=60, message=f"ServiceAccount default in {name}")
-    return name
-
-
 @pytest.fixture(scope="module")
 def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stage]:
     core = k8s.CoreV1Api(cluster.api_client)
     baseline_labels = {"pod-security.kubernetes.io/enforce": "baseline"}
     namespaces = [
-        _namespace(core, "hostile"),
-        _namespace(core, "healthy"),
-        _namespace(core, "baseline", baseline_labels),
+        create_test_namespace(core, "hostile"),
+        create_test_namespace(core, "healthy"),
+        create_test_namespace(core, "baseline", baseline_labels),
     ]
     hostile, healthy, baseline = namespaces
     fleet = f"f{uuid.uuid4().hex[:8]}"
