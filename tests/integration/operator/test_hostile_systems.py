@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_api import Coral, client_as, condition, fleet_mission, is_current_and_true
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
 from fixtures.processes import stop_process_group
@@ -36,6 +36,8 @@ pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 # kubernetes client need about 0.5 GiB of it; an include of /dev/zero used to take more than 4 GiB.
 MEMORY_CAP_BYTES = 1536 * 1024 * 1024
 CLEAR_WITHIN_S = 60
+# The chart's memory limit for the operator container.
+CHART_MEMORY_LIMIT_KIB = 512 * 1024
 HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
 SUBTREE_MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n'
 
@@ -61,10 +63,15 @@ class Stage:
     def logs(self) -> str:
         return self.log.read_text()
 
+    def peak_rss_kib(self) -> int:
+        status = Path(f"/proc/{self.operator.pid}/status").read_text()
+        return int(next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:")))
+
     def assert_still_serving(self) -> None:
         """The operator is the same process, logged no traceback, and the healthy system is untouched."""
         assert self.operator.poll() is None, f"the operator exited:\n{self.logs()[-3000:]}"
         assert "Traceback" not in self.logs(), self.logs()[-5000:]
+        assert self.peak_rss_kib() < CHART_MEMORY_LIMIT_KIB
         healthy = self.coral(self.healthy)
         assert is_current_and_true(healthy.system("healthy"), "Ready")
         assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
@@ -345,4 +352,39 @@ def test_settled_statuses_are_not_rewritten(stage: Stage) -> None:
 
     before = versions()
     holds_for(lambda: versions() == before, duration=6, message="instance statuses left alone once settled")
+    stage.assert_still_serving()
+
+
+def test_a_condition_forged_with_the_executors_own_identity_is_overwritten(stage: Stage) -> None:
+    coral = stage.coral(stage.healthy)
+    (name,) = [n for n, i in coral.instances().items() if i["spec"]["system"] == "healthy"]
+    as_executor = k8s.CustomObjectsApi(client_as(stage.cluster, stage.healthy, f"{name}-executor"))
+    instance = coral.instances()[name]
+    forged = [
+        {**entry, "reason": "Forged", "message": "forged by the executor", "observedGeneration": 999}
+        for entry in instance["status"]["conditions"]
+        if entry["type"] == "Ready"
+    ]
+    as_executor.patch_namespaced_custom_object_status(
+        "coral.dev",
+        "v1alpha1",
+        stage.healthy,
+        "coralinstances",
+        name,
+        {"status": {"conditions": forged, "observedGeneration": 999}},
+        _content_type="application/merge-patch+json",
+    )
+
+    def restored() -> bool:
+        current = coral.instances()[name]
+        ready = condition(current, "Ready")
+        generation = current["metadata"]["generation"]
+        return (
+            ready.get("reason") == "Ready"
+            and ready.get("observedGeneration") == generation
+            and current["status"].get("observedGeneration") == generation
+            and {c["type"] for c in current["status"]["conditions"]} > {"Ready", "Stalled", "Reconciling"}
+        )
+
+    wait_for(restored, timeout=CLEAR_WITHIN_S, interval=0.3, message="the operator's conditions restored")
     stage.assert_still_serving()
