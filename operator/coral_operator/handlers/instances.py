@@ -196,22 +196,31 @@ def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, A
 def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> dict[str, str]:
     """Carry out the plan; returns the pods the API server refused for good, with its messages."""
     namespace, name = record.namespace, record.name
-    if any(m["metadata"]["labels"][naming.LABEL_ROLE] == "executor" for m in plan.create):
+    refused: dict[str, str] = {}
+    executors = [m for m in plan.create if m["metadata"]["labels"][naming.LABEL_ROLE] == "executor"]
+    if executors:
         with _lock:
             known = record.uid in _accounts
         if not known:
             # The ServiceAccount must exist before a pod naming it is admitted.
-            applying.apply_rbac(
-                rbac.build_executor_rbac(
-                    instance=name,
-                    namespace=namespace,
-                    instance_uid=record.uid,
-                    system=spec.system,
-                    robot=spec.robot,
+            try:
+                applying.apply_rbac(
+                    rbac.build_executor_rbac(
+                        instance=name,
+                        namespace=namespace,
+                        instance_uid=record.uid,
+                        system=spec.system,
+                        robot=spec.robot,
+                    )
                 )
-            )
-            with _lock:
-                _accounts.add(record.uid)
+                with _lock:
+                    _accounts.add(record.uid)
+            except Exception as error:
+                message = applying.refusal(error)
+                if message is None:
+                    raise
+                for manifest in executors:
+                    refused[manifest["metadata"]["labels"][naming.LABEL_COMPONENT]] = message
     for pod_name in plan.delete:
         applying.delete_pod(namespace, pod_name)
     if plan.delete:
@@ -221,8 +230,9 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
             "PodsReplaced",
             f"Stopping {', '.join(plan.delete)} to start revision {spec.revision or '?'}",
         )
-    refused: dict[str, str] = {}
     for manifest in plan.create:
+        if manifest["metadata"]["labels"][naming.LABEL_COMPONENT] in refused:
+            continue
         try:
             applying.create_pod(manifest)
         except Exception as error:

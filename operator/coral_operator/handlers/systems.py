@@ -70,16 +70,22 @@ def _prepare(name: str, namespace: str, spec: CoralSystemSpec) -> tuple[str, str
         files_label=f"coralsystem/{name} spec.tree.files",
     )
     if problems:
-        return system_status.Problem(Reason.INVALID_TREE, "; ".join(problems))
+        return system_status.Problem(Reason.INVALID_TREE, _listed(problems))
     problems = validation.validate_parameters(params[0], params[1])
     if problems:
-        return system_status.Problem(Reason.INVALID_PARAMETERS, "; ".join(problems))
+        return system_status.Problem(Reason.INVALID_PARAMETERS, _listed(problems))
     denied = policy.evaluate_policy(namespace, spec, CONFIG.policy)
     if denied:
         return system_status.Problem(
-            Reason.POLICY_DENIED, "Refused by the operator's policy: " + "; ".join(denied)
+            Reason.POLICY_DENIED, "Refused by the operator's policy: " + _listed(denied)
         )
     return tree[0], params[0]
+
+
+def _listed(problems: list[str], shown: int = 20) -> str:
+    """The first problems, then how many more: a tree can have thousands."""
+    more = len(problems) - shown
+    return "; ".join(problems[:shown]) + (f"; and {more} more problems" if more > 0 else "")
 
 
 def _names(names: list[str]) -> str:

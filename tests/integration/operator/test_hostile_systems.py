@@ -203,6 +203,18 @@ def test_billion_laughs_is_refused(stage: Stage) -> None:
     stage.assert_still_serving()
 
 
+def test_a_tree_with_thousands_of_errors_is_summarised(stage: Stage) -> None:
+    sleeps = "<Sleep/>" * 5000
+    stalled = _attack(
+        stage,
+        "errors",
+        _tree(f'{HEAD}<BehaviorTree ID="Main"><Sequence>{sleeps}</Sequence></BehaviorTree></root>'),
+    )
+    assert "<Sleep> needs the port [msec]; it has no default" in stalled["message"]
+    assert stalled["message"].endswith("; and 4980 more problems")
+    stage.assert_still_serving()
+
+
 def test_a_tree_of_almost_a_megabyte_is_refused_at_admission_naming_the_field(stage: Stage) -> None:
     padding = "<!--" + "x" * 990_000 + "-->"
     manifest = fleet_mission("huge", stage.fleet)

@@ -11,6 +11,8 @@ from coral_operator.kube import observing
 from coral_operator.planning import instances, pods, startup
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.status import instance_status, ownership
+from coral_operator.status.conditions import ConditionType, Reason
+from coral_operator.status.transitions import MAX_MESSAGE, Verdict, merge_conditions
 from operator_specs import BASE_SPEC, NOW, robot
 
 PSA = 'pods "x" is forbidden: violates PodSecurity "baseline:latest": hostPath volumes (volume "plugins")'
@@ -124,3 +126,11 @@ def test_a_forged_ready_is_recomputed_from_what_is_observed() -> None:
     ready = next(c for c in status["conditions"] if c["type"] == "Ready")
     assert (ready["status"], ready["reason"]) == ("False", "PodRefused")
     assert ready["lastTransitionTime"] == "2026-01-01T12:00:00Z"
+
+
+def test_a_huge_message_is_cut_to_what_the_status_can_hold() -> None:
+    long = "x" * 100_000
+    (entry,) = merge_conditions(
+        [], [Verdict(ConditionType.STALLED, True, Reason.INVALID_TREE, long)], generation=1, now=NOW
+    )
+    assert len(entry["message"]) <= MAX_MESSAGE and entry["message"].endswith("(100000 characters)")
