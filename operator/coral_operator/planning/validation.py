@@ -73,6 +73,9 @@ def validate_tree(
         return _static_problems(document, filename)
     except bt.BTLoadError as error:
         return [_located(error, filename)]
+    except RecursionError:
+        # Element depth is bounded above; what is left is an expression nested past Python's stack.
+        return [f"{filename}: an expression (a script or port value) nests too deeply to be read"]
     except Exception as error:  # noqa: BLE001 - one bad tree must never stop the operator
         return [f"{filename}: the tree could not be validated ({type(error).__name__})"]
 

@@ -94,6 +94,14 @@ def test_a_cycle_of_includes_is_named() -> None:
     assert "include cycle" in problem
 
 
+def test_a_script_nested_past_the_stack_is_a_problem_not_a_crash() -> None:
+    code = "(" * 20000 + "1" + ")" * 20000
+    text = f'{HEAD}<BehaviorTree ID="Main"><Script code="x:={code}"/></BehaviorTree></root>'
+    assert validation.validate_tree(text, "t.xml") == [
+        "t.xml: an expression (a script or port value) nests too deeply to be read"
+    ]
+
+
 def test_deeply_nested_parameters_are_a_problem_not_a_crash() -> None:
     (problem,) = validation.validate_parameters("a: " + "[" * 5000 + "]" * 5000 + "\n", "params.yaml")
     assert problem.startswith("params.yaml:")
