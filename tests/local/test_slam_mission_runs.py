@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from coral.lidar import demo
+from coral.lidar import demo, picture
 from coral_testbed.waiting import wait_for
+from fixtures import pictures
 from fixtures.processes import Spawn
 from run_helpers import alive, component_pids, coral, node_successes, run_records
 
@@ -40,10 +41,14 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
     assert process.returncode == 0, log
     assert "tree SUCCESS" in log and "Executor executor finished: tree SUCCESS, exit code 0" in log
 
-    scans, total, error, points = demo.score(output, short_bag)
-    assert scans == total == 40
-    assert points > 1000 and (output / "slam_map.ply").stat().st_size > 12 * 1000
-    assert error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag)
+    assert evaluation.scans == evaluation.ground_truth_scans == 40
+    assert evaluation.map_points > 1000 and (output / "slam_map.ply").stat().st_size > 12 * 1000
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
+    # The picture beside the map shows the map, the estimate (red) over the ground truth (green).
+    assert evaluation.picture_path == output / "slam_map.png"
+    rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
+    assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
     assert list((output / "snapshots").glob("snapshot-*/snapshot.json"))
 
     record = run_records(run_env)[0]
@@ -94,9 +99,9 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
         rclpy.shutdown(context=context)
     log, _ = process.communicate(timeout=60)
     assert process.returncode == 0, log
-    scans, total, error, points = demo.score(output, short_bag)
-    assert 0 < scans < total and points > 0
-    assert error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag, draw=False)
+    assert 0 < evaluation.scans < evaluation.ground_truth_scans and evaluation.map_points > 0
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
 
 
 def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_batches(
@@ -121,8 +126,9 @@ def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_
     log, _ = process.communicate(timeout=240)
     assert process.returncode == 0, log
 
-    scans, total, error, _ = demo.score(output, short_bag)
-    assert scans == total == 40 and error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag, draw=False)
+    assert evaluation.scans == evaluation.ground_truth_scans == 40
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
     stats = json.loads((output / "slam_map.stats.json").read_text())
     assert stats["processed"] == stats["delivered"] == 40 and stats["failed"] == 0
     # Subscribed at EnableLocalization: the bag player waited for it, so the scans did not pile up

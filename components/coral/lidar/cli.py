@@ -106,11 +106,7 @@ def slam_demo_command(
     click.echo(
         f"Mission exit code : {result.exit_code} ({'SUCCESS' if result.exit_code == 0 else 'not SUCCESS'})"
     )
-    click.echo(f"Scans processed   : {result.scans} of {result.ground_truth_scans}")
-    click.echo(f"Map               : {result.map_path} ({result.map_points} points)")
-    if result.ate_m is not None:
-        click.echo(f"Trajectory error  : ATE {result.ate_m:.3f} m RMSE, RPE {result.rpe_m:.3f} m per scan")
-    else:
-        click.echo("Trajectory error  : not available (no trajectory saved)")
+    for line in result.evaluation.summary():
+        click.echo(line)
     click.echo(f"Demo duration     : {result.duration_s:.1f} s")
     sys.exit(result.exit_code)

@@ -13,8 +13,22 @@ import time
 from pathlib import Path
 
 import click
+from rich.text import Text
 
 from coral.local import state
+
+# How `coral ps` colours run and component states on a terminal.
+RUN_STATE_STYLE = {
+    "running": "green",
+    "ready": "green",
+    "starting": "yellow",
+    "stopping": "yellow",
+    "pending": "bright_black",
+    "finished": "bright_black",
+    "exited": "bright_black",
+    "stopped": "bright_black",
+    "failed": "red",
+}
 
 TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
 
@@ -69,19 +83,32 @@ def run_command(
 @click.option("--all", "-a", "everything", is_flag=True, help="Include finished runs.")
 def ps_command(everything: bool) -> None:
     """List Coral runs on this machine and their components."""
+    from coral import terminal
+
     runs = [r for r in state.load_runs() if everything or r.state != "finished"]
     if not runs:
         click.echo("no runs" if everything else "no running instances (use -a for finished ones)")
         return
-    click.echo(f"{'HANDLE':<28} {'GROUP':<16} {'STATE':<10} {'AGE':>7}  COMPONENTS")
+    rows = []
     for run in runs:
-        age = f"{time.time() - run.started_at:.0f}s"
-        parts = ", ".join(
-            f"{c.name}({c.role[0]}):{c.state}" + (f"/{c.exit_code}" if c.exit_code is not None else "")
+        components = Text(", ").join(
+            Text.assemble(
+                f"{c.name}({c.role[0]}):",
+                (
+                    c.state + (f"/{c.exit_code}" if c.exit_code is not None else ""),
+                    RUN_STATE_STYLE.get(c.state, ""),
+                ),
+            )
             for c in run.components
         )
         state_text = run.state if run.exit_code is None else f"{run.state}({run.exit_code})"
-        click.echo(f"{run.handle:<28} {run.group:<16} {state_text:<10} {age:>7}  {parts}")
+        age = f"{time.time() - run.started_at:.0f}s"
+        rows.append(
+            [run.handle, run.group, Text(state_text, RUN_STATE_STYLE.get(run.state, "")), age, components]
+        )
+    terminal.console().print(
+        terminal.table(["HANDLE", "GROUP", "STATE", "AGE", "COMPONENTS"], rows, right=["AGE"])
+    )
 
 
 @click.command("stop")

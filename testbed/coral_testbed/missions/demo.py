@@ -94,15 +94,11 @@ def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo:
     if output is None:
         echo("No SLAM pod folder: no map to score")
         return roots
-    scans, total, error, points = slam_demo.score(output, dataset)
+    evaluation = slam_demo.evaluate(output, dataset)
     echo("")
     echo(f"Mission           : {roots.get(manifests.SLAM_ROBOT)} on {manifests.SLAM_ROBOT}")
-    echo(f"Scans processed   : {scans} of {total}")
-    echo(f"Map               : {output / slam_demo.EXAMPLE_MAP_NAME} ({points} points)")
-    if error is not None:
-        echo(f"Trajectory error  : ATE {error.ate_rmse_m:.3f} m RMSE, RPE {error.rpe_rmse_m:.3f} m per scan")
-    else:
-        echo("Trajectory error  : not available (no trajectory saved)")
+    for line in evaluation.summary():
+        echo(line)
     return roots
 
 

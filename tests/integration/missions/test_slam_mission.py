@@ -9,9 +9,11 @@ from pathlib import Path
 
 import pytest
 from coral.lidar import demo as slam_demo
+from coral.lidar import picture
 from coral_testbed.cluster import Cluster
 from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
+from fixtures import pictures
 from kubernetes import client as k8s
 
 from .conftest import TEST_SCANS, StartStack, wait_finished
@@ -46,10 +48,14 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     assert output is not None and stack.runner.robot_dir(robot) in output.parents
     map_file = output / slam_demo.EXAMPLE_MAP_NAME
     assert map_file.is_file(), sorted(p.name for p in output.iterdir())
-    scans, total, error, points = slam_demo.score(output, short_bag)
-    assert total == TEST_SCANS and scans >= TEST_SCANS - 2, (scans, total)
-    assert points > 1000
-    assert error is not None and error.ate_rmse_m < 0.5, error
+    evaluation = slam_demo.evaluate(output, short_bag)
+    assert evaluation.ground_truth_scans == TEST_SCANS and evaluation.scans >= TEST_SCANS - 2, evaluation
+    assert evaluation.map_points > 1000
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < 0.5, evaluation.error
+    # The picture lands beside the map in the robot's files, as `coral demo` prints it.
+    assert evaluation.picture_path == map_file.with_suffix(".png")
+    rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
+    assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
 
     # The mission is over: the executor pod ends Succeeded and is not started again.
     core = k8s.CoreV1Api(cluster.api_client)

@@ -6,7 +6,15 @@ import io
 import json
 from pathlib import Path
 
+from coral import terminal
 from coral.local.console import Console, StatusTail, TreeView, outline_of
+
+
+def _rendered(view: TreeView) -> list[str]:
+    """The footer as plain text, as a pipe would receive it."""
+    stream = io.StringIO()
+    terminal.console(stream, colour=False).print(view.renderable())
+    return [line.rstrip() for line in stream.getvalue().splitlines()]
 
 
 def _records() -> list[dict[str, object]]:
@@ -23,7 +31,7 @@ def test_the_view_shows_each_node_with_its_latest_status_indented_by_depth() -> 
     view = TreeView()
     for record in _records():
         view.apply(record)
-    lines = view.lines(colour=False)
+    lines = _rendered(view)
     assert lines[0] == "tree SUCCESS  ticks 9"
     assert lines[1].split() == ["Sequence", "RUNNING"]
     assert lines[2].startswith("▶   ProcessScan") and lines[2].split()[-1] == "SUCCESS"
@@ -82,7 +90,7 @@ def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
         }
     )
     view.apply({"event": "transition", "path": "IterateSLAM::14", "node_id": "SubTree", "status": "RUNNING"})
-    assert view.lines(colour=False)[1:] == [
-        f"  {'  ' * 4}{'SubTree IterateSLAM':<28} RUNNING",
-        f"  {'  ' * 6}{'ProcessScan':<28} RUNNING",
-    ]
+    subtree, scan = _rendered(view)[1:]
+    # Indented by the outline's depth (two spaces a level after the marker), statuses in one column.
+    assert subtree.index("SubTree IterateSLAM") == 2 + 2 * 4 and scan.index("ProcessScan") == 2 + 2 * 6
+    assert subtree.endswith("RUNNING") and scan.endswith("RUNNING") and len(subtree) == len(scan)
