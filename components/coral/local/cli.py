@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 from rich.text import Text
 
-from coral.local import state
+from coral.local import polling, state
 
 # How `coral ps` colours run and component states on a terminal.
 RUN_STATE_STYLE = {
@@ -136,11 +136,13 @@ def stop_command(handle: str | None, group: str | None, everything: bool, timeou
             os.kill(run.supervisor_pid, signal.SIGINT)
         except ProcessLookupError:
             continue
-    deadline = time.monotonic() + timeout
     pending = list(runs)
-    while pending and time.monotonic() < deadline:
-        pending = [r for r in pending if state.pid_alive(r.supervisor_pid)]
-        time.sleep(0.1)  # polling the supervisors' pids, bounded by the deadline
+
+    def all_stopped() -> bool:
+        pending[:] = [r for r in pending if state.pid_alive(r.supervisor_pid)]
+        return not pending
+
+    polling.poll_until(all_stopped, timeout_s=timeout, interval_s=0.1)
     for run in runs:
         click.echo(f"{run.handle}: {'still stopping' if run in pending else 'stopped'}")
     if pending:

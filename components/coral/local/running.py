@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from coral.local import compose, console, state, supervising
+from coral.local import compose, console, polling, state, supervising
 
 
 def default_output_dir(project: compose.Project) -> Path:
@@ -92,15 +92,18 @@ def start_detached(
         process = subprocess.Popen(
             argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
         )
-    deadline = time.monotonic() + wait_s
-    while time.monotonic() < deadline:
+
+    def recorded() -> bool:
         if (folder / "run.json").exists():
-            return handle
+            return True
         if process.poll() is not None:
             raise RuntimeError(
                 f"coral run exited with code {process.returncode}; see {folder / 'supervisor.log'}"
             )
-        time.sleep(0.05)  # polling for the record file, bounded by the deadline above
+        return False
+
+    if polling.poll_until(recorded, timeout_s=wait_s, interval_s=0.05):
+        return handle
     raise RuntimeError(
         f"coral run did not record itself within {wait_s:g} s; see {folder / 'supervisor.log'}"
     )
