@@ -9,10 +9,19 @@ the mission follower of `coral demo`.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import TextIO
 
 from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 from rich.text import Text
 
@@ -51,6 +60,34 @@ def console(stream: TextIO | None = None, *, colour: bool | None = None) -> Cons
 
 def status_text(status: str) -> Text:
     return Text(status, style=STATUS_STYLE.get(status, ""))
+
+
+@contextmanager
+def progress(description: str, stream: TextIO | None = None) -> Iterator[Callable[[int, int], None]]:
+    """A progress bar for a long step, fed `(done, total)`; off a terminal it shows nothing, as the
+    step's own start and end lines say enough in a log."""
+    out = console(stream)
+    if not out.is_terminal:
+        yield lambda done, total: None
+        return
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=out, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda done, total: bar.update(task, completed=done, total=total)
+
+
+def health_text(healthy: bool, alive: bool) -> Text:
+    """`healthy` (green), `unhealthy` (alive but failing its probe, yellow) or `stopped` (red)."""
+    if healthy:
+        return Text("healthy", style="green")
+    return Text("unhealthy", style="yellow") if alive else Text("stopped", style="red")
 
 
 def table(

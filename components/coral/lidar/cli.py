@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from coral import terminal
 from coral.lidar import generating
 
 DEFAULT_EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
@@ -63,7 +64,12 @@ def generate_bag_command(
     """Write a synthetic LiDAR ROS 2 bag (PointCloud2 + ground truth) from a seed; print its folder."""
     params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
     try:
-        folder = generating.generate(params, output) if output else generating.cached_dataset(params)
+        with terminal.progress("Generating the bag", stream=sys.stderr) as step:
+            folder = (
+                generating.generate(params, output, step)
+                if output
+                else generating.cached_dataset(params, progress=step)
+            )
     except (ValueError, OSError) as err:
         raise click.ClickException(str(err)) from err
     click.echo(folder)

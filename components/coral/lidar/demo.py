@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coral import terminal
 from coral.lidar import generating, mapfile, picture, trajectory
 
 EXAMPLE_MAP_NAME = "slam_map.ply"
@@ -109,7 +110,8 @@ def run_demo(
         f"Synthetic LiDAR bag: seed {params.seed}, {params.scans} scans, {params.beams} beams"
         " (cached after the first run)"
     )
-    dataset = generating.cached_dataset(params, cache_root)
+    with terminal.progress("Generating the bag") as step:
+        dataset = generating.cached_dataset(params, cache_root, step)
     echo(f"Bag ready in {time.monotonic() - started:.1f} s: {dataset / 'bag'}")
     stem = output_dir / EXAMPLE_MAP_NAME
     for stale in (stem, stem.with_suffix(".trajectory.csv"), stem.with_suffix(".png")):

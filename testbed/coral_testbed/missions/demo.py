@@ -14,9 +14,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from coral import terminal
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
+from rich.live import Live
 
 from coral_testbed.cluster import controlplane
 from coral_testbed.cluster.client import Cluster
@@ -58,13 +61,23 @@ def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) 
         f"==> Following the CoralInstances' tree status (robot, root, ticks, active node),"
         f" up to {timeout:.0f} s"
     )
-    instances = following.follow(
-        stack.instances,
-        lambda items: following.finished(items, robots),
-        timeout=timeout,
-        echo=echo,
-        check=stack.check_operator,
-    )
+
+    def watch(**display: Any) -> list[dict[str, Any]]:
+        return following.follow(
+            stack.instances,
+            lambda items: following.finished(items, robots),
+            timeout=timeout,
+            check=stack.check_operator,
+            **display,
+        )
+
+    out = terminal.console()
+    if out.is_terminal:
+        # A table redrawn in place; it stays on the screen with the final statuses.
+        with Live(following.table([]), console=out, auto_refresh=False) as live:
+            instances = watch(show=lambda items: live.update(following.table(items), refresh=True))
+    else:
+        instances = watch(echo=echo)
     return {following.robot(i): str(following.tree(i).get("rootStatus")) for i in instances}
 
 
@@ -125,7 +138,8 @@ def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
     echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
-    dataset = generating.cached_dataset(params)
+    with terminal.progress("    Generating the bag") as step:
+        dataset = generating.cached_dataset(params, progress=step)
     echo(f"    {dataset / 'bag'}")
     robots = [manifests.SLAM_ROBOT] if mission == "slam" else list(manifests.RELAY_ROBOTS)
     run_mission = _slam if mission == "slam" else _relay
