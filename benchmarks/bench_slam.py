@@ -26,7 +26,8 @@ The machine is shared, so the two sides alternate (`--repeat` pairs, in ABBA ord
 trend favours neither) and the ratio is judged on the median of the per-pair ratios (each pair ran
 under similar load); the worst pair and the best ratio (best Coral over best KISS-ICP) are printed
 too. Both trajectories are scored the same way (ATE after rigid alignment, coral.lidar.trajectory).
-Run: `python benchmarks/bench_slam.py [--scans N] [--seed S] [--repeat R]` (prints BENCH lines).
+Run: `python benchmarks/bench_slam.py [--scans N] [--seed S] [--repeat R] [--plot DIR]` (prints BENCH
+lines; with --plot, also DIR/slam_throughput.png).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import plots
 import yaml
 from coral.lidar import demo, generating, trajectory
 
@@ -149,6 +151,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--repeat", type=int, default=5, help="KISS-ICP/Coral pairs (odd: a true median)")
     parser.add_argument("--threads", type=int, default=0, help="KISS-ICP threads, both sides (0: all cores)")
+    parser.add_argument("--plot", type=Path, metavar="DIR", help="also write slam_throughput.png into DIR")
     args = parser.parse_args()
     dataset = generating.cached_dataset(generating.BagParams(seed=args.seed, scans=args.scans))
     # Kept when a run fails (coral_run exits with its path), for the components' logs.
@@ -196,6 +199,9 @@ def main() -> None:
     bench("slam_coral_ate", coral_ate, "m", "<=", ERROR_TARGET * kiss_ate)
     bench("slam_ate_ratio", coral_ate / kiss_ate, "x", "<=", ERROR_TARGET)
     bench("slam_coral_scans_processed", min(run.scans for run in coral_runs), "scans", ">=", args.scans)
+    if args.plot is not None:
+        drawn = plots.slam_throughput([(k.scans_per_s, c.scans_per_s) for k, c in pairs], args.plot)
+        print(f"# plot: {drawn}")
 
 
 if __name__ == "__main__":

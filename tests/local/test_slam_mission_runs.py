@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from coral import tree_picture
 from coral.lidar import demo, picture
+from coral.local.console import outline_of
 from coral_testbed.waiting import wait_for
 from fixtures import pictures
 from fixtures.processes import Spawn
@@ -31,7 +33,15 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
     example = example_copy(rate=2.0)
     output = tmp_path / "out"
     process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
+        coral(
+            "run",
+            str(example),
+            "--output",
+            str(output),
+            "--no-live",
+            "--tree-png",
+            str(tmp_path / "tree.png"),
+        ),
         env=run_env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -50,6 +60,16 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
     rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
     assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
     assert list((output / "snapshots").glob("snapshot-*/snapshot.json"))
+
+    # The tree picture: the SLAM nodes in the colours of their last results, the path printed.
+    assert f"Tree picture: {tmp_path / 'tree.png'}" in log
+    outline = outline_of(example / "tree.xml")
+    rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
+    green, red = (
+        tuple(int(tree_picture.FILL[s][i : i + 2], 16) for i in (1, 3, 5)) for s in ("SUCCESS", "FAILURE")
+    )
+    assert pictures.count_near(rgb, green, 6) > 1000  # most nodes succeeded last
+    assert pictures.count_near(rgb, red, 6) > 100  # ForceFailure and the iteration it wraps failed
 
     record = run_records(run_env)[0]
     assert record["state"] == "finished" and record["exit_code"] == 0

@@ -93,6 +93,12 @@ def generate_bag_command(
     help="Where the map and trajectory go.",
 )
 @click.option("--live/--no-live", default=None, help="Live tree view (default: on a terminal).")
+@click.option(
+    "--tree-png",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Also draw the behavior tree here, each node coloured by its last status.",
+)
 def slam_demo_command(
     seed: int,
     scans: int,
@@ -102,12 +108,15 @@ def slam_demo_command(
     example: Path,
     output_dir: Path,
     live: bool | None,
+    tree_png: Path | None,
 ) -> None:
     """The LiDAR SLAM mission end to end: bag, `coral run`, map, trajectory error against ground truth."""
     from coral.lidar import demo
 
     params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
-    result = demo.run_demo(example, params, output_dir=output_dir.resolve(), live=live, echo=click.echo)
+    result = demo.run_demo(
+        example, params, output_dir=output_dir.resolve(), live=live, echo=click.echo, tree_png=tree_png
+    )
     click.echo("")
     click.echo(
         f"Mission exit code : {result.exit_code} ({'SUCCESS' if result.exit_code == 0 else 'not SUCCESS'})"

@@ -102,6 +102,7 @@ def run_demo(
     live: bool | None = None,
     cache_root: Path | None = None,
     echo: Callable[[str], object] = print,
+    tree_png: Path | None = None,
 ) -> DemoResult:
     from coral.local import running
 
@@ -117,7 +118,11 @@ def run_demo(
     for stale in (stem, stem.with_suffix(".trajectory.csv"), stem.with_suffix(".png")):
         stale.unlink(missing_ok=True)
     code = running.run_project(
-        example, output_dir=output_dir, live=live, extra_env={"CORAL_BAG": str(dataset / "bag")}
+        example,
+        output_dir=output_dir,
+        live=live,
+        extra_env={"CORAL_BAG": str(dataset / "bag")},
+        tree_png=tree_png,
     )
     return DemoResult(
         exit_code=code,

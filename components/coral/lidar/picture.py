@@ -1,6 +1,6 @@
 """The SLAM mission as a picture: a top-down PNG of the map, the estimated and the true trajectory.
 
-Drawn with matplotlib's Agg backend (no display needed) by the demo report (`coral.lidar.demo`),
+Drawn with matplotlib (`coral.figures`) by the demo report (`coral.lidar.demo`),
 for `coral slam-demo` and `coral demo` alike. Estimate and map are in the SLAM frame, the ground
 truth in the bag's; both start at the first scan's pose, so they overlay without alignment.
 """
@@ -11,8 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from coral import figures
+
 SIZE_PX = (1000, 800)
-DPI = 100
 MAX_MAP_POINTS = 60_000
 
 
@@ -24,12 +25,7 @@ def draw_mission(
     title: str,
 ) -> Path:
     """Writes the PNG (SIZE_PX pixels) to `target`, aside then renamed; returns `target`."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(SIZE_PX[0] / DPI, SIZE_PX[1] / DPI), dpi=DPI, layout="constrained")
+    figure = figures.new_figure(SIZE_PX[0] / figures.DPI, SIZE_PX[1] / figures.DPI)
     axes = figure.add_subplot()
     if len(map_points):
         # An even subsample keeps big maps quick to draw without changing what the eye sees.
@@ -51,8 +47,4 @@ def draw_mission(
     axes.set_title(title)
     axes.legend(loc="upper right", markerscale=12)
     axes.grid(True, linewidth=0.3)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = target.with_name(f".{target.name}.tmp.png")
-    figure.savefig(staging, dpi=DPI)
-    staging.replace(target)
-    return target
+    return figures.save_png(figure, target)

@@ -51,6 +51,12 @@ TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
 )
+@click.option(
+    "--tree-png",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="When the run ends, draw the behavior tree here, each node coloured by its last status.",
+)
 def run_command(
     target: Path,
     handle: str | None,
@@ -59,6 +65,7 @@ def run_command(
     detach: bool,
     live: bool | None,
     env_pairs: tuple[str, ...],
+    tree_png: Path | None,
 ) -> None:
     """Run a Coral project (compose file, tree, parameters) as local processes."""
     from coral.local import compose, running
@@ -68,13 +75,23 @@ def run_command(
         if env_pairs:
             raise click.UsageError("--env cannot be combined with --detach; export the variables instead")
         try:
-            print(running.start_detached(target, handle=handle, group=group, output_dir=output_dir))
+            print(
+                running.start_detached(
+                    target, handle=handle, group=group, output_dir=output_dir, tree_png=tree_png
+                )
+            )
         except (compose.ComposeError, RuntimeError) as err:
             raise click.ClickException(str(err)) from err
         return
     sys.exit(
         running.run_project(
-            target, handle=handle, group=group, output_dir=output_dir, live=live, extra_env=extra_env
+            target,
+            handle=handle,
+            group=group,
+            output_dir=output_dir,
+            live=live,
+            extra_env=extra_env,
+            tree_png=tree_png,
         )
     )
 

@@ -31,9 +31,17 @@ LABEL_WIDTH = 28
 GENERIC_TAGS = ("Action", "Condition", "Control", "Decorator")
 
 
-def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, tuple[int, str]]:
-    """uid -> (depth, node ID) of the main tree, numbered depth-first from 1 with subtrees expanded,
-    as the engine numbers node paths (`Name::uid`); empty when the file cannot be read."""
+@dataclass(frozen=True)
+class OutlineNode:
+    depth: int
+    node_id: str
+    label: str
+    """What a person reads: `SubTree IterateSLAM` for a subtree, the node's name when it has one."""
+
+
+def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, OutlineNode]:
+    """uid -> node of the main tree, numbered depth-first from 1 with subtrees expanded, as the
+    engine numbers node paths (`Name::uid`); empty when the file cannot be read."""
     import xml.etree.ElementTree as ElementTree
 
     try:
@@ -44,11 +52,15 @@ def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, tuple
     main = main_tree or root.get("main_tree_to_execute") or next(iter(trees), None)
     if main not in trees:
         return {}
-    outline: dict[int, tuple[int, str]] = {}
+    outline: dict[int, OutlineNode] = {}
 
     def visit(element: Any, depth: int, open_trees: frozenset[str]) -> None:
-        node_id = element.get("ID") if element.tag in GENERIC_TAGS else element.tag
-        outline[len(outline) + 1] = (depth, str(node_id))
+        node_id = str(element.get("ID") if element.tag in GENERIC_TAGS else element.tag)
+        name = element.get("name")
+        label = f"SubTree {element.get('ID')}" if element.tag == "SubTree" else node_id
+        if name and name != node_id and element.tag != "SubTree":
+            label = f"{name} ({node_id})"
+        outline[len(outline) + 1] = OutlineNode(depth, node_id, label)
         children = list(element)
         if element.tag == "SubTree":
             target = element.get("ID")
@@ -80,7 +92,7 @@ class TreeView:
     finished: dict[str, Any] | None = None
     waiting: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
-    outline: dict[int, tuple[int, str]] = field(default_factory=dict)
+    outline: dict[int, OutlineNode] = field(default_factory=dict)
 
     def apply(self, record: dict[str, Any]) -> None:
         event = record.get("event")
@@ -116,7 +128,7 @@ class TreeView:
         for path in sorted(self.nodes, key=order)[: max(1, max_lines - 1)]:
             node_id, status = self.nodes[path]
             known = self.outline.get(order(path))
-            depth = known[0] if known and known[1] == node_id else path.count("/") - base
+            depth = known.depth if known and known.node_id == node_id else path.count("/") - base
             shown = terminal.status_text(status)
             if status == "IDLE" and path in self.results:
                 # An idle node shows what it last returned, dimmed, as Groot2 does.
@@ -139,6 +151,15 @@ class TreeView:
         for active, depth, label, status in self.rows(max_lines):
             grid.add_row("▶" if active else " ", f"{'  ' * depth}{label}", status)
         return Group(head, grid)
+
+    def last_statuses(self) -> dict[int, str]:
+        """uid -> what each node seen last did: its last result once it went back to IDLE."""
+        statuses = {}
+        for path, (_node_id, status) in self.nodes.items():
+            uid = _uid(path)
+            if uid is not None:
+                statuses[uid] = self.results.get(path, status) if status == "IDLE" else status
+        return statuses
 
     def progress_line(self) -> str:
         text = f"tree {self.root} ticks={self.ticks}"

@@ -265,6 +265,24 @@ class Supervisor:
             self.stop_all()
             self.out.close_footer()
 
+    def draw_trees(self, target: Path) -> list[Path]:
+        """Draws each executor's tree with every node's last status; one executor gets `target`,
+        several get `<stem>-<executor>.png` beside it."""
+        from coral import tree_picture
+
+        executors = [c for c in self.children if c.service.role == "executor" and c.view.outline]
+        drawn = []
+        for child in executors:
+            path = (
+                target if len(executors) == 1 else target.with_name(f"{target.stem}-{child.service.name}.png")
+            )
+            title = (
+                f"{self.project.name} / {child.service.name}: tree {child.view.root} "
+                f"after {child.view.ticks} ticks"
+            )
+            drawn.append(tree_picture.draw_tree(child.view.outline, child.view.last_statuses(), path, title))
+        return drawn
+
     def _wait_for_signal(self) -> int:
         """No executor: keep the components up until a signal or an unexpected exit."""
         while not self.stopping.is_set():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
 
@@ -19,9 +20,17 @@ import click
     "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
-def demo_command(mission: str, scans: int | None, timeout: float) -> None:
+@click.option(
+    "--tree-png",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="Draw each robot's tree here, coloured by what its CoralInstance reports.",
+)
+def demo_command(mission: str, scans: int | None, timeout: float, tree_png: Path | None) -> None:
     """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
     from coral_testbed.missions import demo
 
-    outcome = demo.run(mission, scans or (300 if mission == "slam" else 60), timeout, echo=click.echo)
+    outcome = demo.run(
+        mission, scans or (300 if mission == "slam" else 60), timeout, echo=click.echo, tree_png=tree_png
+    )
     sys.exit(0 if outcome.success else 1)

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from coral import terminal
+from coral import terminal, tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
+from coral.local.console import outline_of
 from rich.live import Live
 
 from coral_testbed.cluster import controlplane
@@ -115,6 +116,27 @@ def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo:
     return roots
 
 
+def draw_trees(stack: MissionStack, robots: list[str], target: Path, echo: Echo) -> None:
+    """Draws each robot's deployed tree (from its instance's ConfigMap) coloured by what the
+    instance reports; one robot gets `target`, several `<stem>-<robot>.png` beside it."""
+    for robot in robots:
+        instance = stack.instance_of(robot)
+        if instance is None:
+            echo(f"No CoralInstance for {robot}: no tree picture")
+            continue
+        spec = instance["spec"]["tree"]
+        config_map = stack.core.read_namespaced_config_map(spec["configMap"], stack.namespace)
+        with tempfile.TemporaryDirectory(prefix="coral-tree-") as folder:
+            tree_file = Path(folder) / "tree.xml"
+            tree_file.write_text(config_map.data["tree.xml"])
+            outline = outline_of(tree_file, spec.get("mainTreeId"))
+        path = target if len(robots) == 1 else target.with_name(f"{target.stem}-{robot}.png")
+        status = following.tree(instance)
+        title = f"{robot}: tree {status.get('rootStatus')} after {status.get('tickCount', 0)} ticks"
+        tree_picture.draw_tree(outline, following.tree_statuses(instance), path, title)
+        echo(f"Tree picture      : {path}")
+
+
 def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
     assert stack.runner is not None
     survey, server, worker = manifests.RELAY_ROBOTS
@@ -133,7 +155,9 @@ def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo
     return roots
 
 
-def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome:
+def run(
+    mission: str, scans: int, timeout: float, echo: Echo = print, tree_png: Path | None = None
+) -> Outcome:
     """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring."""
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
@@ -162,6 +186,8 @@ def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome
                 with MissionStack(cluster, NAMESPACE, robots, Path(folder) / "mission") as stack:
                     _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
                     roots = run_mission(stack, dataset, domain, timeout, echo)
+                    if tree_png is not None:
+                        draw_trees(stack, robots, tree_png.resolve(), echo)
                     echo("==> Stopping the robot runner and the operator")
                 cluster.close()
             finally:

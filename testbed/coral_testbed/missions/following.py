@@ -7,6 +7,7 @@ shows and the mission tests use to wait (bounded) for every robot's tree to end.
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from typing import Any
@@ -73,6 +74,26 @@ def table(instances: list[dict[str, Any]]) -> Table:
             ]
         )
     return terminal.table(["ROBOT", "TREE", "TICKS", "ACTIVE NODE", "PROBLEMS"], rows, right=["TICKS"])
+
+
+def _uids(path: str) -> list[int]:
+    return [int(uid) for uid in re.findall(r"::(\d+)(?=/|$)", path)]
+
+
+def tree_statuses(instance: dict[str, Any]) -> dict[int, str]:
+    """uid -> status of the nodes the instance's status speaks of: the root (uid 1), the active
+    chain while the tree runs, and the node of the last failure. Other nodes are not reported."""
+    status = tree(instance)
+    statuses: dict[int, str] = {}
+    root = status.get("rootStatus")
+    if root:
+        statuses[1] = str(root)
+    if root == "RUNNING":
+        statuses.update(dict.fromkeys(_uids(str(status.get("activePath") or "")), "RUNNING"))
+    failed = _uids(str((status.get("lastFailure") or {}).get("path") or ""))
+    if failed:
+        statuses[failed[-1]] = "FAILURE"
+    return statuses
 
 
 def finished(instances: list[dict[str, Any]], robots: list[str]) -> bool:

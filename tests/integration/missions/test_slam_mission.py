@@ -8,9 +8,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import picture
+from coral.local.console import outline_of
 from coral_testbed.cluster import Cluster
+from coral_testbed.missions import demo as mission_demo
 from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
 from fixtures import pictures
@@ -28,6 +31,7 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     suffix: str,
     short_bag: Path,
     ros_env: dict[str, str],
+    tmp_path: Path,
 ) -> None:
     robot = f"m-slam-{suffix}"
     stack = start_stack([robot])
@@ -56,6 +60,15 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     assert evaluation.picture_path == map_file.with_suffix(".png")
     rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
     assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
+
+    # `coral demo --tree-png`: the deployed tree, its root in the colour of the mission's result.
+    said: list[str] = []
+    mission_demo.draw_trees(stack, [robot], tmp_path / "tree.png", said.append)
+    assert said == [f"Tree picture      : {tmp_path / 'tree.png'}"]
+    outline = outline_of(manifests.ROOT / "examples" / "lidar-slam" / "tree.xml")
+    rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
+    green = tuple(int(tree_picture.FILL["SUCCESS"][i : i + 2], 16) for i in (1, 3, 5))
+    assert pictures.count_near(rgb, green, 6) > 200
 
     # The mission is over: the executor pod ends Succeeded and is not started again.
     core = k8s.CoreV1Api(cluster.api_client)

@@ -77,9 +77,11 @@ def test_the_status_tail_reads_only_complete_new_lines(tmp_path: Path) -> None:
 def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
     tree = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam" / "tree.xml"
     outline = outline_of(tree)
-    assert outline[1] == (0, "Sequence")
-    assert outline[2] == (1, "SubTree") and outline[4] == (3, "EnableLocalization")
-    assert outline[14] == (4, "SubTree") and outline[16] == (6, "ProcessScan")
+    assert (outline[1].depth, outline[1].node_id) == (0, "Sequence")
+    assert (outline[2].depth, outline[2].label) == (1, "SubTree StartSLAM")
+    assert (outline[4].depth, outline[4].node_id) == (3, "EnableLocalization")
+    assert (outline[14].depth, outline[14].label) == (4, "SubTree IterateSLAM")
+    assert (outline[16].depth, outline[16].node_id) == (6, "ProcessScan")
     view = TreeView(outline=outline)
     view.apply(
         {

@@ -92,3 +92,17 @@ def test_on_a_terminal_the_table_is_redrawn_in_place() -> None:
 
     piped = subprocess.run([sys.executable, "-c", LIVE_FOLLOWER], capture_output=True, timeout=60)
     assert piped.returncode == 0 and b"\x1b" not in piped.stdout
+
+
+def test_the_tree_statuses_are_the_root_the_running_chain_and_the_last_failure() -> None:
+    running = _instance("robot-1", "RUNNING", 5, "Sequence::1/StartSLAM::2/Sequence::3/Wait::5")
+    running["status"]["tree"]["lastFailure"] = {"path": "Sequence::1/Fallback::10/IsStopRequested::11"}
+    assert following.tree_statuses(running) == {
+        1: "RUNNING",
+        2: "RUNNING",
+        3: "RUNNING",
+        5: "RUNNING",
+        11: "FAILURE",
+    }
+    done = _instance("robot-1", "SUCCESS", 9, "")
+    assert following.tree_statuses(done) == {1: "SUCCESS"}
