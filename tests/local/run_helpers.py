@@ -6,10 +6,14 @@ import json
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from coral.local import state
+
+StartRun = Callable[..., "subprocess.Popen[str]"]
+"""The `start_run` fixture: `start_run(example, output, *extra)` starts `coral run` (see conftest)."""
 
 
 def coral(*args: str) -> list[str]:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,8 +13,7 @@ from coral.lidar import demo, picture
 from coral.local.console import outline_of
 from coral_testbed.waiting import wait_for
 from fixtures import pictures
-from fixtures.processes import Spawn
-from run_helpers import alive, component_pids, coral, node_successes, run_records
+from run_helpers import StartRun, alive, component_pids, node_successes, run_records
 
 # Measured on this 40-scan bag through Coral: 0.04 m (the same as KISS-ICP's own pipeline).
 ATE_BOUND_M = 0.25
@@ -24,7 +22,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_error(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -32,21 +30,7 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
 ) -> None:
     example = example_copy(rate=2.0)
     output = tmp_path / "out"
-    process = spawned(
-        coral(
-            "run",
-            str(example),
-            "--output",
-            str(output),
-            "--no-live",
-            "--tree-png",
-            str(tmp_path / "tree.png"),
-        ),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output, "--tree-png", str(tmp_path / "tree.png"))
     log, _ = process.communicate(timeout=240)
     assert process.returncode == 0, log
     assert "tree SUCCESS" in log and "Executor executor finished: tree SUCCESS, exit code 0" in log
@@ -77,7 +61,7 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
 
 
 def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -88,13 +72,7 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
 
     example = example_copy(rate=0.2)  # 40 scans over 20 s: stopped long before the data ends
     output = tmp_path / "out"
-    process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output)
     # Two ProcessScan successes mean at least two registered scans, the fewest a trajectory
     # error can be computed from; a stop sent earlier would leave nothing to score.
     wait_for(
@@ -125,7 +103,7 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
 
 
 def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_batches(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -136,13 +114,7 @@ def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_
     params["slam"]["ros__parameters"]["subscribe_on_enable"] = True
     (example / "params.yaml").write_text(yaml.safe_dump(params))
     output = tmp_path / "out"
-    process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output)
     log, _ = process.communicate(timeout=240)
     assert process.returncode == 0, log
 

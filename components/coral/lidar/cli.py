@@ -9,43 +9,27 @@ import click
 
 from coral import terminal
 from coral.lidar import generating
+from coral.local.cli import TREE_PNG
 
 DEFAULT_EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
 
 
+# (option, type, help) of each BagParams field the verbs expose; defaults come from BagParams.
+BAG_OPTIONS = (
+    ("seed", int, "Scene and noise seed."),
+    ("scans", click.IntRange(min=2), "Number of 10 Hz sweeps."),
+    ("beams", click.IntRange(min=2), "Lasers per column."),
+    ("columns", click.IntRange(min=16), "Firing columns per sweep."),
+    ("speed", float, "Metres per second."),
+)
+
+
 def bag_options(function: click.decorators.FC) -> click.decorators.FC:
     defaults = generating.BagParams()
-    for option in reversed(
-        [
-            click.option(
-                "--seed", type=int, default=defaults.seed, show_default=True, help="Scene and noise seed."
-            ),
-            click.option(
-                "--scans",
-                type=click.IntRange(min=2),
-                default=defaults.scans,
-                show_default=True,
-                help="Number of 10 Hz sweeps.",
-            ),
-            click.option(
-                "--beams",
-                type=click.IntRange(min=2),
-                default=defaults.beams,
-                show_default=True,
-                help="Lasers per column.",
-            ),
-            click.option(
-                "--columns",
-                type=click.IntRange(min=16),
-                default=defaults.columns,
-                show_default=True,
-                help="Firing columns per sweep.",
-            ),
-            click.option(
-                "--speed", type=float, default=defaults.speed, show_default=True, help="Metres per second."
-            ),
-        ]
-    ):
+    for name, kind, text in reversed(BAG_OPTIONS):
+        option = click.option(
+            f"--{name}", type=kind, default=getattr(defaults, name), show_default=True, help=text
+        )
         function = option(function)
     return function
 
@@ -93,12 +77,7 @@ def generate_bag_command(
     help="Where the map and trajectory go.",
 )
 @click.option("--live/--no-live", default=None, help="Live tree view (default: on a terminal).")
-@click.option(
-    "--tree-png",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="Also draw the behavior tree here, each node coloured by its last status.",
-)
+@TREE_PNG
 def slam_demo_command(
     seed: int,
     scans: int,

@@ -31,6 +31,13 @@ RUN_STATE_STYLE = {
 }
 
 TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
+# Shared by `coral run`, `coral slam-demo` and `coral demo`.
+TREE_PNG = click.option(
+    "--tree-png",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="When the mission ends, draw its behavior tree into this PNG, nodes coloured by last status.",
+)
 
 
 @click.command("run")
@@ -51,12 +58,7 @@ TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
 )
-@click.option(
-    "--tree-png",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="When the run ends, draw the behavior tree here, each node coloured by its last status.",
-)
+@TREE_PNG
 def run_command(
     target: Path,
     handle: str | None,

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import click
+from coral.local.cli import TREE_PNG
 
 
 @click.command("demo")
@@ -20,12 +21,7 @@ import click
     "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
-@click.option(
-    "--tree-png",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="Draw each robot's tree here, coloured by what its CoralInstance reports.",
-)
+@TREE_PNG
 def demo_command(mission: str, scans: int | None, timeout: float, tree_png: Path | None) -> None:
     """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
     from coral_testbed.missions import demo

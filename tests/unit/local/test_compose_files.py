@@ -115,40 +115,39 @@ def test_dotenv_values_are_parsed_by_dotenv_rules_and_interpolated(tmp_path: Pat
     }
 
 
-def test_a_dotenv_line_that_cannot_be_parsed_is_named_with_its_line(tmp_path: Path) -> None:
-    file = _project(tmp_path, "services: {}\n", **{".env": "A=1\nB='unclosed\n"})
-    with pytest.raises(ComposeError, match=r"\.env:2: cannot parse"):
-        parse_compose(file, {})
-
-
-def test_a_service_without_a_coral_profile_is_named_with_its_line(tmp_path: Path) -> None:
-    file = _project(tmp_path, "services:\n  a:\n    image: x\n    profiles: [tools]\n")
-    with pytest.raises(ComposeError, match=r"compose.yaml:4: service a needs exactly one of the profiles"):
-        parse_compose(file, {})
-
-
-def test_an_unknown_x_coral_option_is_named_with_its_line(tmp_path: Path) -> None:
-    file = _project(
-        tmp_path,
-        "services:\n  a:\n    image: x\n    profiles: [drivers]\n    x-coral:\n"
-        "      transient: true\n      restart: always\n",
-    )
-    with pytest.raises(ComposeError, match=r"compose.yaml:7: unknown x-coral option 'restart' in service a"):
-        parse_compose(file, {})
-
-
-def test_only_drivers_may_be_transient(tmp_path: Path) -> None:
-    file = _project(
-        tmp_path,
-        "services:\n  s:\n    image: x\n    profiles: [skillsets]\n    x-coral:\n      transient: true\n",
-    )
-    with pytest.raises(ComposeError, match=r"compose.yaml:6: only drivers can be transient"):
-        parse_compose(file, {})
-
-
-def test_invalid_yaml_is_reported_with_its_line(tmp_path: Path) -> None:
-    file = _project(tmp_path, "services:\n  a:\n    image: [x\n")
-    with pytest.raises(ComposeError, match=r"compose.yaml:4: invalid YAML"):
+@pytest.mark.parametrize(
+    ("compose", "dotenv", "message"),
+    [
+        pytest.param("services: {}\n", "A=1\nB='unclosed\n", r"\.env:2: cannot parse", id="bad .env line"),
+        pytest.param(
+            "services:\n  a:\n    image: x\n    profiles: [tools]\n",
+            None,
+            r"compose.yaml:4: service a needs exactly one of the profiles",
+            id="no Coral profile",
+        ),
+        pytest.param(
+            "services:\n  a:\n    image: x\n    profiles: [drivers]\n    x-coral:\n"
+            "      transient: true\n      restart: always\n",
+            None,
+            r"compose.yaml:7: unknown x-coral option 'restart' in service a",
+            id="unknown x-coral option",
+        ),
+        pytest.param(
+            "services:\n  s:\n    image: x\n    profiles: [skillsets]\n    x-coral:\n      transient: true\n",
+            None,
+            r"compose.yaml:6: only drivers can be transient",
+            id="transient skillset",
+        ),
+        pytest.param(
+            "services:\n  a:\n    image: [x\n", None, r"compose.yaml:4: invalid YAML", id="invalid YAML"
+        ),
+    ],
+)
+def test_a_file_coral_cannot_run_is_refused_with_file_and_line(
+    tmp_path: Path, compose: str, dotenv: str | None, message: str
+) -> None:
+    file = _project(tmp_path, compose, **({".env": dotenv} if dotenv is not None else {}))
+    with pytest.raises(ComposeError, match=message):
         parse_compose(file, {})
 
 
