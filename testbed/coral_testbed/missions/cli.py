@@ -22,11 +22,26 @@ from coral.local.cli import TREE_PNG
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
 @TREE_PNG
-def demo_command(mission: str, scans: int | None, timeout: float, tree_png: Path | None) -> None:
+@click.option(
+    "--output",
+    "output_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=Path("out/demo"),
+    show_default=True,
+    help="Where the SLAM map, trajectory and picture are kept after the demo.",
+)
+def demo_command(
+    mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
+) -> None:
     """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
     from coral_testbed.missions import demo
 
     outcome = demo.run(
-        mission, scans or (300 if mission == "slam" else 60), timeout, echo=click.echo, tree_png=tree_png
+        mission,
+        scans or (300 if mission == "slam" else 60),
+        timeout,
+        echo=click.echo,
+        tree_png=tree_png,
+        output_dir=output_dir,
     )
     sys.exit(0 if outcome.success else 1)

@@ -8,7 +8,9 @@ trajectory against ground truth, and stops everything it started, also on error 
 
 from __future__ import annotations
 
+import dataclasses
 import os
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -29,6 +31,8 @@ from coral_testbed.missions.stack import MissionStack
 from coral_testbed.waiting import wait_for
 
 NAMESPACE = "coral-demo"
+# Where the SLAM mission's map, trajectory and picture are kept after the demo's robots are gone.
+DEFAULT_OUTPUT = Path("out/demo")
 Echo = Callable[[str], None]
 
 
@@ -95,7 +99,9 @@ def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) 
         echo(f"    ({error})")
 
 
-def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+def _slam(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
     assert stack.runner is not None
     link = manifests.place_bag(stack.runner, manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
     echo(f"==> The bag is on {manifests.SLAM_ROBOT} at hostPath {manifests.SLAM_BAG} ({link})")
@@ -108,12 +114,28 @@ def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo:
     if output is None:
         echo("No SLAM pod folder: no map to score")
         return roots
-    evaluation = slam_demo.evaluate(output, dataset)
+    evaluation = keep_outputs(slam_demo.evaluate(output, dataset), kept)
     echo("")
     echo(f"Mission           : {roots.get(manifests.SLAM_ROBOT)} on {manifests.SLAM_ROBOT}")
+    echo(f"Robot's files     : {output} (removed with the demo's robots)")
     for line in evaluation.summary():
         echo(line)
     return roots
+
+
+def keep_outputs(evaluation: slam_demo.Evaluation, folder: Path) -> slam_demo.Evaluation:
+    """Copies the map, trajectory, stats and picture out of the robot's files (which go when the
+    demo stops) into `folder`; the evaluation then names the copies."""
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = evaluation.map_path.stem
+    for path in evaluation.map_path.parent.glob(f"{stem}.*"):
+        shutil.copy2(path, folder / path.name)
+    picture = evaluation.picture_path
+    return dataclasses.replace(
+        evaluation,
+        map_path=folder / evaluation.map_path.name,
+        picture_path=folder / picture.name if picture is not None else None,
+    )
 
 
 def draw_trees(stack: MissionStack, robots: list[str], target: Path, echo: Echo) -> None:
@@ -137,7 +159,10 @@ def draw_trees(stack: MissionStack, robots: list[str], target: Path, echo: Echo)
         echo(f"Tree picture      : {path}")
 
 
-def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+def _relay(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
+    """The three-robot relay; its results stay on the site share, so `kept` is not used."""
     assert stack.runner is not None
     survey, server, worker = manifests.RELAY_ROBOTS
     manifests.place_bag(stack.runner, survey, dataset / "bag", manifests.SURVEY_BAG)
@@ -156,7 +181,12 @@ def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo
 
 
 def run(
-    mission: str, scans: int, timeout: float, echo: Echo = print, tree_png: Path | None = None
+    mission: str,
+    scans: int,
+    timeout: float,
+    echo: Echo = print,
+    tree_png: Path | None = None,
+    output_dir: Path = DEFAULT_OUTPUT,
 ) -> Outcome:
     """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring."""
     began = time.monotonic()
@@ -185,7 +215,7 @@ def run(
                 )
                 with MissionStack(cluster, NAMESPACE, robots, Path(folder) / "mission") as stack:
                     _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
-                    roots = run_mission(stack, dataset, domain, timeout, echo)
+                    roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
                     if tree_png is not None:
                         draw_trees(stack, robots, tree_png.resolve(), echo)
                     echo("==> Stopping the robot runner and the operator")

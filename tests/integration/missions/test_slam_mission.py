@@ -61,6 +61,13 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
     assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
 
+    # What `coral demo` keeps once the robot's files are gone: the same files, picture included.
+    kept = mission_demo.keep_outputs(evaluation, tmp_path / "kept")
+    assert kept.map_path == tmp_path / "kept" / "slam_map.ply" and kept.map_path.is_file()
+    assert kept.picture_path is not None
+    assert kept.picture_path.read_bytes() == evaluation.picture_path.read_bytes()
+    assert (tmp_path / "kept" / "slam_map.trajectory.csv").is_file()
+
     # `coral demo --tree-png`: the deployed tree, its root in the colour of the mission's result.
     said: list[str] = []
     mission_demo.draw_trees(stack, [robot], tmp_path / "tree.png", said.append)

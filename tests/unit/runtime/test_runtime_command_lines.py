@@ -45,8 +45,7 @@ def test_plugins_model_prints_a_groot_palette(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert '<Condition ID="IsAtLeast">' in result.output
     assert (
-        '<input_port name="who" type="std::string" default="world">Who to greet</input_port>'
-        in result.output
+        '<input_port name="who" type="std::string" default="world">Who to greet</input_port>' in result.output
     )
 
 
