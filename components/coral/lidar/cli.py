@@ -9,7 +9,7 @@ import click
 
 from coral import terminal
 from coral.lidar import generating
-from coral.local.cli import TREE_PNG
+from coral.local.cli import TREE_PNG, output_option
 
 DEFAULT_EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
 
@@ -68,14 +68,7 @@ def generate_bag_command(
     show_default=True,
     help="The example project to run.",
 )
-@click.option(
-    "--output",
-    "output_dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=Path("out/lidar-slam"),
-    show_default=True,
-    help="Where the map and trajectory go.",
-)
+@output_option(Path("out/lidar-slam"), "Where the map, trajectory and picture go.")
 @click.option("--live/--no-live", default=None, help="Live tree view (default: on a terminal).")
 @TREE_PNG
 def slam_demo_command(

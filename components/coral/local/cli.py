@@ -10,6 +10,7 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import click
@@ -31,6 +32,20 @@ RUN_STATE_STYLE = {
 }
 
 TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
+
+
+def output_option(default: Path | None, text: str) -> Callable[[click.decorators.FC], click.decorators.FC]:
+    """`--output DIR` (parameter `output_dir`) of `coral run`, `coral slam-demo` and `coral demo`."""
+    return click.option(
+        "--output",
+        "output_dir",
+        type=click.Path(path_type=Path, file_okay=False),
+        default=default,
+        show_default=default is not None,
+        help=text,
+    )
+
+
 # Shared by `coral run`, `coral slam-demo` and `coral demo`.
 TREE_PNG = click.option(
     "--tree-png",
@@ -44,13 +59,7 @@ TREE_PNG = click.option(
 @TARGET
 @click.option("--handle", default=None, help="Name of this instance (default: <project>-<random>).")
 @click.option("--group", default=None, help="Group for `coral stop --group` (default: the project name).")
-@click.option(
-    "--output",
-    "output_dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=None,
-    help="Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).",
-)
+@output_option(None, "Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).")
 @click.option("--detach", "-d", is_flag=True, help="Run in the background; print the handle.")
 @click.option(
     "--live/--no-live", default=None, help="Live tree view (default: on when stdout is a terminal)."

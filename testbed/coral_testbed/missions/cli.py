@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 import click
-from coral.local.cli import TREE_PNG
+from coral.local.cli import TREE_PNG, output_option
 
 
 @click.command("demo")
@@ -22,14 +22,7 @@ from coral.local.cli import TREE_PNG
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
 @TREE_PNG
-@click.option(
-    "--output",
-    "output_dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=Path("out/demo"),
-    show_default=True,
-    help="Where the SLAM map, trajectory and picture are kept after the demo.",
-)
+@output_option(Path("out/demo"), "Where the SLAM map, trajectory and picture are kept after the demo.")
 def demo_command(
     mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
 ) -> None:
