@@ -27,6 +27,8 @@ from coral.local.compose import Project, Service
 EXIT_COMPONENT_FAILED = 3
 EXIT_NOT_READY = 4
 EXIT_BAD_INPUT = 2
+# The supervisor's loops stay hand-written rather than tenacity retries: each pass reacts to
+# several things at once (a signal, an unexpected exit, each child's readiness or timeout).
 POLL_S = 0.05
 STOP_GRACE_S = 10.0
 
@@ -294,7 +296,10 @@ class Supervisor:
 
 
 def stop_process_group(process: subprocess.Popen[Any], grace_s: float) -> None:
-    """SIGINT the child's process group (components shut down cleanly on it), SIGKILL after `grace_s`."""
+    """SIGINT the child's process group (components shut down cleanly on it), SIGKILL after `grace_s`.
+
+    os.killpg, not psutil: psutil signals processes one by one, and the group also holds what the
+    component started and lost track of."""
     try:
         os.killpg(process.pid, signal.SIGINT)
     except ProcessLookupError:
