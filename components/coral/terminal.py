@@ -46,11 +46,10 @@ def console(stream: TextIO | None = None, *, colour: bool | None = None) -> Cons
     """
     stream = stream or sys.stdout
     tty = bool(getattr(stream, "isatty", lambda: False)())
-    styled = tty if colour is None else colour
     return Console(
         file=stream,
-        force_terminal=styled,
-        no_color=not styled,
+        force_terminal=colour,
+        no_color=True if colour is False else None,
         width=None if tty else PLAIN_WIDTH,
         highlight=False,
         markup=False,
