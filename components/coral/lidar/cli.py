@@ -36,22 +36,17 @@ def bag_options(function: click.decorators.FC) -> click.decorators.FC:
 
 @click.command("generate-bag")
 @bag_options
-@click.option(
-    "--output",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=None,
-    help="Dataset folder to create (default: the cache, ~/.cache/coral-on-kubernetes/bags/...).",
-)
+@output_option(None, "Dataset folder to create (default: the cache, ~/.cache/coral-on-kubernetes/bags/...).")
 def generate_bag_command(
-    seed: int, scans: int, beams: int, columns: int, speed: float, output: Path | None
+    seed: int, scans: int, beams: int, columns: int, speed: float, output_dir: Path | None
 ) -> None:
     """Write a synthetic LiDAR ROS 2 bag (PointCloud2 + ground truth) from a seed; print its folder."""
     params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
     try:
         with terminal.progress("Generating the bag", stream=sys.stderr) as step:
             folder = (
-                generating.generate(params, output, step)
-                if output
+                generating.generate(params, output_dir, step)
+                if output_dir
                 else generating.cached_dataset(params, progress=step)
             )
     except (ValueError, OSError) as err:
