@@ -14,7 +14,7 @@ from pydantic import Field
 from coral_operator.api.base import CamelModel
 from coral_operator.api.common import Condition
 from coral_operator.api.components import Component, Role
-from coral_operator.api.system import MAX_COMPONENTS, PluginsSpec, RosSpec, StartupSpec
+from coral_operator.api.system import MAX_COMPONENTS, Layout, PluginsSpec, RosSpec, StartupSpec
 
 
 class ConfigRef(CamelModel):
@@ -56,6 +56,8 @@ class CoralInstanceSpec(CamelModel):
     """Skillset components."""
     executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Executor components."""
+    layout: Layout = "PodPerComponent"
+    """One pod per component (`PodPerComponent`) or one pod for the robot (`PodPerRobot`)."""
     startup: StartupSpec = Field(default_factory=StartupSpec)
     """Ordered startup settings."""
     plugins: PluginsSpec = Field(default_factory=PluginsSpec)

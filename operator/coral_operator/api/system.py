@@ -32,6 +32,10 @@ SOURCE_EXACTLY_ONE = "set exactly one of inline or configMapRef"
 PRIVILEGED_DRIVERS_ONLY = "privileged is allowed only on drivers"
 UNIQUE_NAMES = "component names must be unique across drivers, skillsets and executors"
 NEEDS_EXECUTOR = "at least one executor is required"
+ROBOT_POD_BLOCKS = (
+    "startup.onTimeout Proceed needs layout PodPerComponent: in one pod the kubelet starts a sidecar's "
+    "successors only once its startup probe passed"
+)
 DOMAIN_RANGE = "ros.domainId must be between 0 and 232"
 TREE_FILE_NAMES = (
     "tree.files names must be file names (letters, digits, '-', '_', '.'; at most 63) "
@@ -148,6 +152,10 @@ class StartupSpec(CamelModel):
     stage anyway."""
 
 
+Layout = Literal["PodPerComponent", "PodPerRobot"]
+"""How one robot's components map onto pods (see docs/layouts.md)."""
+
+
 class PluginsSpec(CamelModel):
     """How exported behaviors reach the executors."""
 
@@ -236,6 +244,12 @@ class CoralSystemSpec(CamelModel):
                 ),
                 _cel(f"{_ALL_NAMES}.all(n, {_ALL_NAMES}.exists_one(m, m == n))", UNIQUE_NAMES),
                 _cel("size(self.executors) > 0", NEEDS_EXECUTOR, ".executors"),
+                _cel(
+                    "!has(self.layout) || self.layout != 'PodPerRobot' || !has(self.startup) "
+                    "|| !has(self.startup.onTimeout) || self.startup.onTimeout != 'Proceed'",
+                    ROBOT_POD_BLOCKS,
+                    ".startup.onTimeout",
+                ),
             ]
         }
     }
@@ -254,6 +268,11 @@ class CoralSystemSpec(CamelModel):
     """Components that export behaviors; started when the drivers are ready."""
     executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Components that run the tree; started when the skillsets are ready."""
+    layout: Layout = "PodPerComponent"
+    """`PodPerComponent` (default): one pod per component per robot, each restarted and updated on
+    its own. `PodPerRobot`: one pod per robot, drivers then skillsets as native sidecars (init
+    containers with `restartPolicy: Always`, gated by startup probes), executors as its main
+    containers, the plugin location an `emptyDir`; no host path needed."""
     startup: StartupSpec = Field(default_factory=StartupSpec)
     """Ordered startup settings."""
     plugins: PluginsSpec = Field(default_factory=PluginsSpec)
@@ -274,6 +293,8 @@ class CoralSystemSpec(CamelModel):
             raise ValueError(UNIQUE_NAMES)
         if not self.executors:
             raise ValueError(NEEDS_EXECUTOR)
+        if self.layout == "PodPerRobot" and self.startup.on_timeout == "Proceed":
+            raise ValueError(ROBOT_POD_BLOCKS)
         return self
 
 

@@ -40,7 +40,8 @@ def robot_nodes(name: str, labels: kopf.Labels, status: kopf.Status, **_: Any) -
 
 @kopf.index("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
 def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: Any) -> dict[Any, Any]:
-    return {(namespace, labels[naming.LABEL_INSTANCE]): observing.observed_pod(body)}
+    # A robot pod (`PodPerRobot`) gives one record per component; readers flatten them.
+    return {(namespace, labels[naming.LABEL_INSTANCE]): observing.observed_pods(body)}
 
 
 @kopf.index("coral.dev", "v1alpha1", "coralinstances")

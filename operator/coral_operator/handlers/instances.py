@@ -197,7 +197,7 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
     """Carry out the plan; returns the pods the API server refused for good, with its messages."""
     namespace, name = record.namespace, record.name
     refused: dict[str, str] = {}
-    executors = [m for m in plan.create if m["metadata"]["labels"][naming.LABEL_ROLE] == "executor"]
+    executors = [m for m in plan.create if any(role == "executor" for _, role in naming.pod_members(m))]
     if executors:
         with _lock:
             known = record.uid in _accounts
@@ -220,7 +220,7 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
                 if message is None:
                     raise
                 for manifest in executors:
-                    refused[manifest["metadata"]["labels"][naming.LABEL_COMPONENT]] = message
+                    refused[_pod_component(manifest)] = message
     for pod_name in plan.delete:
         applying.delete_pod(namespace, pod_name)
     if plan.delete:
@@ -231,7 +231,7 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
             f"Stopping {', '.join(plan.delete)} to start revision {spec.revision or '?'}",
         )
     for manifest in plan.create:
-        if manifest["metadata"]["labels"][naming.LABEL_COMPONENT] in refused:
+        if _pod_component(manifest) in refused:
             continue
         try:
             applying.create_pod(manifest)
@@ -239,10 +239,17 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
             message = applying.refusal(error)
             if message is None:
                 raise
-            refused[manifest["metadata"]["labels"][naming.LABEL_COMPONENT]] = message
+            refused[_pod_component(manifest)] = message
     for pod_name, labels in plan.relabel:
         applying.patch_pod_labels(namespace, pod_name, labels)
+    for pod_name, patch in plan.set_images:
+        applying.patch_pod(namespace, pod_name, patch)
     return refused
+
+
+def _pod_component(manifest: dict[str, Any]) -> str:
+    """What a refusal of this pod is reported under: its component, or the whole robot's pod."""
+    return manifest["metadata"]["labels"].get(naming.LABEL_COMPONENT, naming.ROBOT_POD)
 
 
 def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool) -> None:
@@ -332,7 +339,10 @@ def _reconcile(record: InstanceRecord) -> None:
         _write_status(record, status, _invalid(error, record, status))
         return
     node = next(iter(_read("nodes", ("node", parsed.node_name))), None)
-    observed: list[ObservedPod] = _read("pods", (record.namespace, record.name))
+    # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
+    observed: list[ObservedPod] = [
+        pod for records in _read("pods", (record.namespace, record.name)) for pod in records
+    ]
     if parsed.retiring:
         _retire(record, observed, node is not None and node.ready)
         return

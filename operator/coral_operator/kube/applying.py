@@ -88,6 +88,16 @@ def patch_pod_labels(namespace: str, name: str, labels: dict[str, str]) -> None:
         _ignore(error, 404)
 
 
+def patch_pod(namespace: str, name: str, patch: dict[str, Any]) -> None:
+    """A strategic merge patch: container lists merge by name, so only the named images change."""
+    try:
+        client.core().patch_namespaced_pod(
+            name, namespace, patch, _content_type="application/strategic-merge-patch+json"
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+
+
 def patch_instance_status(namespace: str, name: str, changes: dict[str, Any]) -> str | None:
     """Merge `changes` into an instance's status; the resourceVersion it made, None when the
     instance is gone."""

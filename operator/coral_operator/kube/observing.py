@@ -70,6 +70,74 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     )
 
 
+def observed_pods(body: Mapping[str, Any]) -> tuple[ObservedPod, ...]:
+    """The records of a pod: itself for a component pod, one per component for a robot pod."""
+    annotations = (body.get("metadata") or {}).get("annotations") or {}
+    if naming.ANNOTATION_COMPONENTS not in annotations:
+        return (observed_pod(body),)
+    return tuple(_robot_pod_members(body))
+
+
+def _container_phase(state: Mapping[str, Any]) -> str:
+    if "running" in state:
+        return "Running"
+    terminated = state.get("terminated")
+    if terminated is not None:
+        return "Succeeded" if terminated.get("exitCode") == 0 else "Failed"
+    return "Pending"
+
+
+def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
+    metadata = body.get("metadata", {})
+    labels = metadata.get("labels") or {}
+    annotations = metadata.get("annotations") or {}
+    status = body.get("status") or {}
+    pod_phase = status.get("phase") or "Pending"
+    by_name = {
+        s.get("name"): s
+        for s in [*(status.get("initContainerStatuses") or []), *(status.get("containerStatuses") or [])]
+    }
+    spec = body.get("spec") or {}
+    images = tuple(
+        (c.get("name", ""), c.get("image", ""))
+        for c in [*(spec.get("initContainers") or []), *(spec.get("containers") or [])]
+    )
+    created = parse_time(metadata.get("creationTimestamp"))
+    unschedulable = _unschedulable(status)
+    records = []
+    for component, role in naming.pod_members({"metadata": metadata}):
+        container = by_name.get(component) or {}
+        state = container.get("state") or {}
+        waiting = state.get("waiting") or {}
+        phase = _container_phase(state)
+        if role != "executor" and pod_phase in ("Succeeded", "Failed"):
+            # The kubelet stops the sidecars once the executors end; how they exit says nothing.
+            phase = pod_phase
+        records.append(
+            ObservedPod(
+                name=metadata.get("name", ""),
+                component=component,
+                role=role,
+                revision=labels.get(naming.LABEL_REVISION, ""),
+                pod_hash=annotations.get(naming.ANNOTATION_POD_HASH, ""),
+                phase=phase,
+                ready=bool(container.get("ready")),
+                # A component waits from the moment it started, not from when its pod was made.
+                created=parse_time((state.get("running") or {}).get("startedAt")) or created,
+                deleting=bool(metadata.get("deletionTimestamp")),
+                restarts=int(container.get("restartCount") or 0),
+                crash_looping=waiting.get("reason") == "CrashLoopBackOff",
+                image_problem=_reason_and_message(waiting)
+                if waiting.get("reason") in _IMAGE_PROBLEMS
+                else None,
+                unschedulable=unschedulable,
+                shape_hash=annotations.get(naming.ANNOTATION_SHAPE_HASH, ""),
+                images=images,
+            )
+        )
+    return records
+
+
 _IMAGE_PROBLEMS = frozenset(
     {
         "ErrImagePull",

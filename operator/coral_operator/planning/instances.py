@@ -32,6 +32,9 @@ def build_template(spec: CoralSystemSpec, tree_config_map: str, params_config_ma
         "executors": [c.to_wire() for c in spec.executors],
         "startup": spec.startup.to_wire(),
         "plugins": spec.plugins.to_wire(),
+        # Only when not the default, so the revisions of systems written before layouts existed
+        # stay the same and an operator upgrade restarts no robot.
+        **({"layout": spec.layout} if spec.layout != "PodPerComponent" else {}),
     }
 
 

@@ -22,6 +22,12 @@ LABEL_REVISION = "coral.dev/revision"
 LABEL_MANAGED_BY = "app.kubernetes.io/managed-by"
 MANAGER = "coral-operator"
 ANNOTATION_POD_HASH = "coral.dev/pod-hash"
+# On a robot pod (`PodPerRobot`): its containers as `role:name` in startup order, and the hash of
+# its spec without images (equal shapes differ in images only, which a pod can change in place).
+ANNOTATION_COMPONENTS = "coral.dev/components"
+ANNOTATION_SHAPE_HASH = "coral.dev/shape-hash"
+LABEL_LAYOUT = "coral.dev/layout"
+ROBOT_POD = "robot"
 FIELD_MANAGER = "coral-operator"
 
 _MAX_LABEL = 63
@@ -113,6 +119,33 @@ def pod_labels(
         LABEL_REVISION: revision,
         LABEL_MANAGED_BY: MANAGER,
     }
+
+
+def robot_pod_labels(system: str, robot: str, instance: str, revision: str) -> dict[str, str]:
+    """Labels of a robot pod: one robot's components in one pod, so no component or role label."""
+    return {
+        LABEL_SYSTEM: label_value(system),
+        LABEL_ROBOT: label_value(robot),
+        LABEL_INSTANCE: instance,
+        LABEL_LAYOUT: "PodPerRobot",
+        LABEL_REVISION: revision,
+        LABEL_MANAGED_BY: MANAGER,
+    }
+
+
+def is_robot_pod(manifest: dict[str, Any]) -> bool:
+    """The manifest is a robot pod (`PodPerRobot`), not one component's."""
+    return ANNOTATION_COMPONENTS in (manifest["metadata"].get("annotations") or {})
+
+
+def pod_members(manifest: dict[str, Any]) -> list[tuple[str, str]]:
+    """(component, role) of every component the pod runs, in startup order."""
+    metadata = manifest["metadata"]
+    members = (metadata.get("annotations") or {}).get(ANNOTATION_COMPONENTS)
+    if members is None:
+        return [(metadata["labels"][LABEL_COMPONENT], metadata["labels"][LABEL_ROLE])]
+    pairs = [member.split(":", 1) for member in members.split(",") if member]
+    return [(name, role) for role, name in pairs]
 
 
 def owner_reference(api_version: str, kind: str, name: str, uid: str) -> dict[str, Any]:

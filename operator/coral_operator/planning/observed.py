@@ -23,7 +23,8 @@ class RobotNode:
 
 @dataclass(frozen=True)
 class ObservedPod:
-    """A component pod as last seen."""
+    """A component pod as last seen; for a robot pod (`PodPerRobot`), one component's container in
+    it, so planning and status read both layouts alike."""
 
     name: str
     component: str
@@ -40,6 +41,10 @@ class ObservedPod:
     """Why the kubelet cannot pull or start an image, with its message (`ErrImagePull: ...`)."""
     unschedulable: str | None = None
     """Why the robot cannot run the pod (the scheduler's or the kubelet's admission message)."""
+    shape_hash: str = ""
+    """A robot pod's hash without images (`naming.ANNOTATION_SHAPE_HASH`); empty for component pods."""
+    images: tuple[tuple[str, str], ...] = ()
+    """A robot pod's (container, image) pairs, so an image-only change can be patched in place."""
 
 
 @dataclass(frozen=True)

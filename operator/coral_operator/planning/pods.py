@@ -1,4 +1,4 @@
-"""Builds the pod of one component on one robot (DESIGN sections 3 and 4).
+"""Builds the pods of one robot: one per component, or one for the robot (DESIGN sections 3 and 4).
 
 The pod is pinned to the robot's Node, tolerates the robot dropping off the network (no eviction,
 no rescheduling), shares the host network and IPC for DDS by default, gets the ROS and Coral
@@ -18,6 +18,7 @@ from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
 
 CONFIG_DIR = "/etc/coral"
+SERVICE_ACCOUNT_DIR = "/var/run/secrets/kubernetes.io/serviceaccount"
 READY_MARKER = "ready"
 # The executor loads this with `--sink`; it writes the tree status to the robot's CoralInstance.
 STATUS_SINK = "coral_operator.sink.kubernetes:create_sink"
@@ -122,6 +123,23 @@ def _security(component: Component) -> dict[str, Any]:
     return {"runAsNonRoot": True, "allowPrivilegeEscalation": False, "capabilities": {"drop": ["ALL"]}}
 
 
+def _host_volumes(component: Component, prefix: str = "") -> tuple[list, list]:
+    """The component's device and host-path mounts; `prefix` keeps names unique in a shared pod."""
+    volumes: list[dict[str, Any]] = []
+    mounts: list[dict[str, Any]] = []
+    for index, device in enumerate(component.devices):
+        volumes.append({"name": f"{prefix}device-{index}", "hostPath": {"path": device.host_path}})
+        mounts.append(
+            {"name": f"{prefix}device-{index}", "mountPath": device.container_path or device.host_path}
+        )
+    for index, host in enumerate(component.host_paths):
+        volumes.append({"name": f"{prefix}host-{index}", "hostPath": {"path": host.host_path}})
+        mounts.append(
+            {"name": f"{prefix}host-{index}", "mountPath": host.mount_path, "readOnly": host.read_only}
+        )
+    return volumes, mounts
+
+
 def _volumes(spec: CoralInstanceSpec, namespace: str, component: Component, role: Role) -> tuple[list, list]:
     sources = [{"configMap": {"name": spec.parameters.config_map}}]
     if role == "executor":
@@ -137,31 +155,14 @@ def _volumes(spec: CoralInstanceSpec, namespace: str, component: Component, role
         {"name": "plugins", "mountPath": spec.plugins.mount_path},
         {"name": "config", "mountPath": CONFIG_DIR, "readOnly": True},
     ]
-    for index, device in enumerate(component.devices):
-        volumes.append({"name": f"device-{index}", "hostPath": {"path": device.host_path}})
-        mounts.append({"name": f"device-{index}", "mountPath": device.container_path or device.host_path})
-    for index, host in enumerate(component.host_paths):
-        volumes.append({"name": f"host-{index}", "hostPath": {"path": host.host_path}})
-        mounts.append({"name": f"host-{index}", "mountPath": host.mount_path, "readOnly": host.read_only})
-    return volumes, mounts
+    host_volumes, host_mounts = _host_volumes(component)
+    return volumes + host_volumes, mounts + host_mounts
 
 
-def build_pod(
-    *,
-    spec: CoralInstanceSpec,
-    instance: str,
-    namespace: str,
-    instance_uid: str,
-    component: Component,
-    role: Role,
+def _container(
+    spec: CoralInstanceSpec, instance: str, component: Component, role: Role, mounts: list[dict[str, Any]]
 ) -> dict[str, Any]:
-    """The pod manifest of one component, with its content hash in an annotation.
-
-    The hash covers everything but the revision label, so a new revision that leaves this
-    component unchanged relabels the pod instead of restarting it; the name ends in a digest of the
-    hash, so a changed pod comes back under a new name.
-    """
-    volumes, mounts = _volumes(spec, namespace, component, role)
+    """One component's container, without its probes."""
     container: dict[str, Any] = {
         "name": component.name,
         "image": component.image,
@@ -180,16 +181,69 @@ def build_pod(
         container["imagePullPolicy"] = component.image_pull_policy
     if component.resources:
         container["resources"] = component.resources.to_wire()
-    probe = _probe(spec, component, role)
-    if probe:
-        container["readinessProbe"] = probe
+    return container
+
+
+def _host_namespaces(spec: CoralInstanceSpec) -> dict[str, Any]:
     host = spec.ros.network == "Host"
-    pod_spec: dict[str, Any] = {
-        "nodeName": spec.node_name,
-        "tolerations": [dict(t) for t in TOLERATIONS],
+    return {
         "hostNetwork": host,
         "hostIPC": host,
         "dnsPolicy": "ClusterFirstWithHostNet" if host else "ClusterFirst",
+    }
+
+
+def _pod(
+    *,
+    name_part: str,
+    labels: dict[str, str],
+    pod_spec: dict[str, Any],
+    instance: str,
+    namespace: str,
+    instance_uid: str,
+    annotations: dict[str, str] | None = None,
+) -> dict[str, Any]:
+    unhashed = {k: v for k, v in labels.items() if k != naming.LABEL_REVISION}
+    # The name is derived from the hash, so the hash must not cover the name.
+    pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
+    return {
+        "apiVersion": "v1",
+        "kind": "Pod",
+        "metadata": {
+            "name": naming.pod_name(instance, name_part, pod_hash),
+            "namespace": namespace,
+            "labels": labels,
+            "annotations": {naming.ANNOTATION_POD_HASH: pod_hash, **(annotations or {})},
+            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralInstance", instance, instance_uid)],
+        },
+        "spec": pod_spec,
+    }
+
+
+def build_pod(
+    *,
+    spec: CoralInstanceSpec,
+    instance: str,
+    namespace: str,
+    instance_uid: str,
+    component: Component,
+    role: Role,
+) -> dict[str, Any]:
+    """The pod manifest of one component (`PodPerComponent`), with its content hash in an annotation.
+
+    The hash covers everything but the revision label, so a new revision that leaves this
+    component unchanged relabels the pod instead of restarting it; the name ends in a digest of the
+    hash, so a changed pod comes back under a new name.
+    """
+    volumes, mounts = _volumes(spec, namespace, component, role)
+    container = _container(spec, instance, component, role, mounts)
+    probe = _probe(spec, component, role)
+    if probe:
+        container["readinessProbe"] = probe
+    pod_spec: dict[str, Any] = {
+        "nodeName": spec.node_name,
+        "tolerations": [dict(t) for t in TOLERATIONS],
+        **_host_namespaces(spec),
         # An executor runs a mission: once its tree succeeded (exit 0) the pod stays Succeeded, like
         # a Job, instead of starting the mission over; a failed or crashed mission is retried.
         "restartPolicy": "OnFailure" if component.transient or role == "executor" else "Always",
@@ -200,28 +254,146 @@ def build_pod(
     }
     if role == "executor":
         pod_spec["serviceAccountName"] = naming.executor_account_name(instance)
-    labels = naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision)
-    unhashed = {k: v for k, v in labels.items() if k != naming.LABEL_REVISION}
-    # The name is derived from the hash, so the hash must not cover the name.
-    pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
+    return _pod(
+        name_part=component.name,
+        labels=naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision),
+        pod_spec=pod_spec,
+        instance=instance,
+        namespace=namespace,
+        instance_uid=instance_uid,
+    )
+
+
+def _startup_probe(spec: CoralInstanceSpec, probe: dict[str, Any]) -> dict[str, Any]:
+    """The readiness gate as a sidecar's startup probe: the kubelet starts the next container once it
+    passes. It may take the whole health timeout before the kubelet restarts the sidecar."""
+    period = probe["periodSeconds"]
+    patience = -(-spec.startup.health_timeout_seconds // period)
+    return {**probe, "failureThreshold": max(probe["failureThreshold"], patience)}
+
+
+def _executor_token_volume() -> dict[str, Any]:
+    # The same files the kubelet's automount gives, but mounted into the executors only: the
+    # drivers and skillsets sharing the pod get no API identity at all.
     return {
-        "apiVersion": "v1",
-        "kind": "Pod",
-        "metadata": {
-            "name": naming.pod_name(instance, component.name, pod_hash),
-            "namespace": namespace,
-            "labels": labels,
-            "annotations": {naming.ANNOTATION_POD_HASH: pod_hash},
-            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralInstance", instance, instance_uid)],
+        "name": "executor-token",
+        "projected": {
+            "sources": [
+                {"serviceAccountToken": {"path": "token", "expirationSeconds": 3607}},
+                {"configMap": {"name": "kube-root-ca.crt", "items": [{"key": "ca.crt", "path": "ca.crt"}]}},
+                {
+                    "downwardAPI": {
+                        "items": [{"path": "namespace", "fieldRef": {"fieldPath": "metadata.namespace"}}]
+                    }
+                },
+            ]
         },
-        "spec": pod_spec,
     }
+
+
+def build_robot_pod(
+    *, spec: CoralInstanceSpec, instance: str, namespace: str, instance_uid: str
+) -> dict[str, Any]:
+    """The one pod of a robot (`PodPerRobot`): drivers, then skillsets, as native sidecars, executors
+    as the main containers, the plugin location an `emptyDir` they all share.
+
+    Sidecars are `initContainers` with `restartPolicy: Always`, so the kubelet starts them in compose
+    order, each once the previous one's startup probe passed, keeps them running beside the
+    executors and stops them in reverse once the executors end. A transient driver or skillset is a
+    plain init container: it runs to completion before the next one starts.
+    """
+    volumes: list[dict[str, Any]] = [
+        {"name": "plugins", "emptyDir": {}},
+        {
+            "name": "config",
+            "projected": {
+                "sources": [
+                    {"configMap": {"name": spec.parameters.config_map}},
+                    {"configMap": {"name": spec.tree.config_map}},
+                ]
+            },
+        },
+    ]
+    shared = [
+        {"name": "plugins", "mountPath": spec.plugins.mount_path},
+        {"name": "config", "mountPath": CONFIG_DIR, "readOnly": True},
+    ]
+    sidecars: list[dict[str, Any]] = []
+    mains: list[dict[str, Any]] = []
+    roles: list[tuple[Role, list[Component]]] = [
+        ("driver", spec.drivers),
+        ("skillset", spec.skillsets),
+        ("executor", spec.executors),
+    ]
+    index = 0
+    for role, components in roles:
+        for component in components:
+            host_volumes, host_mounts = _host_volumes(component, prefix=f"c{index}-")
+            index += 1
+            volumes += host_volumes
+            mounts = [dict(m) for m in shared] + host_mounts
+            if role == "executor":
+                mounts.append({"name": "executor-token", "mountPath": SERVICE_ACCOUNT_DIR, "readOnly": True})
+            container = _container(spec, instance, component, role, mounts)
+            probe = _probe(spec, component, role)
+            if role == "executor":
+                if probe:
+                    container["readinessProbe"] = probe
+                mains.append(container)
+                continue
+            if not component.transient:
+                container["restartPolicy"] = "Always"
+                if probe:
+                    container["startupProbe"] = _startup_probe(spec, probe)
+                    container["readinessProbe"] = probe
+            sidecars.append(container)
+    volumes.append(_executor_token_volume())
+    pod_spec: dict[str, Any] = {
+        "nodeName": spec.node_name,
+        "tolerations": [dict(t) for t in TOLERATIONS],
+        **_host_namespaces(spec),
+        # The executors' policy, as for their own pods; the sidecars restart whatever it says.
+        "restartPolicy": "OnFailure",
+        "enableServiceLinks": False,
+        "automountServiceAccountToken": False,
+        "serviceAccountName": naming.executor_account_name(instance),
+        "initContainers": sidecars,
+        "containers": mains,
+        "volumes": volumes,
+    }
+    members = [f"{role}:{c.name}" for role, components in roles for c in components]
+    shape = naming.content_hash(_without_images(pod_spec))
+    return _pod(
+        name_part="robot",
+        labels=naming.robot_pod_labels(spec.system, spec.robot, instance, spec.revision),
+        pod_spec=pod_spec,
+        instance=instance,
+        namespace=namespace,
+        instance_uid=instance_uid,
+        annotations={naming.ANNOTATION_COMPONENTS: ",".join(members), naming.ANNOTATION_SHAPE_HASH: shape},
+    )
+
+
+def _without_images(pod_spec: dict[str, Any]) -> dict[str, Any]:
+    return {
+        **pod_spec,
+        "initContainers": [{**c, "image": ""} for c in pod_spec["initContainers"]],
+        "containers": [{**c, "image": ""} for c in pod_spec["containers"]],
+    }
+
+
+def container_images(manifest: dict[str, Any]) -> dict[str, str]:
+    """Every container's image by container name (init containers included)."""
+    spec = manifest["spec"]
+    return {c["name"]: c["image"] for c in [*spec.get("initContainers", []), *spec["containers"]]}
 
 
 def build_pods(
     *, spec: CoralInstanceSpec, instance: str, namespace: str, instance_uid: str
 ) -> list[dict[str, Any]]:
-    """Every component's pod, in startup order: drivers, skillsets, executors."""
+    """The robot's pods: with `PodPerRobot` its one pod, else every component's, in startup order."""
+    if spec.layout == "PodPerRobot":
+        return [build_robot_pod(spec=spec, instance=instance, namespace=namespace, instance_uid=instance_uid)]
     groups: tuple[tuple[Role, list[Component]], ...] = (
         ("driver", spec.drivers),
         ("skillset", spec.skillsets),

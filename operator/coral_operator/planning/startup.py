@@ -35,6 +35,9 @@ class StartupPlan:
     create: list[dict[str, Any]] = field(default_factory=list)
     delete: list[str] = field(default_factory=list)
     relabel: list[tuple[str, dict[str, str]]] = field(default_factory=list)
+    set_images: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
+    """Robot pods whose change is images only, with the strategic merge patch that brings them up to
+    date: the kubelet restarts just the containers whose image changed."""
     waiting_for: str | None = None
     """The stage (`driver` or `skillset`) holding back the next one, if any."""
     timed_out: bool = False
@@ -52,7 +55,9 @@ def plan_shutdown(observed: list[ObservedPod]) -> list[str]:
     for stage in reversed(STAGES):
         members = [pod for pod in observed if pod.role == stage]
         if members:
-            return sorted(pod.name for pod in members if not pod.deleting)
+            # A robot pod is listed once per component; deleting it lets its kubelet stop them in
+            # reverse order.
+            return sorted({pod.name for pod in members if not pod.deleting})
     return []
 
 
@@ -71,18 +76,74 @@ def _pod_hash(manifest: dict[str, Any]) -> str:
     return manifest["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
 
 
-def current_pod(manifest: dict[str, Any], observed: list[ObservedPod]) -> ObservedPod | None:
-    """The live pod of `manifest`'s component with `manifest`'s content, whatever its name.
+@dataclass(frozen=True)
+class Slot:
+    """One component as the status reports it, whichever pod runs it."""
 
-    Matched by component label and content hash, not by name, so a pod created under an older
-    naming scheme with the same content still counts as current.
+    component: str
+    role: str
+    pod_hash: str
+    """Content hash of the pod that should run it."""
+
+
+def component_slots(desired: list[dict[str, Any]]) -> list[Slot]:
+    """Every component of the desired pods, in startup order."""
+    return [
+        Slot(component, role, _pod_hash(manifest))
+        for manifest in desired
+        for component, role in naming.pod_members(manifest)
+    ]
+
+
+def current_record(slot: Slot, observed: list[ObservedPod]) -> ObservedPod | None:
+    """The live record of the slot's component in a pod of the slot's content, whatever its name.
+
+    Matched by component and content hash, not by name, so a pod created under an older naming
+    scheme with the same content still counts as current.
     """
     matches = [
         pod
         for pod in observed
-        if pod.component == _component(manifest) and pod.pod_hash == _pod_hash(manifest) and not pod.deleting
+        if pod.component == slot.component and pod.pod_hash == slot.pod_hash and not pod.deleting
     ]
     return min(matches, key=lambda pod: pod.name, default=None)
+
+
+def current_pod(manifest: dict[str, Any], observed: list[ObservedPod]) -> ObservedPod | None:
+    """The live pod of a component pod manifest, matched by component and content hash."""
+    return current_record(Slot(_component(manifest), "", _pod_hash(manifest)), observed)
+
+
+def _wait(
+    plan: StartupPlan,
+    stage: str,
+    unready: list[str],
+    live: list[ObservedPod | None],
+    startup: StartupSpec,
+    now: datetime,
+) -> bool:
+    """Record in the plan that `stage` is not ready; True when the later stages must wait."""
+    plan.waiting_for = stage
+    created = [pod.created for pod in live if pod is not None and pod.created]
+    waited = (now - min(created)).total_seconds() if len(created) == len(unready) else 0.0
+    what = f"{_STAGE_NAMES[stage].capitalize()} not ready"
+    if waited < startup.health_timeout_seconds:
+        note = f"Waiting for {_STAGE_NAMES[stage]} to become ready: {', '.join(unready)}."
+        if len(created) == len(unready):
+            plan.wake_at = min(created) + timedelta(seconds=startup.health_timeout_seconds)
+    else:
+        plan.timed_out = True
+        consequence = (
+            "later stages started anyway" if startup.on_timeout == "Proceed" else "later stages blocked"
+        )
+        note = (
+            f"{what} after {startup.health_timeout_seconds} s ({', '.join(unready)}); "
+            f"{consequence} (onTimeout={startup.on_timeout})."
+        )
+    plan.message = f"{plan.message} {note}".strip()
+    return not (
+        plan.timed_out and startup.on_timeout == "Proceed" and waited >= startup.health_timeout_seconds
+    )
 
 
 def plan_startup(
@@ -102,6 +163,8 @@ def plan_startup(
         startup: the health timeout and what a timeout does.
         now: the clock.
     """
+    if len(desired) == 1 and naming.is_robot_pod(desired[0]):
+        return _plan_robot_pod(desired[0], observed, transient, startup, now)
     plan = StartupPlan()
     wanted = {_component(m): _pod_hash(m) for m in desired}
     for pod in observed:
@@ -130,29 +193,71 @@ def plan_startup(
         ]
         if not unready:
             continue
-        plan.waiting_for = stage
         # Only pods of the current spec count: a replaced pod still terminating was created for the
         # previous revision, and its age says nothing about how long the new one has waited.
-        live = [current[c] for c in unready]
-        created = [pod.created for pod in live if pod is not None and pod.created]
-        waited = (now - min(created)).total_seconds() if len(created) == len(unready) else 0.0
-        what = f"{_STAGE_NAMES[stage].capitalize()} not ready"
-        if waited < startup.health_timeout_seconds:
-            note = f"Waiting for {_STAGE_NAMES[stage]} to become ready: {', '.join(unready)}."
-            if len(created) == len(unready):
-                plan.wake_at = min(created) + timedelta(seconds=startup.health_timeout_seconds)
-        else:
-            plan.timed_out = True
-            consequence = (
-                "later stages started anyway" if startup.on_timeout == "Proceed" else "later stages blocked"
-            )
-            note = (
-                f"{what} after {startup.health_timeout_seconds} s ({', '.join(unready)}); "
-                f"{consequence} (onTimeout={startup.on_timeout})."
-            )
-        plan.message = f"{plan.message} {note}".strip()
-        if not (
-            plan.timed_out and startup.on_timeout == "Proceed" and waited >= startup.health_timeout_seconds
-        ):
+        if _wait(plan, stage, unready, [current[c] for c in unready], startup, now):
             gate_open = False
     return plan
+
+
+def _plan_robot_pod(
+    manifest: dict[str, Any],
+    observed: list[ObservedPod],
+    transient: set[str],
+    startup: StartupSpec,
+    now: datetime,
+) -> StartupPlan:
+    """`PodPerRobot`: the kubelet orders the components inside the one pod; the plan replaces the pod
+    when it changed (patches it when only images changed), and reads the stages only to report them.
+    """
+    plan = StartupPlan()
+    wanted = _pod_hash(manifest)
+    revision = manifest["metadata"]["labels"][naming.LABEL_REVISION]
+    stale = sorted({pod.name for pod in observed if not pod.deleting and pod.pod_hash != wanted})
+    live = [pod for pod in observed if pod.pod_hash == wanted and not pod.deleting]
+    for name in stale:
+        pod = next(p for p in observed if p.name == name)
+        patch = image_patch(manifest, pod) if len(stale) == 1 and not live else None
+        if patch is None:
+            plan.delete.append(name)
+        else:
+            plan.set_images.append((name, patch))
+    for name in sorted({pod.name for pod in live if pod.revision != revision}):
+        plan.relabel.append((name, {naming.LABEL_REVISION: revision}))
+    # Terminating pods count too: the new pod's drivers must not run beside the old ones.
+    if not live and not plan.set_images and not observed:
+        plan.create.append(manifest)
+    if not live:
+        return plan
+    slots = component_slots([manifest])
+    for stage in STAGES[:-1]:
+        members = [slot for slot in slots if slot.role == stage]
+        records = {slot.component: current_record(slot, live) for slot in members}
+        unready = [c for c, pod in records.items() if not counts_as_ready(pod, c in transient)]
+        if unready and _wait(plan, stage, unready, [records[c] for c in unready], startup, now):
+            break
+    return plan
+
+
+def image_patch(manifest: dict[str, Any], pod: ObservedPod) -> dict[str, Any] | None:
+    """The patch turning the robot pod `pod` into `manifest` when they differ in images only, else None."""
+    annotations = manifest["metadata"]["annotations"]
+    if not pod.shape_hash or pod.shape_hash != annotations.get(naming.ANNOTATION_SHAPE_HASH):
+        return None
+    running = dict(pod.images)
+    spec: dict[str, Any] = {}
+    for group in ("initContainers", "containers"):
+        changed = [
+            {"name": c["name"], "image": c["image"]}
+            for c in manifest["spec"].get(group, [])
+            if running.get(c["name"]) != c["image"]
+        ]
+        if changed:
+            spec[group] = changed
+    return {
+        "metadata": {
+            "labels": {naming.LABEL_REVISION: manifest["metadata"]["labels"][naming.LABEL_REVISION]},
+            "annotations": {naming.ANNOTATION_POD_HASH: _pod_hash(manifest)},
+        },
+        "spec": spec,
+    }

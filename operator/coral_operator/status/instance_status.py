@@ -12,9 +12,8 @@ from datetime import datetime
 from typing import Any
 
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedPod, RobotNode
-from coral_operator.planning.startup import StartupPlan, counts_as_ready, current_pod
+from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
 from coral_operator.status.transitions import Verdict, merge_conditions, rfc3339
@@ -102,23 +101,29 @@ def _components_verdict(view: InstanceView) -> Verdict:
         return Verdict(C.COMPONENTS_READY, False, R.WAITING_FOR_DRIVERS, view.plan.message)
     if view.plan.waiting_for == "skillset":
         return Verdict(C.COMPONENTS_READY, False, R.WAITING_FOR_SKILLSETS, view.plan.message)
-    if view.plan.delete or view.plan.create:
-        names = sorted({*view.plan.delete, *(m["metadata"]["name"] for m in view.plan.create)})
+    if view.plan.delete or view.plan.create or view.plan.set_images:
+        names = sorted(
+            {
+                *view.plan.delete,
+                *(m["metadata"]["name"] for m in view.plan.create),
+                *(name for name, _ in view.plan.set_images),
+            }
+        )
         return Verdict(
             C.COMPONENTS_READY, False, R.PODS_UPDATING, f"Pods being created or replaced: {', '.join(names)}."
         )
-    unready = []
-    for manifest in view.desired:
-        labels = manifest["metadata"]["labels"]
-        pod = current_pod(manifest, view.pods)
-        if not counts_as_ready(pod, labels[naming.LABEL_COMPONENT] in view.transient):
-            unready.append(labels[naming.LABEL_COMPONENT])
+    slots = component_slots(view.desired)
+    unready = [
+        slot.component
+        for slot in slots
+        if not counts_as_ready(current_record(slot, view.pods), slot.component in view.transient)
+    ]
     if unready:
         return Verdict(
             C.COMPONENTS_READY, False, R.PODS_NOT_READY, f"Components not ready: {', '.join(unready)}."
         )
     return Verdict(
-        C.COMPONENTS_READY, True, R.ALL_COMPONENTS_READY, f"All {len(view.desired)} components are ready."
+        C.COMPONENTS_READY, True, R.ALL_COMPONENTS_READY, f"All {len(slots)} components are ready."
     )
 
 
@@ -172,13 +177,12 @@ def evaluate_ready(view: InstanceView) -> Verdict:
 def build_components(view: InstanceView) -> list[dict[str, Any]]:
     """One entry per component in startup order."""
     entries = []
-    for manifest in view.desired:
-        labels = manifest["metadata"]["labels"]
+    for slot in component_slots(view.desired):
         # The pod of this content, else the older one still stopping to make way for it.
-        pod = current_pod(manifest, view.pods) or next(
-            (p for p in view.pods if p.component == labels[naming.LABEL_COMPONENT]), None
+        pod = current_record(slot, view.pods) or next(
+            (p for p in view.pods if p.component == slot.component), None
         )
-        entry: dict[str, Any] = {"name": labels[naming.LABEL_COMPONENT], "role": labels[naming.LABEL_ROLE]}
+        entry: dict[str, Any] = {"name": slot.component, "role": slot.role}
         if pod is not None:
             entry |= {
                 "pod": pod.name,
@@ -230,7 +234,7 @@ def build_instance_status(
         "observedGeneration": generation,
         "conditions": merge_conditions(old_conditions, verdicts, generation=generation, now=now),
         "revision": revisions.pop()
-        if len(revisions) == 1 and not view.plan.create and not view.plan.delete
+        if len(revisions) == 1 and not view.plan.create and not view.plan.delete and not view.plan.set_images
         else None,
         "robot": {
             "nodeName": view.spec.node_name,
