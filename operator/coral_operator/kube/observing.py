@@ -84,6 +84,9 @@ def _container_phase(state: Mapping[str, Any]) -> str:
     terminated = state.get("terminated")
     if terminated is not None:
         return "Succeeded" if terminated.get("exitCode") == 0 else "Failed"
+    # Not started because an earlier container has not: what a component pod not yet created shows.
+    if not state or (state.get("waiting") or {}).get("reason") == "PodInitializing":
+        return "Waiting"
     return "Pending"
 
 

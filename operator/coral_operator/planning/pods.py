@@ -336,16 +336,17 @@ def build_robot_pod(
                 mounts.append({"name": "executor-token", "mountPath": SERVICE_ACCOUNT_DIR, "readOnly": True})
             container = _container(spec, instance, component, role, mounts)
             probe = _probe(spec, component, role)
-            if role == "executor":
+            if role == "executor" or component.transient:
+                # A sidecar is restarted whatever its exit code, so a transient component (which may
+                # finish, like a bag player) runs beside the executors, after every sidecar started.
                 if probe:
                     container["readinessProbe"] = probe
                 mains.append(container)
                 continue
-            if not component.transient:
-                container["restartPolicy"] = "Always"
-                if probe:
-                    container["startupProbe"] = _startup_probe(spec, probe)
-                    container["readinessProbe"] = probe
+            container["restartPolicy"] = "Always"
+            if probe:
+                container["startupProbe"] = _startup_probe(spec, probe)
+                container["readinessProbe"] = probe
             sidecars.append(container)
     volumes.append(_executor_token_volume())
     pod_spec: dict[str, Any] = {

@@ -168,7 +168,8 @@ def plan_startup(
     plan = StartupPlan()
     wanted = {_component(m): _pod_hash(m) for m in desired}
     for pod in observed:
-        if not pod.deleting and wanted.get(pod.component) != pod.pod_hash:
+        # A robot pod (after a layout change) is seen once per component but deleted once.
+        if not pod.deleting and wanted.get(pod.component) != pod.pod_hash and pod.name not in plan.delete:
             plan.delete.append(pod.name)
     # Terminating pods count too: the replacement must not run beside the pod it replaces.
     present = {pod.component for pod in observed}
@@ -231,7 +232,9 @@ def _plan_robot_pod(
         return plan
     slots = component_slots([manifest])
     for stage in STAGES[:-1]:
-        members = [slot for slot in slots if slot.role == stage]
+        # Transient components run beside the executors (`planning.pods.build_robot_pod`): the
+        # kubelet starts them after every sidecar, so no stage waits for them.
+        members = [slot for slot in slots if slot.role == stage and slot.component not in transient]
         records = {slot.component: current_record(slot, live) for slot in members}
         unready = [c for c, pod in records.items() if not counts_as_ready(pod, c in transient)]
         if unready and _wait(plan, stage, unready, [records[c] for c in unready], startup, now):
