@@ -10,6 +10,11 @@ many kwok robots, in the same run:
 2. Coral: the operator as a subprocess, one CoralSystem over the robots (three component pods
    and one CoralInstance per robot); time until the system is Ready with every robot ready, then
    the same change rolled out with `spec.rollout.maxUnavailable: 10%`.
+3. Coral with `layout: PodPerRobot`: the same system once the first is deleted, one pod (two
+   native sidecars and the executor) and one CoralInstance per robot, against the same DaemonSet.
+
+The operator's writes (create, patch, update, delete) per robot are printed by kind for both
+layouts.
 
 Fairness: both runs share the apiserver, etcd and kwok (16 pod-stage workers instead of its
 default few, for both). Client-side rate limits are raised for the DaemonSet's side (controller
@@ -37,6 +42,10 @@ from kubernetes import config as k8s_config
 
 SIZES = (100, 500, 1000)
 TARGET_READY, TARGET_UPDATE, TARGET_RSS_MB = 1.5, 2.0, 300.0
+# One pod per robot, like the DaemonSet (DESIGN section 8).
+TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE = 1.2, 1.5
+TARGET_WRITES_PER_ROBOT = 8.0
+WRITE_VERBS = ("create", "update", "patch", "delete")
 # A robot runs three pods and one CoralInstance where the DaemonSet runs one pod.
 REQUESTS_ALLOWANCE = 3.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,35 +125,11 @@ def run_size(count: int, work: Path) -> plots.FleetPoint:
             raise RuntimeError("kubectl apply -f crds/ failed")
         operator = coral.OperatorProcess(env, "bench-coral", work / f"operator-{count}.log")
         coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
-        cpu_before = coral.cpu_seconds(operator.process.pid)
-        log.mark()
-        cpu_mark = _cpu(state)
-        result = coral.run_coral(api, "bench-coral", count, operator, timeout)
-        cpu = coral.cpu_seconds(operator.process.pid) - cpu_before
-        note(f"coral n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}, operator {cpu:.1f}")
-        time.sleep(2)
-        kinds = log.count_since_mark(
-            lambda e: audit.request_kind(e) if audit.classify(e) == "operator" else None
-        )
-        op_requests = sum(kinds.values())
-        note(
-            f"coral n={count}: ready {result.ready_seconds:.1f} s, "
-            f"rolling update {result.update_seconds:.1f} s, "
-            f"operator CPU {cpu:.1f} s over {result.ready_seconds + result.update_seconds:.1f} s, "
-            f"operator requests {op_requests}"
-        )
-        if result.stalled:
-            note(
-                f"coral n={count}: the {result.stalled} phase did not finish within {timeout:.0f} s; "
-                "its figure below is that timeout (see the operator log and status.rollout)"
-            )
-        note("operator requests by kind: " + ", ".join(f"{k}={v}" for k, v in kinds.most_common(8)))
-
+        result, op_requests = _coral_run(api, state, log, operator, count, timeout, "PodPerComponent")
         bench(f"fleet_ready_ratio_{count}", result.ready_seconds / ds.ready_seconds, "x", "<=", TARGET_READY)
         bench(
             f"fleet_update_ratio_{count}", result.update_seconds / ds.update_seconds, "x", "<=", TARGET_UPDATE
         )
-        bench(f"operator_peak_rss_{count}", operator.peak_mb, "MB", "<=", TARGET_RSS_MB)
         ds_per_robot = (ds_requests["daemonset"] + ds_requests["scheduler"]) / count
         bench(
             f"fleet_api_requests_per_robot_{count}",
@@ -153,6 +138,23 @@ def run_size(count: int, work: Path) -> plots.FleetPoint:
             "<=",
             round(REQUESTS_ALLOWANCE * ds_per_robot, 1),
         )
+        coral.delete_system(api, "bench-coral", timeout)
+        robot_pod, _ = _coral_run(api, state, log, operator, count, timeout, "PodPerRobot")
+        bench(
+            f"fleet_robot_pod_ready_ratio_{count}",
+            robot_pod.ready_seconds / ds.ready_seconds,
+            "x",
+            "<=",
+            TARGET_ROBOT_POD_READY,
+        )
+        bench(
+            f"fleet_robot_pod_update_ratio_{count}",
+            robot_pod.update_seconds / ds.update_seconds,
+            "x",
+            "<=",
+            TARGET_ROBOT_POD_UPDATE,
+        )
+        bench(f"operator_peak_rss_{count}", operator.peak_mb, "MB", "<=", TARGET_RSS_MB)
         return plots.FleetPoint(
             robots=count,
             coral_ready_s=result.ready_seconds,
@@ -164,6 +166,55 @@ def run_size(count: int, work: Path) -> plots.FleetPoint:
         if operator is not None:
             operator.stop()
         controlplane.stop(work / "control-plane")
+
+
+def _coral_run(
+    api: k8s.ApiClient,
+    state: controlplane.State,
+    log: audit.AuditLog,
+    operator: coral.OperatorProcess,
+    count: int,
+    timeout: float,
+    layout: str,
+) -> tuple[coral.CoralResult, int]:
+    """One Coral run in `layout`: its times, with its figures printed; returns the operator's requests."""
+    cpu_before = coral.cpu_seconds(operator.process.pid)
+    log.mark()
+    cpu_mark = _cpu(state)
+    result = coral.run_coral(api, "bench-coral", count, operator, timeout, layout)
+    cpu = coral.cpu_seconds(operator.process.pid) - cpu_before
+    note(
+        f"coral {layout} n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}, operator {cpu:.1f}"
+    )
+    time.sleep(2)  # let the batched audit backend flush the run's last requests before counting
+    kinds = log.count_since_mark(lambda e: audit.request_kind(e) if audit.classify(e) == "operator" else None)
+    op_requests = sum(kinds.values())
+    note(
+        f"coral {layout} n={count}: ready {result.ready_seconds:.1f} s, "
+        f"rolling update {result.update_seconds:.1f} s, "
+        f"operator CPU {cpu:.1f} s over {result.ready_seconds + result.update_seconds:.1f} s, "
+        f"operator requests {op_requests}"
+    )
+    if result.stalled:
+        note(
+            f"coral {layout} n={count}: the {result.stalled} phase did not finish within {timeout:.0f} s; "
+            "its figure below is that timeout (see the operator log and status.rollout)"
+        )
+    note(f"operator requests by kind ({layout}): " + ", ".join(f"{k}={v}" for k, v in kinds.most_common(8)))
+    writes = {kind: n for kind, n in kinds.items() if kind.split(" ", 1)[0] in WRITE_VERBS}
+    note(
+        f"operator writes per robot ({layout}, first deployment and update together): "
+        + ", ".join(f"{k}={v / count:.2f}" for k, v in sorted(writes.items(), key=lambda kv: -kv[1]))
+    )
+    # The first deployment and the update are counted together, so twice the per-phase allowance.
+    bench(
+        f"operator_writes_per_robot_{layout}_{count}",
+        sum(writes.values()) / count,
+        "writes",
+        "<=",
+        2 * TARGET_WRITES_PER_ROBOT,
+    )
+    return result, op_requests
 
 
 def _cpu(state: controlplane.State) -> dict[str, float]:

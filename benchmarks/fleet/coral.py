@@ -81,7 +81,9 @@ class OperatorProcess:
                 self.process.wait(timeout=10)
 
 
-def build_system(namespace: str, revision: str, max_unavailable: str) -> dict[str, Any]:
+def build_system(
+    namespace: str, revision: str, max_unavailable: str, layout: str = "PodPerComponent"
+) -> dict[str, Any]:
     """The fleet example over the benchmark's robots, with the same images as the DaemonSet."""
     manifest = copy.deepcopy(yaml.safe_load((ROOT / "examples" / "fleet" / "mission.yaml").read_text()))
     manifest["metadata"] = {"name": NAME, "namespace": namespace}
@@ -92,6 +94,7 @@ def build_system(namespace: str, revision: str, max_unavailable: str) -> dict[st
             env = [e for e in component.get("env", []) if e["name"] != "MISSION_REVISION"]
             component["env"] = [*env, {"name": "MISSION_REVISION", "value": revision}]
     spec["rollout"] = {"maxUnavailable": max_unavailable}
+    spec["layout"] = layout
     return manifest
 
 
@@ -160,7 +163,12 @@ def _timed(settled: Any, timeout: float, message: str) -> tuple[float, bool]:
 
 
 def run_coral(
-    api: k8s.ApiClient, namespace: str, count: int, operator: OperatorProcess, timeout: float
+    api: k8s.ApiClient,
+    namespace: str,
+    count: int,
+    operator: OperatorProcess,
+    timeout: float,
+    layout: str = "PodPerComponent",
 ) -> CoralResult:
     custom = k8s.CustomObjectsApi(api)
 
@@ -170,7 +178,7 @@ def run_coral(
         return system_settled(_system(custom, namespace, NAME), count)
 
     custom.create_namespaced_custom_object(
-        GROUP, VERSION, namespace, PLURAL, build_system(namespace, "1", "10%")
+        GROUP, VERSION, namespace, PLURAL, build_system(namespace, "1", "10%", layout)
     )
     ready, done = _timed(settled, timeout, f"CoralSystem on {count} robots to become Ready")
     if not done:
@@ -181,11 +189,24 @@ def run_coral(
         namespace,
         PLURAL,
         NAME,
-        {"spec": build_system(namespace, "2", "10%")["spec"]},
+        {"spec": build_system(namespace, "2", "10%", layout)["spec"]},
         _content_type="application/merge-patch+json",
     )
     update, done = _timed(settled, timeout, f"CoralSystem rolling update over {count} robots")
     return CoralResult(ready_seconds=ready, update_seconds=update, stalled="" if done else "update")
+
+
+def delete_system(api: k8s.ApiClient, namespace: str, timeout: float) -> None:
+    """Delete the benchmark's system and wait until its instances and pods are gone."""
+    custom = k8s.CustomObjectsApi(api)
+    core = k8s.CoreV1Api(api)
+    custom.delete_namespaced_custom_object(GROUP, VERSION, namespace, PLURAL, NAME)
+
+    def gone() -> bool:
+        instances = custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances", limit=1)
+        return not instances["items"] and not core.list_namespaced_pod(namespace, limit=1).items
+
+    wait_for(gone, timeout=timeout, interval=1.0, message="the benchmark's system and pods to be deleted")
 
 
 def cpu_seconds(pid: int) -> float:

@@ -1,0 +1,166 @@
+"""`examples/lidar-slam` with `layout: PodPerRobot` on a real robot (a real kubelet and containerd).
+
+The kubelet's side of the layout, which kwok cannot show: the mission ends in SUCCESS with the same
+CoralInstance status as the default layout; the containers' start times show drivers before
+skillsets before the executor; killing the SLAM skillset's container reports `LibraryDegraded` and
+the tree takes its fallback instead of waiting on the dead skillset.
+
+Skipped, with its reason, where the tree has no real-robot fixture (`real_robots`, from
+tests/fixtures/robots.py) or that fixture cannot start robots here.
+"""
+
+from __future__ import annotations
+
+import copy
+from datetime import datetime
+from typing import Any
+
+import pytest
+import yaml
+from coral_testbed.cluster import Cluster
+from coral_testbed.waiting import wait_for
+from kubernetes import client as k8s
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(600)]
+
+EXAMPLE = "examples/lidar-slam/mission.yaml"
+GROUP, VERSION = "coral.dev", "v1alpha1"
+COMPARED = ("Ready", "Stalled", "RobotReachable", "ComponentsReady", "PluginsReady", "LibraryDegraded")
+
+
+@pytest.fixture
+def real_robot_name(request: pytest.FixtureRequest) -> str:
+    """The first real robot of the session, or a skip saying why there is none."""
+    try:
+        fleet = request.getfixturevalue("real_robots")
+    except pytest.FixtureLookupError:
+        pytest.skip("no real-robot fixture (`real_robots` in tests/fixtures/robots.py) in this tree")
+    return sorted(fleet.names())[0]
+
+
+def _system(root: Any, name: str, robot: str, layout: str) -> dict[str, Any]:
+    manifest = copy.deepcopy(yaml.safe_load((root / EXAMPLE).read_text()))
+    manifest["metadata"]["name"] = name
+    manifest["spec"]["robots"] = {"matchLabels": {"coral.dev/robot": robot}}
+    manifest["spec"]["layout"] = layout
+    return manifest
+
+
+def _instance(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
+    items = custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances")["items"]
+    return next((i for i in items if i["spec"]["system"] == system), None)
+
+
+def _condition(instance: dict[str, Any] | None, ctype: str) -> dict[str, Any]:
+    conditions = ((instance or {}).get("status") or {}).get("conditions") or []
+    return next((c for c in conditions if c["type"] == ctype), {})
+
+
+def _finished(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
+    instance = _instance(custom, namespace, system)
+    tree = ((instance or {}).get("status") or {}).get("tree") or {}
+    return instance if tree.get("rootStatus") in ("SUCCESS", "FAILURE") else None
+
+
+def _summary(instance: dict[str, Any]) -> dict[str, Any]:
+    status = instance["status"]
+    return {
+        "tree": status["tree"]["rootStatus"],
+        "conditions": {
+            c["type"]: (c["status"], c["reason"]) for c in status["conditions"] if c["type"] in COMPARED
+        },
+        "components": [(c["name"], c["role"]) for c in status["components"]],
+        "plugins": sorted((status.get("plugins") or {}).get("loaded") or []),
+    }
+
+
+def _run(cluster: Cluster, namespace: str, manifest: dict[str, Any]) -> dict[str, Any]:
+    custom = k8s.CustomObjectsApi(cluster.api_client)
+    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+    name = manifest["metadata"]["name"]
+    instance = wait_for(
+        lambda: _finished(custom, namespace, name), timeout=420, message=f"{name}'s tree to finish"
+    )
+    custom.delete_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", name)
+    return instance
+
+
+def _started(status: Any) -> datetime:
+    state = status.state
+    running = state.running or state.terminated
+    assert running is not None and running.started_at is not None, f"{status.name} never started"
+    return running.started_at
+
+
+def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
+    cluster: Cluster, namespace: str, real_robot_name: str, pytestconfig: pytest.Config
+) -> None:
+    root = pytestconfig.rootpath
+    default = _run(cluster, namespace, _system(root, "slam-default", real_robot_name, "PodPerComponent"))
+    core = k8s.CoreV1Api(cluster.api_client)
+    custom = k8s.CustomObjectsApi(cluster.api_client)
+    wait_for(lambda: not core.list_namespaced_pod(namespace).items, timeout=120, message="the pods to go")
+
+    manifest = _system(root, "slam-one-pod", real_robot_name, "PodPerRobot")
+    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+    one_pod = wait_for(
+        lambda: _finished(custom, namespace, "slam-one-pod"),
+        timeout=420,
+        message="the one-pod tree to finish",
+    )
+    assert one_pod["status"]["tree"]["rootStatus"] == "SUCCESS"
+    assert _summary(one_pod) == _summary(default)
+
+    (pod,) = core.list_namespaced_pod(namespace, label_selector="coral.dev/system=slam-one-pod").items
+    sidecars = {s.name: _started(s) for s in pod.status.init_container_statuses}
+    mains = {s.name: _started(s) for s in pod.status.container_statuses}
+    # Sidecars start in compose order, each once the previous one's startup probe passed; the
+    # transient bag player runs beside the executor, so it starts after every skillset.
+    assert sidecars["slam"] <= sidecars["snapshot"]
+    assert max(sidecars.values()) <= mains["executor"]
+    assert max(sidecars.values()) <= mains["bag-player"]
+
+
+def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
+    cluster: Cluster, namespace: str, real_robot_name: str, pytestconfig: pytest.Config
+) -> None:
+    core = k8s.CoreV1Api(cluster.api_client)
+    custom = k8s.CustomObjectsApi(cluster.api_client)
+    manifest = _system(pytestconfig.rootpath, "slam-kill", real_robot_name, "PodPerRobot")
+    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+    wait_for(
+        lambda: (
+            (((_instance(custom, namespace, "slam-kill") or {}).get("status") or {}).get("tree") or {}).get(
+                "rootStatus"
+            )
+            == "RUNNING"
+        ),
+        timeout=300,
+        message="the mission to run",
+    )
+    (pod,) = core.list_namespaced_pod(namespace, label_selector="coral.dev/system=slam-kill").items
+    # rclpy handles SIGINT, so the skillset exits even as its container's first process.
+    cluster.kubectl(
+        "exec", "-n", namespace, pod.metadata.name, "-c", "slam", "--",
+        "python", "-c", "import os, signal; os.kill(1, signal.SIGINT)",
+    )  # fmt: skip
+    degraded = wait_for(
+        lambda: (
+            (i := _instance(custom, namespace, "slam-kill"))
+            and _condition(i, "LibraryDegraded").get("status") == "True"
+            and i
+        ),
+        timeout=120,
+        message="LibraryDegraded on the instance",
+    )
+    assert "slam" in _condition(degraded, "LibraryDegraded")["message"]
+    finished = wait_for(
+        lambda: _finished(custom, namespace, "slam-kill"), timeout=300, message="the tree to end"
+    )
+    failure = finished["status"]["tree"].get("lastFailure") or {}
+    # The behaviors of the dead skillset fail instead of hanging, so the tree moves on.
+    assert failure.get("path"), finished["status"]["tree"]
+    restarted = core.read_namespaced_pod(pod.metadata.name, namespace)
+    slam = next(s for s in restarted.status.init_container_statuses if s.name == "slam")
+    assert slam.restart_count >= 1
+    assert all(s.restart_count == 0 for s in restarted.status.init_container_statuses if s.name != "slam")
