@@ -116,3 +116,54 @@ def test_a_baseline_namespace_accepts_one_pod_per_robot_and_says_why_it_refuses_
         "the system to summarise the refusal",
     )
     assert condition(system, "Ready")["message"], "the system's Ready condition says nothing"
+
+
+def test_an_image_only_change_keeps_the_robot_pod_and_any_other_change_replaces_it(
+    cluster: Any,
+    namespace: str,
+    coral_operator: Any,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+) -> None:
+    robots(1, {"fleet": fleet_label})
+    coral = Coral(cluster.api_client, namespace)
+    manifest = _mission("images", fleet_label, "PodPerRobot")
+    coral.create_system(manifest)
+    first = wait(lambda: _ready_instance(coral, "images"), "the robot Ready")
+    (pod,) = coral.pods().values()
+
+    skillsets = manifest["spec"]["skillsets"]
+    skillsets[0]["image"] = "coral/slam-skillset:0.2.0"
+    coral.patch_system("images", {"spec": {"skillsets": skillsets}})
+
+    def moved(previous: dict[str, Any]) -> dict[str, Any] | None:
+        instance = _ready_instance(coral, "images")
+        if instance is None or instance["spec"]["revision"] == previous["spec"]["revision"]:
+            return None
+        return instance if instance["status"].get("revision") == instance["spec"]["revision"] else None
+
+    second = wait(lambda: moved(first), "the robot on the image-only revision")
+    (patched,) = coral.pods().values()
+    assert patched.metadata.uid == pod.metadata.uid, "an image-only change replaced the pod"
+    slam = next(c for c in patched.spec.init_containers if c.name == "slam")
+    assert slam.image == "coral/slam-skillset:0.2.0"
+    assert patched.metadata.labels["coral.dev/revision"] == second["spec"]["revision"]
+
+    skillsets[0]["env"] = [{"name": "SLAM_MODE", "value": "fast"}]
+    coral.patch_system("images", {"spec": {"skillsets": skillsets}})
+    wait(lambda: moved(second), "the robot on the revision with a new environment")
+    replaced = wait(
+        lambda: [
+            p
+            for p in coral.pods().values()
+            if p.metadata.deletion_timestamp is None and p.metadata.uid != pod.metadata.uid
+        ],
+        "a new robot pod",
+    )
+    assert len(replaced) == 1
+    assert all(
+        p.metadata.uid != pod.metadata.uid
+        for p in coral.pods().values()
+        if p.metadata.deletion_timestamp is None
+    )
