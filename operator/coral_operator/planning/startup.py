@@ -11,6 +11,10 @@ is deleted. A component's pod is created only once no pod of that component is l
 terminating one (a driver holds hardware, so two must never run at once), and then gated like any
 other. A current pod of an older revision is relabelled, not restarted.
 
+With `layout: PodPerRobot` the robot has one pod and its kubelet orders the components inside it;
+the plan creates, replaces (or, for a change of images only, patches) that pod and reads the
+stages from its containers only to report which one is waited for, with the same messages.
+
 Pure; called by the instance handler with the clock injected.
 """
 
