@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 from coral_api import Coral, condition, fleet_mission, is_current_and_true
 from kubernetes import client as k8s
+from kubernetes.client.exceptions import ApiException
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -167,3 +168,15 @@ def test_an_image_only_change_keeps_the_robot_pod_and_any_other_change_replaces_
         for p in coral.pods().values()
         if p.metadata.deletion_timestamp is None
     )
+
+
+def test_proceed_on_timeout_with_one_pod_per_robot_is_refused_at_admission(
+    cluster: Any, namespace: str, coral_crds: None, fleet_label: str
+) -> None:
+    manifest = _mission("proceed", fleet_label, "PodPerRobot")
+    manifest["spec"]["startup"] = {"onTimeout": "Proceed"}
+    with pytest.raises(ApiException) as refused:
+        Coral(cluster.api_client, namespace).create_system(manifest)
+    assert refused.value.status == 422
+    assert "spec.startup.onTimeout" in refused.value.body
+    assert "onTimeout Proceed needs layout PodPerComponent" in refused.value.body
