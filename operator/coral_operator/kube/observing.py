@@ -112,10 +112,11 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
         container = by_name.get(component) or {}
         state = container.get("state") or {}
         waiting = state.get("waiting") or {}
-        phase = _container_phase(state)
+        phase, ready = _container_phase(state), bool(container.get("ready"))
         if role != "executor" and pod_phase in ("Succeeded", "Failed"):
-            # The kubelet stops the sidecars once the executors end; how they exit says nothing.
-            phase = pod_phase
+            # The kubelet stops the sidecars once the executors end; how they exit says nothing. After
+            # a finished mission they count as ready, as the other layout's still running pods do.
+            phase, ready = pod_phase, pod_phase == "Succeeded"
         records.append(
             ObservedPod(
                 name=metadata.get("name", ""),
@@ -124,7 +125,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 revision=labels.get(naming.LABEL_REVISION, ""),
                 pod_hash=annotations.get(naming.ANNOTATION_POD_HASH, ""),
                 phase=phase,
-                ready=bool(container.get("ready")),
+                ready=ready,
                 # A component waits from the moment it started, not from when its pod was made.
                 created=parse_time((state.get("running") or {}).get("startedAt")) or created,
                 deleting=bool(metadata.get("deletionTimestamp")),

@@ -385,3 +385,28 @@ def test_golden_pod_per_component_skillset_pod() -> None:
 
 def test_golden_pod_per_robot_pod() -> None:
     _golden("lidar-slam-pod-per-robot.json", _robot_pod(_example_spec()))
+
+
+def test_a_finished_mission_reads_the_same_in_both_layouts(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    spec = spec_dict()
+    finished = {"state": {"terminated": {"exitCode": 0, "startedAt": START, "finishedAt": START}}}
+    bodies = []
+    for manifest in _pods(spec):
+        executor = manifest["metadata"]["labels"][naming.LABEL_ROLE] == "executor"
+        body = _component_body(manifest, not executor, **(finished if executor else {}))
+        if executor:
+            body["status"]["phase"] = "Succeeded"
+        bodies.append(body)
+    robot_spec = {**spec, "layout": "PodPerRobot"}
+    robot_body = _robot_pod_body(_pods(robot_spec)[0], ready=set(), phase="Succeeded")
+    stopped = {"state": {"terminated": {"exitCode": 143, "startedAt": START, "finishedAt": START}}}
+    for status in robot_body["status"]["initContainerStatuses"]:
+        status.update(stopped)  # the kubelet stops the sidecars once the executor ended
+    robot_body["status"]["containerStatuses"][0].update(finished)
+    per_component, per_robot = _status(spec, bodies), _status(robot_spec, [robot_body])
+    conditions = {c["type"]: (c["status"], c["reason"]) for c in per_robot["conditions"]}
+    assert conditions["Ready"] == ("True", "Ready")
+    assert conditions == {c["type"]: (c["status"], c["reason"]) for c in per_component["conditions"]}
+    assert [(c["name"], c["ready"]) for c in per_robot["components"]] == [
+        (c["name"], c["ready"]) for c in per_component["components"]
+    ]
