@@ -126,8 +126,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 pod_hash=annotations.get(naming.ANNOTATION_POD_HASH, ""),
                 phase=phase,
                 ready=ready,
-                # A component waits from the moment it started, not from when its pod was made.
-                created=parse_time((state.get("running") or {}).get("startedAt")) or created,
+                created=_waiting_since(container, created),
                 deleting=bool(metadata.get("deletionTimestamp")),
                 restarts=int(container.get("restartCount") or 0),
                 crash_looping=waiting.get("reason") == "CrashLoopBackOff",
@@ -140,6 +139,17 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
             )
         )
     return records
+
+
+def _waiting_since(container: Mapping[str, Any], pod_created: datetime | None) -> datetime | None:
+    """When the component started waiting to become ready: when its container first started, not when
+    its pod was made (earlier components started meanwhile). Once restarted (the kubelet restarts a
+    sidecar whose startup probe keeps failing), the pod's creation, so the health timeout still
+    falls due."""
+    started = ((container.get("state") or {}).get("running") or {}).get("startedAt")
+    if started and not container.get("restartCount"):
+        return parse_time(started)
+    return pod_created
 
 
 _IMAGE_PROBLEMS = frozenset(

@@ -410,3 +410,24 @@ def test_a_finished_mission_reads_the_same_in_both_layouts(spec_dict: Callable[.
     assert [(c["name"], c["ready"]) for c in per_robot["components"]] == [
         (c["name"], c["ready"]) for c in per_component["components"]
     ]
+
+
+def test_a_sidecar_restarted_by_its_startup_probe_still_times_out(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired = _pods(spec_dict(layout="PodPerRobot", startup={"healthTimeoutSeconds": 30}))
+    body = _robot_pod_body(desired[0], ready={"lidar"}, started={"lidar", "slam"})
+    slam = body["status"]["initContainerStatuses"][1]
+    # Restarted a moment ago, in a pod made a minute ago: the wait counts from the pod.
+    slam["state"] = {"running": {"startedAt": "2026-01-01T11:59:58Z"}}
+    slam["restartCount"] = 2
+    observed = list(observing.observed_pods(body))
+    plan = startup.plan_startup(
+        desired=desired,
+        observed=observed,
+        transient=set(),
+        startup=StartupSpec(health_timeout_seconds=30),
+        now=NOW,
+    )
+    assert (plan.waiting_for, plan.timed_out) == ("skillset", True)
+    assert "Skillsets not ready after 30 s (slam)" in plan.message
