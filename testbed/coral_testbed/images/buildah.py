@@ -161,6 +161,10 @@ class Buildah:
         self._run("tag", image_id, tag)
         return image_id
 
+    def remove(self, reference: str) -> None:
+        """Untags and removes a local image; layers other images use stay."""
+        self._run("rmi", reference)
+
     def run(
         self, reference: str, argv: Sequence[str], timeout: float = 120
     ) -> subprocess.CompletedProcess[str]:

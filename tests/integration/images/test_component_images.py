@@ -136,3 +136,15 @@ def test_an_unchanged_tree_rebuilds_nothing(
     assert {name: b.image_id for name, b in again.items()} == {
         name: b.image_id for name, b in built_images.items()
     }
+
+
+def test_images_the_local_store_lost_come_back_from_the_registry(
+    built_images: dict[str, images.Built], image_registry: str
+) -> None:
+    tool = images.builder()
+    for name in ("pause", "busybox"):
+        tool.remove(built_images[name].local_reference)
+    again = images.build(["pause"], registry_address=image_registry, progress=lambda line: None)
+    assert {name: b.outcome for name, b in again.items()} == {"busybox": "pulled", "pause": "pulled"}
+    assert again["pause"].image_id == built_images["pause"].image_id
+    assert tool.image_id(built_images["pause"].local_reference) == built_images["pause"].image_id
