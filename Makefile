@@ -21,7 +21,7 @@ venv: $(STAMP)
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
-# buildah, mmdebstrap, docker-registry and busybox-static from Debian (needs root; idempotent).
+# buildah, mmdebstrap and docker-registry from Debian (needs root; idempotent).
 # Without them the tests that need images are skipped, so a missing install does not stop `make test`.
 image-builder:
 	@bash hack/setup-image-builder.sh || echo "==> image builder not installed: tests that need images will be skipped"

@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Installs what building the project's images needs, from Debian packages: buildah (daemonless
 # OCI builder), mmdebstrap (the Debian base's root filesystem), docker-registry (the local
-# registry kubelets pull from) and busybox-static (the busybox and pause images).
+# registry kubelets pull from).
 # Idempotent: does nothing when all are installed. Installing needs root.
 #
 # Usage: sudo bash hack/setup-image-builder.sh
 set -euo pipefail
 
-packages=(buildah mmdebstrap docker-registry busybox-static)
+packages=(buildah mmdebstrap docker-registry)
 
 missing=()
 for p in "${packages[@]}"; do

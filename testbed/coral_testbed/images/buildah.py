@@ -11,12 +11,14 @@ import json
 import shutil
 import subprocess
 import tempfile
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 STORAGE_DRIVER_ENV = "CORAL_IMAGE_STORAGE_DRIVER"
+_QUIET_SECONDS = 20.0
 
 
 class BuildahError(RuntimeError):
@@ -113,7 +115,8 @@ class Buildah:
         """Builds `dockerfile` in `context` into the local image `tag`; returns its image ID.
 
         Every parent image must already be in the store (`--pull=never`): `building` brings them.
-        Output goes to `log`; each "STEP n/m" line is passed to `on_step`.
+        Output goes to `log`; each "STEP n/m" line is passed to `on_step`, and so is the latest
+        output line when nothing was passed for a while.
         """
         log.parent.mkdir(parents=True, exist_ok=True)
         iidfile = log.with_suffix(".iid")
@@ -138,10 +141,14 @@ class Buildah:
                 argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1
             )
             assert child.stdout is not None
+            last_shown = time.monotonic()
             for line in child.stdout:
                 sink.write(line)
-                if line.startswith("STEP "):
-                    on_step(line.strip())
+                # Steps as they start, and during a long RUN step its latest line now and then.
+                now = time.monotonic()
+                if line.startswith("STEP ") or (line.strip() and now - last_shown > _QUIET_SECONDS):
+                    on_step(line.strip()[:160])
+                    last_shown = now
             code = child.wait()
         if code != 0:
             raise BuildahError(f"building {tag} from {dockerfile} failed (exit {code}); see {log}")

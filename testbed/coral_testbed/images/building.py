@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import fcntl
 import os
-import shutil
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -24,7 +23,6 @@ from coral_testbed.images import buildah, catalog, fingerprints, registry, rootf
 
 Progress = Callable[[str], None]
 HOST_CA_BUNDLE = Path("/etc/ssl/certs/ca-certificates.crt")
-_BUSYBOX_CANDIDATES = (Path("/bin/busybox"), Path("/usr/bin/busybox"))
 
 
 class ImageBuildError(RuntimeError):
@@ -85,39 +83,10 @@ def builder() -> buildah.Buildah:
     return buildah.Buildah.at(images_dir(), driver)
 
 
-def _is_static_elf(path: Path) -> bool:
-    # A dynamically linked ELF names its loader in a PT_INTERP program header (type 3).
-    data = path.read_bytes()
-    if data[:4] != b"\x7fELF" or data[4] != 2:
-        return False
-    phoff = int.from_bytes(data[32:40], "little")
-    phentsize = int.from_bytes(data[54:56], "little")
-    phnum = int.from_bytes(data[56:58], "little")
-    headers = (phoff + i * phentsize for i in range(phnum))
-    return all(int.from_bytes(data[h : h + 4], "little") != 3 for h in headers)
-
-
-def _stage_busybox(cache: Path) -> Path:
-    source = next((p for p in _BUSYBOX_CANDIDATES if p.is_file()), None)
-    if source is None or not _is_static_elf(source):
-        raise ImageBuildError(
-            "a statically linked busybox is needed for the busybox and pause images; "
-            "run `sudo bash hack/setup-image-builder.sh` (installs busybox-static)"
-        )
-    folder = cache / "busybox"
-    folder.mkdir(parents=True, exist_ok=True)
-    staged = folder / "busybox"
-    if not staged.is_file() or staged.read_bytes() != source.read_bytes():
-        shutil.copy2(source, staged)
-    return folder
-
-
 def _context(spec: catalog.ImageSpec, root: Path, cache: Path, progress: Progress) -> Path:
     if spec.context is catalog.Context.REPOSITORY:
         return root
-    if spec.context is catalog.Context.DEBIAN_ROOTFS:
-        return rootfs.ensure(cache, progress)
-    return _stage_busybox(cache)
+    return rootfs.ensure(cache, progress)
 
 
 def _volumes(spec: catalog.ImageSpec) -> list[str]:
@@ -228,6 +197,8 @@ def build(
         ImageBuildError, rootfs.RootfsError, buildah.BuildahError: with the failing image and log.
     """
     specs = catalog.with_parents(names if names is not None else [s.name for s in catalog.IMAGES])
+    if os.geteuid() != 0:
+        raise ImageBuildError("building images needs root (buildah's chroot isolation and mounts)")
     root = find_repository_root()
     cache = images_dir()
     tool = builder()

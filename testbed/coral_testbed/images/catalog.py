@@ -1,9 +1,10 @@
 """The images the project builds: which Dockerfile, which context, which image each one starts FROM.
 
-One entry per Dockerfile in the repository, plus the bases that stand in for Docker Hub here: a
-Debian bookworm Python made from Debian packages, a static busybox and the pod sandbox (pause)
-image. Repositories are named as on Docker Hub (`coral/executor`), so the local registry can serve
-as a `docker.io` mirror and manifests keep their usual image names. Pure data, read by `building`.
+One entry per Dockerfile in the repository, plus the base that stands in for Docker Hub here: a
+Debian bookworm Python made from Debian packages. (The robots' sandbox and test images need no
+registry: `coral_testbed.cluster.nodeimages` imports them into each robot.) Repositories are
+named as on Docker Hub (`coral/executor`), so robots pull `coral.local/coral/executor:0.1.0` or
+`127.0.0.1:5000/coral/executor:0.1.0` (docs/images.md). Pure data, read by `building`.
 """
 
 from __future__ import annotations
@@ -23,8 +24,6 @@ class Context(enum.Enum):
     """The repository root, filtered by its .dockerignore (the project's own Dockerfiles)."""
     DEBIAN_ROOTFS = "debian-rootfs"
     """A folder holding rootfs.tar, the Debian root filesystem made by `rootfs`."""
-    BUSYBOX = "busybox"
-    """A folder holding the host's statically linked busybox."""
 
 
 @dataclass(frozen=True)
@@ -50,9 +49,6 @@ _RUNTIME_CHILD = {"RUNTIME": "runtime"}
 IMAGES: tuple[ImageSpec, ...] = (
     ImageSpec("python", "coral/python", "3.11-bookworm", "testbed/images/python/Dockerfile",
               Context.DEBIAN_ROOTFS),
-    ImageSpec("busybox", "coral/busybox", VERSION, "testbed/images/busybox/Dockerfile", Context.BUSYBOX),
-    ImageSpec("pause", "coral/pause", VERSION, "testbed/images/pause/Dockerfile", Context.BUSYBOX,
-              {"BUSYBOX": "busybox"}),
     ImageSpec("runtime", "coral/runtime", VERSION, "components/Dockerfile", Context.REPOSITORY,
               {"BASE": "python"}),
     ImageSpec("executor", "coral/executor", VERSION, "components/coral/executor/Dockerfile",

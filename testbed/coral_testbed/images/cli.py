@@ -37,8 +37,8 @@ def _address_option(command: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--registry",
         "address",
-        default=registry.DEFAULT_ADDRESS,
-        show_default=True,
+        default=registry.configured_address,
+        show_default="$CORAL_REGISTRY or 127.0.0.1:5000",
         help="HOST:PORT of the local registry.",
     )(command)
 

@@ -1,17 +1,17 @@
 """The local image registry: Debian's docker-registry over plain HTTP, storage in the cache folder.
 
-Kubelets' containerd pulls from it by name, as from any registry. Repositories are named as on
-Docker Hub, so it serves both `ADDRESS/coral/executor:0.1.0` and, configured as a `docker.io`
-mirror, plain `coral/executor:0.1.0`. Several registry processes may serve the same storage on
-different addresses (say 127.0.0.1 for the host and a bridge address for robots' network
-namespaces). `start`/`stop` are for fixtures, which own their process; `up`/`down` keep one
-registry per address running across commands (`coral images registry up`). Also a small client
-for what the build needs: a tag's manifest and config.
+Kubelets' containerd pulls from it by name, as from any registry: robots map `coral.local` and
+the registry's own address to it (docs/real-robots.md), so `coral.local/coral/executor:0.1.0`
+and `127.0.0.1:5000/coral/executor:0.1.0` name the same image. Several registry processes may
+serve the same storage on different addresses. `start`/`stop` are for fixtures, which own their
+process; `up`/`down` keep one registry per address running across commands (`coral images
+registry up`). Also a small client for what the build needs: a tag's manifest and config.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import socket
 import urllib.error
@@ -24,6 +24,8 @@ from coral_testbed.cluster import processes
 from coral_testbed.waiting import wait_for
 
 DEFAULT_ADDRESS = "127.0.0.1:5000"
+ADDRESS_ENV = "CORAL_REGISTRY"
+"""Where robots look for the registry (read when a robot starts), and the CLI's default."""
 _MANIFEST_TYPES = ", ".join(
     (
         "application/vnd.oci.image.manifest.v1+json",
@@ -42,6 +44,11 @@ class Manifest:
     config_digest: str
     layers: tuple[tuple[str, int], ...]
     """(digest, compressed size) of each layer, base first."""
+
+
+def configured_address() -> str:
+    """`$CORAL_REGISTRY`, else 127.0.0.1:5000."""
+    return os.environ.get(ADDRESS_ENV) or DEFAULT_ADDRESS
 
 
 def split_address(address: str) -> tuple[str, int]:

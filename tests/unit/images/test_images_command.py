@@ -17,7 +17,7 @@ def test_list_names_every_image_with_its_dockerfile() -> None:
 def test_build_refuses_an_unknown_image_by_name() -> None:
     result = CliRunner().invoke(main, ["images", "build", "--no-push", "exectuor"])
     assert result.exit_code == 2
-    assert "unknown image exectuor; known: python, busybox" in result.output
+    assert "unknown image exectuor; known: python, runtime" in result.output
 
 
 def test_registry_refuses_a_bad_address() -> None:
