@@ -67,6 +67,11 @@ def registry_storage() -> Path:
     return binaries.cache_root() / "registry"
 
 
+def registry_state_dir() -> Path:
+    """Where `registry.up` records the registries it keeps running (shared by every command)."""
+    return images_dir() / "registries"
+
+
 def find_repository_root() -> Path:
     """The repository this package was installed from (editable), holding the Dockerfiles."""
     for folder in Path(__file__).resolve().parents:
@@ -208,3 +213,16 @@ def build(
             done[spec.name] = _build_one(spec, done, tool, root, cache, registry_address, progress)
     return done
 
+
+
+def publish(
+    address: str, names: Iterable[str] | None = None, progress: Progress = say
+) -> dict[str, Built]:
+    """Keeps a registry serving on `address` (starting one if none is) and builds the images into it.
+
+    The registry outlives this call; `registry.down(registry_state_dir(), address)` stops it.
+    """
+    if not registry.is_serving(address):
+        registry.up(address, registry_storage(), registry_state_dir())
+        progress(f"registry serving on {address}")
+    return build(names, registry_address=address, progress=progress)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import click
@@ -43,10 +42,6 @@ def _address_option(command: Callable[..., Any]) -> Callable[..., Any]:
     )(command)
 
 
-def _state_dir() -> Path:
-    return building.images_dir() / "registries"
-
-
 @click.group("images")
 def images() -> None:
     """Build the project's images with buildah and serve them from a local registry."""
@@ -66,10 +61,10 @@ def build_command(names: tuple[str, ...], address: str, no_push: bool) -> None:
     unknown = [n for n in names if n not in catalog.by_name()]
     if unknown:
         raise click.UsageError(f"unknown image {', '.join(unknown)}; known: {', '.join(catalog.by_name())}")
-    if not no_push and not registry.is_serving(address):
-        registry.up(address, building.registry_storage(), _state_dir())
-        building.say(f"registry serving on {address}")
-    built = building.build(names or None, registry_address=None if no_push else address)
+    if no_push:
+        built = building.build(names or None)
+    else:
+        built = building.publish(address, names or None)
     tool = building.builder()
     click.echo(f"{'NAME':<18} {'REFERENCE':<55} {'IMAGE ID':<12}  {'UNPACKED':>8}  {'PULL':>8}  OUTCOME")
     for name, image in built.items():
@@ -103,7 +98,7 @@ def registry_group() -> None:
 @_fail_on_errors
 def registry_up(address: str) -> None:
     """Start a registry on --registry unless one is running there; prints its address."""
-    _, started = registry.up(address, building.registry_storage(), _state_dir())
+    _, started = registry.up(address, building.registry_storage(), building.registry_state_dir())
     building.say(f"registry {'started' if started else 'already running'} on {address}")
     click.echo(address)
 
@@ -113,12 +108,12 @@ def registry_up(address: str) -> None:
 @_fail_on_errors
 def registry_down(address: str) -> None:
     """Stop the registry `registry up` started on --registry."""
-    stopped = registry.down(_state_dir(), address)
+    stopped = registry.down(building.registry_state_dir(), address)
     building.say(f"registry on {address} {'stopped' if stopped else 'was not running'}")
 
 
 @registry_group.command("status")
 def registry_status() -> None:
     """Addresses of the running registries and the repositories they hold."""
-    for address in registry.recorded_addresses(_state_dir()):
+    for address in registry.recorded_addresses(building.registry_state_dir()):
         click.echo(f"{address}  {' '.join(registry.repositories(address))}")

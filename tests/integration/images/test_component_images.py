@@ -50,14 +50,15 @@ def test_component_images_run_as_coral_and_share_the_runtime_layers(
     for name in catalog.COMPONENTS:
         spec = built_images[name].spec
         config = images.builder().config(built_images[name].local_reference)
-        assert config.get("User") == "coral", f"{name} runs as {config.get('User')!r}"
+        # Numeric: kubelets refuse `runAsNonRoot` pods whose image names its user.
+        assert config.get("User") == f"{CORAL_UID}:{CORAL_UID}", f"{name} runs as {config.get('User')!r}"
         assert config.get("Entrypoint", [])[:2] == ["python", "-m"], f"{name}: {config.get('Entrypoint')}"
         found = registry.manifest(image_registry, spec.repository, spec.tag)
         assert found is not None
         assert found.layers[: len(runtime.layers)] == runtime.layers, f"{name} does not start from runtime"
         extra = sum(size for _, size in found.layers[len(runtime.layers) :])
         assert extra < 1024, f"{name} adds {extra} bytes of layers on top of the runtime"
-    assert _run(built_images["runtime"], "id -u").strip() == CORAL_UID
+    assert _run(built_images["runtime"], "id -un; id -u; id -g").split() == ["coral", CORAL_UID, CORAL_UID]
 
 
 def test_the_runtime_loads_ros_and_creates_a_node(built_images: dict[str, images.Built]) -> None:
@@ -111,7 +112,8 @@ def test_the_operator_image_runs_coral(built_images: dict[str, images.Built]) ->
     assert config.get("Entrypoint") == ["coral"] and config.get("Cmd") == ["operator"]
     output = _run(operator, "coral operator --help")
     assert "Usage:" in output, output
-    assert _run(operator, "id -u").strip() != "0"
+    user = config.get("User", "")
+    assert user.split(":")[0].isdigit() and user.split(":")[0] != "0", f"operator runs as {user!r}"
 
 
 def test_an_unchanged_tree_rebuilds_nothing(
