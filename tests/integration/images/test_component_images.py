@@ -90,6 +90,18 @@ def test_the_executor_image_runs_a_tree_to_success(built_images: dict[str, image
     assert '"event": "finished", "exit_code": 0, "root": "SUCCESS"' in output.splitlines()[-1], output
 
 
+def test_the_bag_player_image_plays_a_bag_to_its_end(built_images: dict[str, images.Built]) -> None:
+    entrypoint = shlex.join(_entrypoint(built_images["bag-player"]))
+    params = "bag_player:\n  ros__parameters:\n    rate: 0.0\n    wait_for_subscribers: 0\n"
+    script = (
+        "coral generate-bag --scans 3 --columns 64 --beams 2 --output /tmp/dataset > /dev/null"
+        f" && printf {shlex.quote(params)} > /tmp/params.yaml"
+        f" && CORAL_BAG=/tmp/dataset/bag {entrypoint} --params /tmp/params.yaml 2>&1; echo exit=$?"
+    )
+    output = _run(built_images["bag-player"], script)
+    assert "Played 6 message(s)" in output and output.rstrip().endswith("exit=0"), output
+
+
 @pytest.mark.parametrize("name", sorted(SKILLSET_PLUGIN))
 def test_skillset_images_export_their_plugin_and_stop_cleanly(
     built_images: dict[str, images.Built], name: str
