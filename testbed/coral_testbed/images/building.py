@@ -14,7 +14,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -104,7 +104,9 @@ def _volumes(spec: catalog.ImageSpec) -> list[str]:
 
 
 @contextmanager
-def _build_lock(cache: Path, progress: Progress) -> Iterator[None]:
+def exclusive(progress: Progress = say) -> Iterator[None]:
+    """Holds the machine's image-build lock: no other build reads or changes the store meanwhile."""
+    cache = images_dir()
     cache.mkdir(parents=True, exist_ok=True)
     with (cache / "build.lock").open("w") as lock:
         try:
@@ -186,6 +188,7 @@ def build(
     names: Iterable[str] | None = None,
     registry_address: str | None = None,
     progress: Progress = say,
+    lock_held: bool = False,
 ) -> dict[str, Built]:
     """Builds the named images (all when None) and the images they start FROM.
 
@@ -194,6 +197,7 @@ def build(
         registry_address: HOST:PORT of a running registry to push to (and to take unchanged
             images from when the local store lost them); None builds locally only.
         progress: receives one line per step worth showing.
+        lock_held: the caller already holds `exclusive()` (else this call takes it).
 
     Returns:
         Every image handled, by name, parents first.
@@ -208,7 +212,7 @@ def build(
     cache = images_dir()
     tool = builder()
     done: dict[str, Built] = {}
-    with _build_lock(cache, progress):
+    with nullcontext() if lock_held else exclusive(progress):
         for spec in specs:
             done[spec.name] = _build_one(spec, done, tool, root, cache, registry_address, progress)
     return done

@@ -1,7 +1,8 @@
 """The images built from the repository's Dockerfiles are in the registry and really run.
 
 Built once per machine through the content cache (`built_images`); each check runs a command in a
-fresh working container of the image with buildah, as the image's own user.
+fresh working container of the image with buildah, as the image's own user. Images are named by
+ID, so another checkout building on the same machine (and moving the tags) cannot swap them.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import shlex
 
 import pytest
 from coral_testbed import images
-from coral_testbed.images import catalog, registry
+from coral_testbed.images import building, catalog, registry
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
 
@@ -23,11 +24,11 @@ TREE = (
 
 
 def _entrypoint(built: images.Built) -> list[str]:
-    return list(images.builder().config(built.local_reference).get("Entrypoint") or [])
+    return list(images.builder().config(built.image_id).get("Entrypoint") or [])
 
 
 def _run(built: images.Built, script: str) -> str:
-    done = images.builder().run(built.local_reference, ["sh", "-c", script])
+    done = images.builder().run(built.image_id, ["sh", "-c", script])
     output = f"{done.stdout}{done.stderr}"
     assert done.returncode == 0, f"{built.spec.name}: `{script}` exited {done.returncode}:\n{output}"
     return done.stdout
@@ -49,7 +50,7 @@ def test_component_images_run_as_coral_and_share_the_runtime_layers(
     assert runtime is not None
     for name in catalog.COMPONENTS:
         spec = built_images[name].spec
-        config = images.builder().config(built_images[name].local_reference)
+        config = images.builder().config(built_images[name].image_id)
         # Numeric: kubelets refuse `runAsNonRoot` pods whose image names its user.
         assert config.get("User") == f"{CORAL_UID}:{CORAL_UID}", f"{name} runs as {config.get('User')!r}"
         assert config.get("Entrypoint", [])[:2] == ["python", "-m"], f"{name}: {config.get('Entrypoint')}"
@@ -120,7 +121,7 @@ def test_skillset_images_export_their_plugin_and_stop_cleanly(
 
 def test_the_operator_image_runs_coral(built_images: dict[str, images.Built]) -> None:
     operator = built_images["operator"]
-    config = images.builder().config(operator.local_reference)
+    config = images.builder().config(operator.image_id)
     assert config.get("Entrypoint") == ["coral"] and config.get("Cmd") == ["operator"]
     output = _run(operator, "coral operator --help")
     assert "Usage:" in output, output
@@ -143,8 +144,12 @@ def test_images_the_local_store_lost_come_back_from_the_registry(
 ) -> None:
     tool = images.builder()
     base = built_images["python"]
-    tool.remove(base.local_reference)
-    again = images.build(["python"], registry_address=image_registry, progress=lambda line: None)
+    # Under the build lock, so a parallel session's build never sees the base missing.
+    with building.exclusive():
+        tool.remove(base.local_reference)
+        again = images.build(
+            ["python"], registry_address=image_registry, progress=lambda line: None, lock_held=True
+        )
     assert again["python"].outcome == "pulled"
     assert again["python"].image_id == base.image_id
     assert tool.image_id(base.local_reference) == base.image_id
