@@ -166,11 +166,17 @@ class Buildah:
         done = self._run("pull", "--tls-verify=false", "--quiet", f"docker://{source}")
         image_id = done.stdout.strip().splitlines()[-1]
         self._run("tag", image_id, tag)
+        # Only the local name stays: the registry's address differs from session to session.
+        self._run("rmi", source)
         return image_id
 
     def remove(self, reference: str) -> None:
         """Untags and removes a local image; layers other images use stay."""
         self._run("rmi", reference)
+
+    def prune_dangling(self) -> None:
+        """Removes images no tag names any more (earlier builds), unless a container uses them."""
+        self._run("rmi", "--prune", check=False)
 
     def run(
         self, reference: str, argv: Sequence[str], timeout: float = 120

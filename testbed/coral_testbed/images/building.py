@@ -215,6 +215,9 @@ def build(
     with nullcontext() if lock_held else exclusive(progress):
         for spec in specs:
             done[spec.name] = _build_one(spec, done, tool, root, cache, registry_address, progress)
+        if any(built.outcome != "cached" for built in done.values()):
+            # Each rebuild leaves the previous image untagged: hundreds of MB a time otherwise.
+            tool.prune_dangling()
     return done
 
 

@@ -153,3 +153,4 @@ def test_images_the_local_store_lost_come_back_from_the_registry(
     assert again["python"].outcome == "pulled"
     assert again["python"].image_id == base.image_id
     assert tool.image_id(base.local_reference) == base.image_id
+    assert tool.inspect(base.registry_reference(image_registry)) is None, "the pull kept its address name"
