@@ -50,6 +50,7 @@ class Outcomes:
     scripts: dict[str, list[int]]
     cursor: dict[str, int] = field(default_factory=dict)
     halts: list[str] = field(default_factory=list)
+    calls: list[tuple[str, tuple[tuple[str, str], ...]]] | None = None  # set to a list to record
 
     def next(self, name: str) -> int:
         seq = self.scripts.get(name) or [2]
@@ -64,6 +65,47 @@ class Run:
     statuses: list[object]
     transitions: list[tuple[int, int]]
     error: str = ""
+    # With `observe=True`: per tick, the leaf calls (name and the local entries of the blackboard
+    # the leaf sees, i.e. its subtree's) and the root blackboard after the tick; then haltTree().
+    calls: list[list[tuple[str, tuple[tuple[str, str], ...]]]] = field(default_factory=list)
+    boards: list[dict[str, str]] = field(default_factory=list)
+    halted: list[str] = field(default_factory=list)
+    after_halt: dict[str, str] = field(default_factory=dict)
+
+    def trace(self, with_transitions: bool = True) -> tuple[object, ...]:
+        return (
+            self.verdict,
+            self.statuses,
+            self.transitions if with_transitions else None,
+            self.calls,
+            self.boards,
+            self.halted,
+            self.after_halt,
+        )
+
+
+EMPTY_TEXT = "<empty>"
+
+
+def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
+    """Every local entry as `std::to_string` prints it (so 2 and 2.0 differ: "2" vs "2.000000")."""
+    out = {}
+    for key in board.get_keys():
+        try:
+            out[key] = board.get_string(key)
+        except Exception:  # noqa: BLE001 - an entry declared but never written cannot be read
+            out[key] = EMPTY_TEXT
+    return dict(sorted(out.items()))
+
+
+def coral_board_text(board: bt.Blackboard) -> dict[str, str]:
+    from coral.bt.anyvalue import EMPTY, std_to_string
+
+    out = {}
+    for key in board.keys():
+        value = board.storage[key].value
+        out[key] = EMPTY_TEXT if value is EMPTY else std_to_string(value)
+    return dict(sorted(out.items()))
 
 
 # ----------------------------------------------------------------------------------------- BT.CPP
@@ -97,10 +139,14 @@ def run_btcpp(
     int_vars: dict[str, int] | None = None,
     log_transitions: bool = True,
     batch: list[_Pending] | None = None,
+    observe: bool = False,
 ) -> Run:
     factory = btpy.BehaviorTreeFactory()
+    calls: list[tuple[str, tuple[tuple[str, str], ...]]] = []
 
     def on_start(node: btpy.TreeNode) -> btpy.NodeStatus:
+        if observe:
+            calls.append((node.name(), tuple(btcpp_board_text(node.config().blackboard).items())))
         return TO_BTCPP[outcomes.next(node.name())]
 
     def on_halted(node: btpy.TreeNode) -> None:
@@ -137,14 +183,28 @@ def run_btcpp(
     statuses: list[object] = []
     verdict, error = "LOADED", ""
     tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
+    run = Run(verdict, statuses, [], error)
     for _ in range(ticks):
         try:
             statuses.append(BTCPP_STATUS[tick()])
         except Exception as err:  # noqa: BLE001 - a tick exception is compared as a verdict
             statuses.append(ERROR)
-            verdict, error = "TICKERR", str(err)
+            run.verdict, run.error = "TICKERR", str(err)
+        if observe:
+            run.calls.append(list(calls))
+            calls.clear()
+            run.boards.append(btcpp_board_text(tree.root_blackboard()))
+        if run.verdict == "TICKERR":
             break
-    run = Run(verdict, statuses, [], error)
+    if observe:
+        outcomes.halts.clear()
+        try:
+            tree.halt_tree()
+        except Exception as err:  # noqa: BLE001 - an _onHalted script may throw
+            run.halted.append(ERROR)
+            run.error = run.error or str(err)
+        run.halted[:0] = list(outcomes.halts)
+        run.after_halt = btcpp_board_text(tree.root_blackboard())
     pending = _Pending(logger, tree, log_path, run)
     if batch is not None:
         batch.append(pending)
@@ -198,9 +258,13 @@ def stub_registry(
 
     class Leaf(StatefulAction):
         def on_start(self) -> bt.Status:
+            if outcomes.calls is not None:
+                outcomes.calls.append((self.name, tuple(coral_board_text(self.board).items())))
             return bt.Status(outcomes.next(self.name))
 
         def on_running(self) -> bt.Status:
+            if outcomes.calls is not None:
+                outcomes.calls.append((self.name, tuple(coral_board_text(self.board).items())))
             return bt.Status(outcomes.next(self.name))
 
         def on_halted(self) -> None:
@@ -240,7 +304,10 @@ def run_coral(
     registry: bt.NodeRegistry | None = None,
     int_vars: dict[str, int] | None = None,
     prepare: Callable[[bt.Tree], None] | None = None,
+    observe: bool = False,
 ) -> Run:
+    if observe:
+        outcomes.calls = []
     registry = registry or stub_registry(outcomes)
     transitions: list[tuple[int, int]] = []
     try:
@@ -255,13 +322,26 @@ def run_coral(
     if prepare is not None:
         prepare(tree)
     tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
-    statuses: list[object] = []
-    verdict, error = "LOADED", ""
+    run = Run("LOADED", [], transitions)
     for _ in range(ticks):
         try:
-            statuses.append(int(tick()))
+            run.statuses.append(int(tick()))
         except bt.BTRuntimeError as err:
-            statuses.append(ERROR)
-            verdict, error = "TICKERR", str(err)
+            run.statuses.append(ERROR)
+            run.verdict, run.error = "TICKERR", str(err)
+        if observe:
+            run.calls.append(list(outcomes.calls or []))
+            (outcomes.calls or []).clear()
+            run.boards.append(coral_board_text(tree.root_blackboard))
+        if run.verdict == "TICKERR":
             break
-    return Run(verdict, statuses, transitions, error)
+    if observe:
+        outcomes.halts.clear()
+        try:
+            tree.halt()
+        except bt.BTRuntimeError as err:
+            run.halted.append(ERROR)
+            run.error = run.error or str(err)
+        run.halted[:0] = list(outcomes.halts)
+        run.after_halt = coral_board_text(tree.root_blackboard)
+    return run

@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from coral.bt.anyvalue import std_to_string
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -51,8 +52,10 @@ def normalize_type(type_name: str) -> str:
     """Maps C++/Python spellings onto: any, string, int, double, bool, NodeStatus, list:<elem>, or itself."""
     t = (type_name or "any").strip()
     low = t.lower()
-    if low in ("", "any", "bt::any", "anytypeallowed", "object"):
+    if low in ("", "any", "anytypeallowed", "object"):
         return "any"
+    if low == "bt::any":
+        return "Any"
     if low in _STRING:
         return "string"
     if low in _INT:
@@ -71,7 +74,8 @@ def normalize_type(type_name: str) -> str:
 
 
 def is_typed(norm: str) -> bool:
-    return norm not in ("any", "string")
+    """Does a literal for this type need converting (and checking at load time)?"""
+    return norm not in ("any", "Any", "string")
 
 
 def convert_bool(text: str) -> bool:
@@ -102,7 +106,7 @@ def convert_double(text: str) -> float:
 
 def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
     """Converts a literal string to `type_name` (already normalized); raises ValueError."""
-    if type_name == "any" or type_name == "string":
+    if type_name == "any" or type_name == "string" or type_name == "Any":
         return text
     if type_name == "int":
         return convert_int(text, enums)
@@ -143,7 +147,7 @@ def _auto_number(part: str) -> Any:
 
 def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
     """Makes a stored value fit a typed port (strings are parsed, integral doubles become ints)."""
-    if type_name == "any":
+    if type_name == "any" or type_name == "Any":
         return value
     if isinstance(value, str):
         return convert_string(value, type_name, enums)
@@ -160,7 +164,7 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
     if type_name == "bool" and isinstance(value, (int, float)):
         return value != 0
     if type_name == "string" and isinstance(value, (int, float)):
-        return repr(value) if isinstance(value, float) else str(value)
+        return std_to_string(value)
     return value
 
 

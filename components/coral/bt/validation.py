@@ -25,13 +25,33 @@ _FIXED_CHILDREN = {
 }
 
 
+def verify_structure(doc: TreeDocument, registry: NodeRegistry) -> None:
+    """BT.CPP's load-time check of every `<BehaviorTree>` in the document, instantiated or not:
+    known node types and child counts. Raises the first problem as a BTLoadError."""
+    for tree in doc.trees.values():
+        if tree.root is None:
+            raise BTLoadError(
+                f'The node <BehaviorTree ID="{tree.tree_id}"> must have exactly 1 child',
+                file=tree.file,
+                line=tree.line,
+            )
+        for el in tree.root.walk():
+            spec = registry.get(el.node_id)
+            if spec is None:
+                raise _err(el, f"Node not recognized: {el.node_id}")
+            n = len(el.children)
+            if spec.kind == NodeKind.DECORATOR and n != 1:
+                raise _err(el, f"decorator <{el.node_id}> needs exactly 1 child, has {n}")
+            if spec.kind == NodeKind.CONTROL and n == 0:
+                raise _err(el, f"control node <{el.node_id}> needs at least 1 child(ren), has 0")
+            if spec.kind in (NodeKind.ACTION, NodeKind.CONDITION, NodeKind.SUBTREE) and n:
+                raise _err(el, f"<{el.node_id}> may not have children, has {n}")
+
+
 def validate_document(doc: TreeDocument, registry: NodeRegistry) -> list[BTLoadError]:
+    """Every problem in every `<BehaviorTree>` of the document (not only the main tree's)."""
     errors: list[BTLoadError] = []
-    try:
-        trees = doc.reachable_trees()
-    except BTLoadError as err:
-        return [err]
-    for tree in trees:
+    for tree in doc.trees.values():
         if tree.root is not None:
             for el in tree.root.walk():
                 errors.extend(_check_element(el, doc, registry))

@@ -194,6 +194,7 @@ def test_a_format_3_file_loads_with_its_v3_constructs_converted() -> None:
     warnings = "\n".join(doc.warnings)
     for expected in ("wrapped in {}", "__shared_blackboard", "success_threshold", "BlackboardCheckInt"):
         assert expected in warnings
-    tree = doc.build(registry)
+    # A host-typed entry: BT.CPP gives a SetBlackboard string nothing to convert it with otherwise.
+    tree = doc.build(registry, blackboard={"goal": 0})
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("shared") == "yes"

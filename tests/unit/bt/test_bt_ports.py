@@ -46,8 +46,8 @@ def test_an_entry_keeps_the_type_of_the_first_port_that_created_it() -> None:
     registry = bt.NodeRegistry.with_builtins()
     with pytest.raises(
         bt.BTLoadError,
-        match=r"port \[n\] was initially created with type int and later type "
-        r"NodeStatus",
+        match=r"port \[n\] was initially created with type \[int\] and, later type "
+        r"\[NodeStatus\]",
     ):
         bt.load_tree_text(xml, registry).build(registry)
 

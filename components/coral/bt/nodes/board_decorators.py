@@ -94,7 +94,7 @@ def entry_key(node: DecoratorNode | Any) -> str:
 
 
 class EntryUpdatedDecorator(DecoratorNode):
-    PORTS = [PortSpec("entry", type="any", description="Entry to check")]
+    PORTS = [PortSpec("entry", type="BT::Any", description="Entry to check")]
     IF_NOT_UPDATED: int = SKIPPED
 
     def __init__(self, name: str, config: NodeConfig) -> None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 from coral.bt.errors import BTRuntimeError
 from coral.bt.nodes.base import ControlNode, NodeConfig
 from coral.bt.ports import PortSpec
-from coral.bt.scripting.values import EPSILON
 from coral.bt.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS
+
+EPSILON = 2.220446049250313e-16  # Switch compares reals within double epsilon
 
 
 class IfThenElse(ControlNode):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from coral.bt.anyvalue import kind_of
 from coral.bt.blackboard import EMPTY
 from coral.bt.errors import BTRuntimeError, ScriptError
 from coral.bt.ports import blackboard_key, coerce_value, convert_string, normalize_type
@@ -97,8 +98,9 @@ class PortAccess:
             key = name
         if key is None:
             return False
+        port_type = normalize_type(spec.type) if spec is not None else kind_of(value)
         try:
-            self.board.set(key, value)
+            self.board.set(key, value, port_type)
         except ScriptError as err:
             raise BTRuntimeError(err.message, node_path=self.path) from None
         return True
