@@ -9,6 +9,7 @@ XML length, the instantiated tree as XML with `_uid`s, uint64 start time, then 9
 from __future__ import annotations
 
 import os
+import re
 import struct
 import tempfile
 from collections.abc import Callable
@@ -75,6 +76,7 @@ class Run:
     def trace(self, with_transitions: bool = True) -> tuple[object, ...]:
         return (
             self.verdict,
+            error_site(self.error) if self.verdict == "TICKERR" else None,
             self.statuses,
             self.transitions if with_transitions else None,
             self.calls,
@@ -85,6 +87,42 @@ class Run:
 
 
 EMPTY_TEXT = "<empty>"
+_SCRIPT_ERROR = re.compile(r"Error in script \[(.*?)\]", re.DOTALL)
+# BT.CPP 4.8 names no node in a runtime error, so an error is located by the script that raised it
+# (its text, which the generator draws per node) and by its cause. BT.CPP wraps only its own
+# RuntimeErrors with the script's text: for the causes raised as std::runtime_error (Any casts and
+# conversions) the cause alone is compared.
+_UNWRAPPED_CAUSES = (
+    "Any failed string to number conversion",
+    "Invalid floating point to integer conversion",
+    "convertFromString",
+    "Any::cast failed because it is empty",
+    "Any::copyInto fails",
+    "stod",
+    "ExprUnaryArithmetic: undefined",
+)
+_CAUSES = (
+    "Variable not found",
+    "not initialized",
+    "doesn't exist",
+    "Operation not permitted",
+    "Invalid operator",
+    "can't be converted",
+    "can't convert to",
+    "Can't convert string",
+    "once declared",
+    "Can't find the port",
+    "Can't mix different types",
+)
+
+
+def error_site(message: str) -> tuple[str, str]:
+    cause = next((c for c in _UNWRAPPED_CAUSES if c in message), "")
+    if cause:
+        return ("", cause)
+    found = _SCRIPT_ERROR.search(message)
+    cause = next((c for c in _CAUSES if c in message), "other")
+    return (found.group(1) if found else "", cause)
 
 
 def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
@@ -136,7 +174,7 @@ def run_btcpp(
     leaf_ids: tuple[str, ...] = ("Leaf",),
     cond_ids: tuple[str, ...] = ("Cond",),
     deco_ids: tuple[str, ...] = (),
-    int_vars: dict[str, int] | None = None,
+    host_vars: dict[str, object] | None = None,
     log_transitions: bool = True,
     batch: list[_Pending] | None = None,
     observe: bool = False,
@@ -159,10 +197,17 @@ def run_btcpp(
     for deco in deco_ids:
         factory.register_simple_decorator(deco, lambda status, node: status)
     board = None
-    if int_vars:
+    if host_vars:
         board = btpy.Blackboard.create()
-        for k, v in int_vars.items():
-            board.set_int(k, v)
+        for k, v in host_vars.items():
+            if isinstance(v, bool):
+                board.set_bool(k, v)
+            elif isinstance(v, int):
+                board.set_int(k, v)
+            elif isinstance(v, float):
+                board.set_double(k, v)
+            else:
+                board.set_string(k, str(v))
     try:
         if main_tree is not None:
             if file is not None:
@@ -256,27 +301,28 @@ def stub_registry(
 ) -> bt.NodeRegistry:
     registry = bt.NodeRegistry.with_builtins()
 
+    def called(node: bt.TreeNode) -> bt.Status:
+        if outcomes.calls is not None:
+            outcomes.calls.append((node.name, tuple(coral_board_text(node.board).items())))
+        return bt.Status(outcomes.next(node.name))
+
     class Leaf(StatefulAction):
         def on_start(self) -> bt.Status:
-            if outcomes.calls is not None:
-                outcomes.calls.append((self.name, tuple(coral_board_text(self.board).items())))
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
         def on_running(self) -> bt.Status:
-            if outcomes.calls is not None:
-                outcomes.calls.append((self.name, tuple(coral_board_text(self.board).items())))
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
         def on_halted(self) -> None:
             outcomes.halts.append(self.name)
 
     class Cond(ConditionNode):
         def tick(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
     class Sync(SyncAction):
         def tick(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
     class PassThrough(DecoratorNode):
         def tick(self) -> int:
@@ -302,7 +348,7 @@ def run_coral(
     file: str | None = None,
     main_tree: str | None = None,
     registry: bt.NodeRegistry | None = None,
-    int_vars: dict[str, int] | None = None,
+    host_vars: dict[str, object] | None = None,
     prepare: Callable[[bt.Tree], None] | None = None,
     observe: bool = False,
 ) -> Run:
@@ -315,7 +361,7 @@ def run_coral(
             doc = bt.load_tree_file(file, registry, main_tree=main_tree)
         else:
             doc = bt.load_tree_text(xml_text or "", registry, main_tree=main_tree)
-        tree = doc.build(registry, blackboard=dict(int_vars or {}))
+        tree = doc.build(registry, blackboard=dict(host_vars or {}))
     except bt.BTLoadError as err:
         return Run("REJECT", [], [], str(err))
     tree.add_transition_listener(lambda t: transitions.append((t.uid, int(t.status))))

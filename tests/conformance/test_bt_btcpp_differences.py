@@ -26,9 +26,9 @@ def both(
     )
     # Node transitions are left to the random differential test (it batches BT.CPP's file logger).
     theirs = run_btcpp(
-        xml, Outcomes(dict(leaves or {})), ticks, int_vars=host, observe=True, log_transitions=False
+        xml, Outcomes(dict(leaves or {})), ticks, host_vars=host, observe=True, log_transitions=False
     )
-    ours = run_coral(xml, Outcomes(dict(leaves or {})), ticks, int_vars=host, observe=True)
+    ours = run_coral(xml, Outcomes(dict(leaves or {})), ticks, host_vars=host, observe=True)
     assert ours.trace(False) == theirs.trace(False), f"BT.CPP: {theirs.error}\ncoral: {ours.error}"
     return theirs
 

@@ -52,7 +52,7 @@ def std_to_string(value: Any) -> str:
 def to_int64(value: float) -> int:
     """BT.CPP's checked double -> int64 conversion: only integral values convert."""
     if math.isnan(value) or math.isinf(value) or value != int(value):
-        raise ValueError(f"floating point {std_to_string(value)} would be truncated converting to int")
+        raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
     return int(value)
 
 
@@ -67,9 +67,11 @@ def copy_into(dst: Any, value: Any) -> Any:
         if isinstance(dst, float):
             return float(value)
         if isinstance(value, float):
-            return to_int64(value)
+            if math.isfinite(value) and value == int(value):
+                return int(value)
+            raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
         return int(value)
-    raise ValueError(f"a value of type [{kind_of(value)}] can't be converted to [{kind_of(dst)}]")
+    raise ValueError(f"Any::copyInto fails: [{kind_of(value)}] into [{kind_of(dst)}]")
 
 
 def casting_is_safe(declared: str, value: Any) -> bool:

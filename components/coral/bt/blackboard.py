@@ -13,7 +13,7 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-from coral.bt.anyvalue import EMPTY, UNTYPED, casting_is_safe, copy_into, is_number, kind_of
+from coral.bt.anyvalue import EMPTY, UNTYPED, casting_is_safe, copy_into, is_number, kind_of, to_int64
 from coral.bt.errors import ScriptError
 from coral.bt.ports import convert_string
 from coral.bt.scripting.values import string_to_number
@@ -143,7 +143,7 @@ class Blackboard:
             try:
                 entry.value = copy_into(entry.value, value)
             except ValueError as err:
-                raise ScriptError(f"Blackboard::set({key}): {err}") from None
+                raise ScriptError(f"Blackboard::set({key}): {err}") from None  # BT.CPP: unwrapped
         entry.touch()
 
     def get(self, key: str, default: Any = None) -> Any:
@@ -210,6 +210,8 @@ class Blackboard:
                     entry.value = convert_string(value, entry.type, self.enums)
                 except ValueError as err:
                     raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
+            elif entry.type == "Any":
+                raise ScriptError("BT.CPP has no convertFromString for BT::Any: a string can't be stored")
             elif is_number(dst):
                 entry.value = string_to_number(value, self.enums)
             else:
@@ -220,15 +222,22 @@ class Blackboard:
         else:
             try:
                 entry.value = copy_into(dst, value)
-            except ValueError as err:
-                raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
+            except ValueError:
+                raise ScriptError(
+                    f"Error assigning a value to entry [{key}]: the right operand has type "
+                    f"[{kind_of(value)}] and can't be converted to [{kind_of(dst)}]"
+                ) from None
         entry.touch()
         return entry.value
 
     def script_store(self, key: str, entry: Entry, value: Any) -> Any:
         """Result of a compound assignment (`+=` ...): converted into the entry's current kind."""
         try:
-            entry.value = copy_into(entry.value, value)
+            dst = entry.value
+            if isinstance(dst, int) and not isinstance(dst, bool) and isinstance(value, float):
+                entry.value = to_int64(value)
+            else:
+                entry.value = copy_into(dst, value)
         except ValueError as err:
             raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
         entry.touch()

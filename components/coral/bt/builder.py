@@ -170,6 +170,7 @@ class _Builder:
                 post[attr] = self._script(el, attr, path)
         node._pre = pre or None
         node._post = post or None
+        node._script_sources = {a: el.attrs[a] for a in PRE_CONDITIONS + POST_CONDITIONS if a in el.attrs}
 
     def _script(self, el: NodeElement, attr: str, path: str) -> Any:
         try:

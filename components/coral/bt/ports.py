@@ -7,6 +7,7 @@ get_input and the blackboard (converting strings written to typed entries).
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -87,21 +88,39 @@ def convert_bool(text: str) -> bool:
     raise ValueError(f"invalid bool conversion of '{text}'")
 
 
+# BT.CPP converts with std::from_chars (ints) and std::stod (doubles): both read the longest numeric
+# prefix and ignore what follows, so "2.5" is the int 2 and "3 m" the double 3.0.
+_INT_PREFIX = re.compile(r"-?[0-9]+")
+_DOUBLE_PREFIX = re.compile(
+    r"\s*[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?|nan)", re.IGNORECASE
+)
+
+
 def convert_int(text: str, enums: Mapping[str, int] | None = None) -> int:
-    s = text.strip()
-    if enums and s in enums:
-        return int(enums[s])
-    try:
-        return int(s, 0) if s.lower().startswith(("0x", "-0x")) else int(s)
-    except ValueError:
-        raise ValueError(f"cannot convert '{text}' to int") from None
+    if enums:
+        s = text.strip()
+        if s in enums:
+            return int(enums[s])
+    m = _INT_PREFIX.match(text)
+    if m is None:
+        raise ValueError(f"Can't convert string [{text}] to integer")
+    return int(m.group(0))
 
 
 def convert_double(text: str) -> float:
-    try:
-        return float(text.strip())
-    except ValueError:
-        raise ValueError(f"cannot convert '{text}' to double") from None
+    m = _DOUBLE_PREFIX.match(text)
+    if m is None:
+        raise ValueError(f"Can't convert string [{text}] to double (stod)")
+    return float(m.group(0))
+
+
+def has_trailing_text(text: str, type_name: str) -> bool:
+    """Would BT.CPP ignore part of this literal (a numeric prefix followed by more text)?"""
+    pattern = _INT_PREFIX if type_name == "int" else _DOUBLE_PREFIX if type_name == "double" else None
+    if pattern is None:
+        return False
+    m = pattern.match(text)
+    return m is not None and text[m.end() :].strip() != ""
 
 
 def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = None) -> Any:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from coral.bt.errors import BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, NodeElement
-from coral.bt.ports import blackboard_key, convert_string, is_typed, normalize_type
+from coral.bt.ports import blackboard_key, convert_string, has_trailing_text, is_typed, normalize_type
 from coral.bt.scripting import compile_script
 from coral.bt.status import NodeKind, PortDirection
 
@@ -117,6 +117,10 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
                 convert_string(value, type_name, registry.enums)
             except ValueError as err:
                 out.append(_err(el, f"port [{key}] expects {port.type}: {err}"))
+            else:
+                # BT.CPP would silently use the numeric prefix; the static check points it out.
+                if value.strip() not in registry.enums and has_trailing_text(value, type_name):
+                    out.append(_err(el, f"port [{key}] expects {port.type}: '{value}' has trailing text"))
         if blackboard_key(value) is None and port.direction == PortDirection.OUTPUT:
             out.append(_err(el, f"output port [{key}] must name a blackboard entry like {{{key}}}"))
     return out

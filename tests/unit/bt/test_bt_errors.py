@@ -29,7 +29,7 @@ def wrap(body: str, extra: str = "") -> str:
         (wrap('<AlwaysSuccess colour="red"/>'), r"t.xml:3: .*port with name \[colour\]"),
         (
             wrap('<Repeat num_cycles="many"><AlwaysSuccess/></Repeat>'),
-            r"t.xml:3: .*cannot convert 'many' to int",
+            r"t.xml:3: .*Can't convert string \[many\] to integer",
         ),
         (wrap('<Script code="x := := 1"/>'), r"t.xml:3: .*invalid script"),
         (wrap('<AlwaysSuccess _skipIf="1 +"/>'), r"t.xml:3: .*invalid script in _skipIf"),

@@ -124,7 +124,13 @@ class SetBlackboard(SyncAction):
         if dst is not None and dst.type != "string" and isinstance(value, str):
             # BT.CPP parses the string with the entry's converter; an entry without one
             # (untyped, or a script's) receives an empty value.
-            if strongly_typed(dst.type) and dst.type != "Any":
+            if dst.type == "Any":
+                raise BTRuntimeError(
+                    f"Can't convert string [{value}] to type [BT::Any]: BT.CPP has no "
+                    "convertFromString for BT::Any",
+                    node_path=self.path,
+                )
+            if strongly_typed(dst.type):
                 try:
                     value = convert_string(value, dst.type, self.rt.enums)
                 except ValueError as err:

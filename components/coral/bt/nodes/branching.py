@@ -7,7 +7,7 @@ from coral.bt.nodes.base import ControlNode, NodeConfig
 from coral.bt.ports import PortSpec
 from coral.bt.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS
 
-EPSILON = 2.220446049250313e-16  # Switch compares reals within double epsilon
+EPSILON = 1.1920928955078125e-07  # Switch compares reals within float epsilon, as BT.CPP does
 
 
 class IfThenElse(ControlNode):

@@ -269,7 +269,7 @@ def _unary(op: str, operand: Fn) -> Fn:
             return float(~int(v))
         if isinstance(value, str):
             raise ScriptError(f"Invalid operator [{op}] for std::string")
-        raise ScriptError(f"The operand of the operator [{op}] is not initialized")
+        raise ScriptError(f"ExprUnaryArithmetic: undefined (the operand of [{op}] is not initialized)")
 
     return run
 
