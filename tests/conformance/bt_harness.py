@@ -102,6 +102,7 @@ _UNWRAPPED_CAUSES = (
     "ExprUnaryArithmetic: undefined",
 )
 _CAUSES = (
+    "Missing parameter",
     "Variable not found",
     "not initialized",
     "doesn't exist",

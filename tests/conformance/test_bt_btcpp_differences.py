@@ -234,9 +234,21 @@ def test_ports_of_a_tree_that_is_never_instantiated_are_not_checked() -> None:
     assert run.verdict == "LOADED"
 
 
-def test_a_subtree_literal_into_a_typed_port_is_a_load_error_not_a_script_error() -> None:
+def test_a_remap_joining_two_port_types_is_a_load_error() -> None:
     run = both(
         '<Sequence><Repeat num_cycles="{n}"><AlwaysSuccess/></Repeat><SubTree ID="S" n="{n}"/></Sequence>',
         sub("S", '<Precondition if="1" else="{n}"><AlwaysSuccess/></Precondition>'),
     )
     assert run.verdict == "REJECT" and "initially created" in run.error
+
+
+def test_a_subtree_literal_under_autoremap_loads_and_fails_only_where_it_is_read() -> None:
+    # The engine once wrote the literal into the caller's int entry while building and raised a
+    # script error from build(); BT.CPP keeps it local and fails when the Repeat inside reads it.
+    run = both(
+        '<Sequence><Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat>'
+        '<SubTree ID="S" _autoremap="true" x="abc"/></Sequence>',
+        sub("S", '<Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat>'),
+        host={"x": 1},
+    )
+    assert run.verdict == "TICKERR" and run.statuses == [ERROR] and run.boards[-1] == {"x": "1"}

@@ -61,6 +61,10 @@ def copy_into(dst: Any, value: Any) -> Any:
     destination's kind (int64 refuses a non-integral double); strings only replace strings."""
     if dst is EMPTY:
         return value
+    if not _builtin_kind(dst) and not _builtin_kind(value):
+        # Two user types: a Python behavior's output of one declared type may take several Python
+        # types (None, dict, a message); BT.CPP's C++ port always writes the same T.
+        return value
     if kind_of(dst) == kind_of(value) or (isinstance(dst, str) and isinstance(value, str)):
         return value
     if is_number(dst) and is_number(value):
@@ -72,6 +76,10 @@ def copy_into(dst: Any, value: Any) -> Any:
             raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
         return int(value)
     raise ValueError(f"Any::copyInto fails: [{kind_of(value)}] into [{kind_of(dst)}]")
+
+
+def _builtin_kind(value: Any) -> bool:
+    return isinstance(value, (int, float, str))
 
 
 def casting_is_safe(declared: str, value: Any) -> bool:

@@ -242,4 +242,3 @@ class Blackboard:
             raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
         entry.touch()
         return entry.value
-

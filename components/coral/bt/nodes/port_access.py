@@ -49,7 +49,7 @@ class PortAccess:
                 try:
                     value = convert_string(raw, type_name, self.rt.enums)
                 except ValueError as err:
-                    raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+                    raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
                 result = (None, value, type_name)
         self._port_cache[name] = result
         return result
@@ -70,7 +70,7 @@ class PortAccess:
         try:
             return coerce_value(entry.value, type_name, self.rt.enums)
         except ValueError as err:
-            raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+            raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
 
     def require_input(self, name: str) -> Any:
         value = self.get_input(name, MISSING)
@@ -99,6 +99,11 @@ class PortAccess:
         if key is None:
             return False
         port_type = normalize_type(spec.type) if spec is not None else kind_of(value)
+        try:
+            # BT.CPP's setOutput<T> takes a T: a Python value is first made one.
+            value = coerce_value(value, port_type, self.rt.enums)
+        except ValueError as err:
+            raise BTRuntimeError(f"output port [{name}]: {err}", node_path=self.path) from None
         try:
             self.board.set(key, value, port_type)
         except ScriptError as err:
