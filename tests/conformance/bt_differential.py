@@ -1,7 +1,8 @@
 """Runs seeded random trees in real BT.CPP (behaviortreepy) and in coral.bt and compares their whole
 traces: per tick the root status (a runtime error counts as a status), the leaf calls with the
 blackboard each leaf sees, the root blackboard's values as `std::to_string` prints them, the node
-transitions as BT.CPP's FileLogger records them; then haltTree() with its halts and final board.
+transitions as BT.CPP's FileLogger records them; then haltTree() with its halts and final board,
+and a few ticks after it.
 
 Used by test_bt_random_differential.py; `python tests/conformance/bt_differential.py N` runs N trees.
 """
@@ -12,7 +13,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from bt_harness import Outcomes, finish_batch, run_btcpp, run_coral
+from bt_harness import TRACE_FIELDS, Outcomes, finish_batch, run_btcpp, run_coral
 from bt_random_trees import VARS, generate
 
 TICKS = 15
@@ -68,9 +69,8 @@ def compare_random_trees(seeds: range, ticks: int = TICKS, broken_share: float =
 
 
 def describe(seed: int, gen: object, theirs: object, ours: object) -> str:
-    names = ("verdict", "error site", "statuses", "transitions", "calls", "boards", "halted", "after_halt")
     a, b = theirs.trace(), ours.trace()  # type: ignore[attr-defined]
-    first = next(n for n, x, y in zip(names, a, b, strict=True) if x != y)
+    first = next(n for n, x, y in zip(TRACE_FIELDS, a, b, strict=True) if x != y)
     return (
         f"seed {seed} ({gen.mode}) differs in {first}: BT.CPP {theirs.verdict} "  # type: ignore[attr-defined]
         f"{theirs.statuses} {theirs.error[:100]!r} vs coral {ours.verdict} {ours.statuses} "  # type: ignore[attr-defined]

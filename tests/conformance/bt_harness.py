@@ -72,6 +72,8 @@ class Run:
     boards: list[dict[str, str]] = field(default_factory=list)
     halted: list[str] = field(default_factory=list)
     after_halt: dict[str, str] = field(default_factory=dict)
+    # Ticks after haltTree(): the tree must start over as BT.CPP's does (statuses, boards).
+    restarted: list[tuple[object, dict[str, str]]] = field(default_factory=list)
 
     def trace(self, with_transitions: bool = True) -> tuple[object, ...]:
         return (
@@ -83,10 +85,23 @@ class Run:
             self.boards,
             self.halted,
             self.after_halt,
+            self.restarted,
         )
 
 
 EMPTY_TEXT = "<empty>"
+RESTART_TICKS = 3
+TRACE_FIELDS = (
+    "verdict",
+    "error site",
+    "statuses",
+    "transitions",
+    "calls",
+    "boards",
+    "halted",
+    "after_halt",
+    "restarted",
+)
 _SCRIPT_ERROR = re.compile(r"Error in script \[(.*?)\]", re.DOTALL)
 # BT.CPP 4.8 names no node in a runtime error, so an error is located by the script that raised it
 # (its text, which the generator draws per node) and by its cause. BT.CPP wraps only its own
@@ -251,6 +266,15 @@ def run_btcpp(
             run.error = run.error or str(err)
         run.halted[:0] = list(outcomes.halts)
         run.after_halt = btcpp_board_text(tree.root_blackboard())
+        if run.verdict == "LOADED" and not run.halted[-1:] == [ERROR]:
+            for _ in range(RESTART_TICKS):
+                try:
+                    status: object = BTCPP_STATUS[tick()]
+                except Exception:  # noqa: BLE001 - compared as a status
+                    status = ERROR
+                run.restarted.append((status, btcpp_board_text(tree.root_blackboard())))
+                if status == ERROR:
+                    break
     pending = _Pending(logger, tree, log_path, run)
     if batch is not None:
         batch.append(pending)
@@ -391,4 +415,13 @@ def run_coral(
             run.error = run.error or str(err)
         run.halted[:0] = list(outcomes.halts)
         run.after_halt = coral_board_text(tree.root_blackboard)
+        if run.verdict == "LOADED" and not run.halted[-1:] == [ERROR]:
+            for _ in range(RESTART_TICKS):
+                try:
+                    status: object = int(tick())
+                except bt.BTRuntimeError:
+                    status = ERROR
+                run.restarted.append((status, coral_board_text(tree.root_blackboard)))
+                if status == ERROR:
+                    break
     return run

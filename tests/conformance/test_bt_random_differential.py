@@ -1,7 +1,8 @@
 """Seeded random trees run in real BT.CPP (behaviortreepy) and in coral.bt must leave identical traces:
 per tick the root status (a runtime error counts, located by its script and cause), the leaf calls
 with the blackboard each leaf sees, the root blackboard's values, the node transitions as BT.CPP's
-FileLogger records them; then haltTree(). A share of the trees is broken on purpose.
+FileLogger records them; then haltTree() and three ticks that must start the tree over. A share of
+the trees is broken on purpose.
 
 CORAL_BT_DIFF_TREES sets how many trees run (default 2,000, about 30 s); the benchmark
 `python tests/conformance/bt_differential.py 10000` runs more.

@@ -31,7 +31,7 @@ def kind_of(value: Any) -> str:
 
 
 def is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and value is not EMPTY
+    return isinstance(value, (int, float))
 
 
 def std_to_string(value: Any) -> str:
@@ -59,7 +59,7 @@ def to_int64(value: float) -> int:
 def copy_into(dst: Any, value: Any) -> Any:
     """`Any::copyInto`: an empty destination takes the value as it is; numbers convert to the
     destination's kind (int64 refuses a non-integral double); strings only replace strings."""
-    if dst is EMPTY:
+    if type(dst) is type(value) or dst is EMPTY:
         return value
     if not _builtin_kind(dst) and not _builtin_kind(value):
         # Two user types: a Python behavior's output of one declared type may take several Python
