@@ -90,6 +90,7 @@ class Run:
 
 
 EMPTY_TEXT = "<empty>"
+OBJECT_TEXT = "<object>"  # a queue or another value BT.CPP cannot print as text
 RESTART_TICKS = 3
 TRACE_FIELDS = (
     "verdict",
@@ -147,8 +148,8 @@ def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
     for key in board.get_keys():
         try:
             out[key] = board.get_string(key)
-        except Exception:  # noqa: BLE001 - an entry declared but never written cannot be read
-            out[key] = EMPTY_TEXT
+        except Exception as err:  # noqa: BLE001 - an empty entry, or one that is no number or text
+            out[key] = EMPTY_TEXT if "hasn't been initialized" in str(err) else OBJECT_TEXT
     return dict(sorted(out.items()))
 
 
@@ -158,7 +159,12 @@ def coral_board_text(board: bt.Blackboard) -> dict[str, str]:
     out = {}
     for key in board.keys():
         value = board.storage[key].value
-        out[key] = EMPTY_TEXT if value is EMPTY else std_to_string(value)
+        if value is EMPTY:
+            out[key] = EMPTY_TEXT
+        elif isinstance(value, (int, float, str)):
+            out[key] = std_to_string(value)
+        else:
+            out[key] = OBJECT_TEXT
     return dict(sorted(out.items()))
 
 

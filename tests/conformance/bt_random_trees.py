@@ -94,6 +94,9 @@ SCRIPTS = [
     "ld := 'x'",
     "k := k + 1",
     "nk := s",
+    "lq := '1;2;3'",
+    "lq := '4'",
+    "lsq := 'b;2;a'",
 ]
 CONDITIONS = [
     "v > 2",
@@ -116,7 +119,7 @@ CONDITIONS = [
 ]
 PRE = ["_skipIf", "_successIf", "_failureIf", "_while"]
 POST = ["_onSuccess", "_onFailure", "_post", "_onHalted"]
-KEYS = ["v", "w", "h", "s", "f", "sws", "lv", "q", "_p"]
+KEYS = ["v", "w", "h", "s", "f", "sws", "lv", "q", "_p", "lq"]
 BROKEN = [
     "unused tree with a childless decorator",
     "unknown node",
@@ -238,7 +241,8 @@ class _Gen:
 
     def decorator(self, depth: int) -> str:
         rng = self.rng
-        kind = rng.choice(DECORATORS)
+        # SubTrees get a larger share: their scoping rules are where engines drift apart.
+        kind = "SubTree" if rng.random() < 0.3 else rng.choice(DECORATORS)
         self.used.add(kind)
         attrs = {"name": self.name("d")}
         if kind == "Repeat":
@@ -254,7 +258,8 @@ class _Gen:
         elif kind in ("SkipUnlessUpdated", "WaitValueUpdate"):
             attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{k}", "{@g}"])
         elif kind == "LoopInt":
-            attrs["queue"] = rng.choice(["1;2;3", "4", "2;2"])
+            # {lq} is a shared queue that scripts fill and the loop consumes in place.
+            attrs["queue"] = rng.choice(["1;2;3", "4", "2;2", "{lq}"])
             attrs["value"] = rng.choice(["{lv}", "{v}", "{k}"])
             attrs["if_empty"] = rng.choice(["SUCCESS", "FAILURE", "SKIPPED"])
         elif kind == "LoopDouble":
@@ -264,7 +269,7 @@ class _Gen:
             attrs["queue"] = rng.choice(["true;false", "0;1;1"])
             attrs["value"] = "{lb}"
         elif kind == "LoopString":
-            attrs["queue"] = rng.choice(["b;2", "1;b;3", "2"])
+            attrs["queue"] = rng.choice(["b;2", "1;b;3", "2", "{lsq}"])
             attrs["value"] = rng.choice(["{sws}", "{s}"])
         elif kind == "SubTree":
             return self.subtree(depth, attrs)

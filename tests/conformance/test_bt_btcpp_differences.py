@@ -58,6 +58,22 @@ def test_a_port_of_another_type_writing_a_typed_entry_throws() -> None:
     assert run.statuses[-1] == ERROR and "once declared" in run.error and run.boards[-1] == {"k": "1"}
 
 
+def test_a_loop_consumes_a_shared_queue_that_a_script_filled() -> None:
+    run = both(
+        "<Sequence><Script code=\"lq := '1;2;3'\"/>"
+        '<LoopInt queue="{lq}" value="{v}"><Leaf name="L"/></LoopInt></Sequence>',
+        ticks=4,
+        host={"v": 0},
+        leaves={"L": [2]},
+    )
+    assert [b["v"] for b in run.boards] == ["1", "2", "3", "3"] and run.boards[0]["lq"] == "<object>"
+
+
+def test_a_loop_over_a_declared_but_empty_queue_throws() -> None:
+    run = both('<LoopInt queue="{lq}" value="{v}"><AlwaysSuccess/></LoopInt>', host={"v": 0})
+    assert run.statuses == [ERROR]
+
+
 # 2. script assignment keeps a variable's type -------------------------------------------------
 def test_assigning_a_numeric_string_to_a_number_converts_it() -> None:
     run = both("<Script code=\"a := 1; a = '5'\"/>")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -50,7 +51,8 @@ _STATUS = {"nodestatus", "bt::nodestatus", "status"}
 
 
 def normalize_type(type_name: str) -> str:
-    """Maps C++/Python spellings onto: any, string, int, double, bool, NodeStatus, list:<elem>, or itself."""
+    """Maps C++/Python spellings onto: any, Any, string, int, double, bool, NodeStatus, list:<elem>
+    (vectors), queue:<elem> (deques and SharedQueues, which Loop nodes consume in place), or itself."""
     t = (type_name or "any").strip()
     low = t.lower()
     if low in ("", "any", "anytypeallowed", "object"):
@@ -67,10 +69,12 @@ def normalize_type(type_name: str) -> str:
         return "bool"
     if low in _STATUS:
         return "NodeStatus"
-    for prefix in ("std::vector<", "vector<", "std::deque<", "bt::sharedqueue<", "sharedqueue<", "list["):
+    for prefix in ("std::vector<", "vector<", "list["):
         if low.startswith(prefix):
-            inner = t[len(prefix) :].rstrip(">]")
-            return "list:" + normalize_type(inner)
+            return "list:" + normalize_type(t[len(prefix) :].rstrip(">]"))
+    for prefix in ("std::deque<", "deque<", "bt::sharedqueue<", "sharedqueue<"):
+        if low.startswith(prefix):
+            return "queue:" + normalize_type(t[len(prefix) :].rstrip(">]"))
     return t
 
 
@@ -137,6 +141,8 @@ def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = 
         return convert_bool(text)
     if type_name == "NodeStatus":
         return parse_status(text)
+    if type_name.startswith("queue:"):
+        return deque(convert_string(text, "list:" + type_name[6:], enums))
     if type_name.startswith("list:"):
         elem = type_name[5:]
         if text.startswith("json:"):
