@@ -294,8 +294,9 @@ class _Gen:
                 attrs[key] = "{=}"
             elif choice < 0.6:
                 attrs[key] = "{" + rng.choice(KEYS) + "}"
-            elif choice < 0.68:
+            elif choice < 0.68 and key != "lq":
                 # Non-numeric: BT.CPP 4.10 stores numeric SubTree literals as numbers, 4.8 as text.
+                # No text for a queue: 4.10 reads a text entry as a queue, 4.8 refuses it.
                 attrs[key] = rng.choice(["lit", "b", "n1"])
         return f"<SubTree{self.attrs(attrs)}/>"
 

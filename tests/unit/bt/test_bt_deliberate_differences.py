@@ -52,3 +52,16 @@ def test_static_validation_points_out_numeric_literals_with_trailing_text() -> N
     tree = doc.build(registry)
     statuses = [tree.tick_exactly_once() for _ in range(3)]  # Repeat yields between cycles
     assert statuses == [bt.Status.RUNNING, bt.Status.RUNNING, bt.Status.SUCCESS]
+
+
+def test_a_loop_reads_a_text_entry_as_a_queue_as_in_4_10() -> None:
+    # 4.8 refuses a text entry that no queue port declared; here it is a SubTree literal.
+    tree, queues = make_tree(
+        '<SubTree ID="S" lq="4;5"/>',
+        {"each": [S]},
+        trees='<BehaviorTree ID="S"><LoopInt queue="{lq}" value="{@v}"><Q name="each"/></LoopInt>'
+        "</BehaviorTree>",
+    )
+    statuses = [tree.tick_exactly_once() for _ in range(3)]
+    assert statuses == [bt.Status.RUNNING, bt.Status.RUNNING, S]
+    assert queues.calls == {"each": 2} and tree.root_blackboard.get("v") == 5

@@ -64,7 +64,10 @@ class LoopBase(DecoratorNode):
             return value  # a shared queue is consumed in place
         if isinstance(value, str):
             # BT.CPP 4.10 also reads a queue written as text ("1;2;3").
-            converted = deque(convert_string(value, "list:" + self.ELEMENT, self.rt.enums))
+            try:
+                converted = deque(convert_string(value, "list:" + self.ELEMENT, self.rt.enums))
+            except ValueError as err:
+                raise BTRuntimeError(f"[queue]: {err}", node_path=self.path) from None
             entry.value = converted
             return converted
         if isinstance(value, list):
