@@ -142,14 +142,43 @@ def error_site(message: str) -> tuple[str, str]:
     return (found.group(1) if found else "", cause)
 
 
+_NUMERIC_TEXT = re.compile(r"-?(?:[0-9]+(?:\.[0-9]+)?|inf|nan)")
+_PROBE_FACTORY: list[btpy.BehaviorTreeFactory] = []
+
+
+def _is_text_entry(board: btpy.Blackboard, key: str) -> bool:
+    """Does this entry hold text? Asked of BT.CPP itself: `key + 0` is refused for a string only."""
+    if not _PROBE_FACTORY:
+        _PROBE_FACTORY.append(btpy.BehaviorTreeFactory())
+    probe = (
+        '<root BTCPP_format="4"><BehaviorTree ID="Probe">'
+        f'<Script code="{key} + 0"/></BehaviorTree></root>'
+    )
+    tree = _PROBE_FACTORY[0].create_tree_from_text(probe, board)
+    try:
+        tree.tick_exactly_once()
+    except Exception:  # noqa: BLE001 - "Operation not permitted": the entry is a string
+        return True
+    return False
+
+
+def typed_text(text: str, is_text: bool) -> str:
+    """The value as printed, with text that reads like a number quoted so "2" and 2 differ."""
+    return f"'{text}'" if is_text and _NUMERIC_TEXT.fullmatch(text) else text
+
+
 def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
-    """Every local entry as `std::to_string` prints it (so 2 and 2.0 differ: "2" vs "2.000000")."""
+    """Every local entry as `std::to_string` prints it (so 2 and 2.0 differ: "2" vs "2.000000"),
+    numeric-looking text quoted."""
     out = {}
     for key in board.get_keys():
         try:
-            out[key] = board.get_string(key)
+            text = board.get_string(key)
         except Exception as err:  # noqa: BLE001 - an empty entry, or one that is no number or text
             out[key] = EMPTY_TEXT if "hasn't been initialized" in str(err) else OBJECT_TEXT
+            continue
+        numeric = _NUMERIC_TEXT.fullmatch(text) is not None
+        out[key] = typed_text(text, numeric and _is_text_entry(board, key))
     return dict(sorted(out.items()))
 
 
@@ -162,7 +191,7 @@ def coral_board_text(board: bt.Blackboard) -> dict[str, str]:
         if value is EMPTY:
             out[key] = EMPTY_TEXT
         elif isinstance(value, (int, float, str)):
-            out[key] = std_to_string(value)
+            out[key] = typed_text(std_to_string(value), isinstance(value, str))
         else:
             out[key] = OBJECT_TEXT
     return dict(sorted(out.items()))

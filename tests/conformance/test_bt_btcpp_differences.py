@@ -169,7 +169,7 @@ def test_set_blackboard_string_into_a_host_int_entry_converts() -> None:
 
 def test_set_blackboard_declares_a_new_entry_as_a_string() -> None:
     run = both('<Sequence><SetBlackboard value="7" output_key="n"/><Script code="n = 3"/></Sequence>')
-    assert run.statuses == [ERROR] and run.boards[-1] == {"n": "7"}
+    assert run.statuses == [ERROR] and run.boards[-1] == {"n": "'7'"}  # quoted: text
 
 
 def test_unset_blackboard_in_a_subtree_removes_only_local_entries() -> None:
