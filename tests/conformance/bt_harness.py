@@ -8,6 +8,7 @@ XML length, the instantiated tree as XML with `_uid`s, uint64 start time, then 9
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import struct
@@ -143,18 +144,19 @@ def error_site(message: str) -> tuple[str, str]:
 
 
 _NUMERIC_TEXT = re.compile(r"-?(?:[0-9]+(?:\.[0-9]+)?|inf|nan)")
-_PROBE_FACTORY: list[btpy.BehaviorTreeFactory] = []
+
+
+@functools.cache
+def _probe_factory() -> btpy.BehaviorTreeFactory:
+    return btpy.BehaviorTreeFactory()
 
 
 def _is_text_entry(board: btpy.Blackboard, key: str) -> bool:
     """Does this entry hold text? Asked of BT.CPP itself: `key + 0` is refused for a string only."""
-    if not _PROBE_FACTORY:
-        _PROBE_FACTORY.append(btpy.BehaviorTreeFactory())
     probe = (
-        '<root BTCPP_format="4"><BehaviorTree ID="Probe">'
-        f'<Script code="{key} + 0"/></BehaviorTree></root>'
+        f'<root BTCPP_format="4"><BehaviorTree ID="Probe"><Script code="{key} + 0"/></BehaviorTree></root>'
     )
-    tree = _PROBE_FACTORY[0].create_tree_from_text(probe, board)
+    tree = _probe_factory().create_tree_from_text(probe, board)
     try:
         tree.tick_exactly_once()
     except Exception:  # noqa: BLE001 - "Operation not permitted": the entry is a string
