@@ -94,6 +94,7 @@ SCRIPTS = [
     "ld := 'x'",
     "k := k + 1",
     "nk := s",
+    "entry := v",
     "lq := '1;2;3'",
     "lq := '4'",
     "lsq := 'b;2;a'",
@@ -203,7 +204,7 @@ class _Gen:
         elif kind == "UnsetBlackboard":
             attrs["key"] = rng.choice(["sws", "v", "s", "_p", "nk", "lv"])
         elif kind == "WasEntryUpdated":
-            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{f}"])
+            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{f}", "{=}"])
         self.conditions(attrs)
         return f"<{kind}{self.attrs(attrs)}/>"
 
@@ -256,7 +257,7 @@ class _Gen:
             attrs["if"] = rng.choice(CONDITIONS)
             attrs["else"] = rng.choice(["FAILURE", "SUCCESS", "RUNNING"])
         elif kind in ("SkipUnlessUpdated", "WaitValueUpdate"):
-            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{k}", "{@g}"])
+            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{k}", "{@g}", "{=}"])
         elif kind == "LoopInt":
             # {lq} is a shared queue that scripts fill and the loop consumes in place.
             attrs["queue"] = rng.choice(["1;2;3", "4", "2;2", "{lq}"])

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from coral.bt.anyvalue import kind_of
 from coral.bt.blackboard import Blackboard, Entry, strongly_typed
 from coral.bt.errors import BTError, BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, RESERVED_ATTRS, NodeElement, TreeDocument
@@ -213,8 +214,10 @@ class _Builder:
                 # Only an alias: the caller's entry appears when something writes through it.
                 child_board.remap[key] = target_key
             else:
-                # A literal stays in the subtree's own board, even with _autoremap.
-                entry = Entry("any", literal_value(value))
+                # A literal stays in the subtree's own board, even with _autoremap; 4.10 declares
+                # a numeric one with its number type, text stays untyped.
+                literal = literal_value(value)
+                entry = Entry("any" if isinstance(literal, str) else kind_of(literal), literal)
                 entry.touch()
                 child_board.storage[key] = entry
         return self.create(target.root, child_board, path + "/", stack + [tree_id])
