@@ -101,6 +101,11 @@ def test_concatenation_prints_doubles_like_std_to_string() -> None:
     assert run.boards[-1] == {"s": "ab1.000000", "t": "ab1", "u": "x0.333333"}
 
 
+def test_concatenating_two_numbers_gives_an_empty_value() -> None:
+    run = both('<Sequence><Script code="x := 1 .. 2"/></Sequence>')
+    assert run.statuses == [ERROR] and "not initialized" in run.error
+
+
 def test_a_chained_comparison_stops_at_the_first_false_pair() -> None:
     run = both('<ScriptCondition code="5 &lt; 1 &lt;= zz"/>')
     assert run.statuses == [3]

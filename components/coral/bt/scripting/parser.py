@@ -216,6 +216,8 @@ def _arith(op: str, a: Any, b: Any) -> Any:
             return 1.0 if (a != 0 and b != 0) else 0.0
         if op == "||":
             return 1.0 if (a != 0 or b != 0) else 0.0
+        # `..` between two numbers falls through BT.CPP's operator to an empty result.
+        return EMPTY
     elif isinstance(a, str) and isinstance(b, str) and op == "+":
         return a + b
     elif (

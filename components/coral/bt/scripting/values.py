@@ -46,7 +46,7 @@ def truthy(v: object) -> bool:
             return False
         return True
     if v is EMPTY:
-        raise ScriptError("the script's result is not initialized")
+        raise ScriptError("Any::cast failed because it is empty (the script's result)")
     if isinstance(v, (int, float)):
         return v != 0
     return bool(v)
