@@ -169,10 +169,6 @@ class Blackboard:
     def as_dict(self) -> dict[str, Any]:
         return {k: e.value for k, e in self.storage.items() if e.value is not EMPTY}
 
-    def types(self) -> dict[str, str]:
-        """Declared type of every local entry (`any`/`Any` for untyped ones)."""
-        return {k: e.type for k, e in self.storage.items()}
-
     # scripting interface ------------------------------------------------------------------
     def script_read(self, key: str) -> Any:
         """The value (EMPTY when the entry was declared but never written); a missing key throws."""
