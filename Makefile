@@ -54,5 +54,6 @@ test-kind: venv
 
 bench: bench-bt bench-calls bench-slam bench-fleet
 
+# `make bench PLOT=figures` also writes the fleet and SLAM figures as PNGs into figures/.
 bench-bt bench-calls bench-slam bench-fleet: venv
-	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f; else echo "$$f: not written yet"; fi
+	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f $(if $(and $(PLOT),$(filter bench-fleet bench-slam,$@)),--plot $(PLOT)); else echo "$$f: not written yet"; fi

@@ -12,7 +12,6 @@ Rounds alternate so machine load hits both alike. Prints BENCH lines (DESIGN sec
 
 from __future__ import annotations
 
-import fcntl
 import os
 import statistics
 import subprocess
@@ -23,6 +22,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from coral_testbed.missions import domains
+
 CALLS_PER_ROUND = 300
 ROUNDS = 3
 WARMUP = 30
@@ -30,21 +31,6 @@ TARGET_RATIO = 1.5
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main"><Repeat num_cycles="{cycles}"><Count count="{{c}}"/></Repeat></BehaviorTree>
 </root>"""
-
-
-def _claim_domain() -> int:
-    """A ROS domain no test or other benchmark holds (same lock folder as the test fixture)."""
-    lock_dir = Path(tempfile.gettempdir()) / "coral-ros-domains"
-    lock_dir.mkdir(parents=True, exist_ok=True)
-    for domain in range(101, 0, -1):
-        fd = os.open(lock_dir / f"{domain}.lock", os.O_CREAT | os.O_RDWR, 0o666)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            continue
-        return domain  # the descriptor stays open (and the lock held) until this process exits
-    raise RuntimeError("no free ROS domain")
 
 
 def _start_skillset(plugins: Path) -> subprocess.Popen[bytes]:
@@ -107,7 +93,8 @@ def _behavior_round(context: Any, plugins: Path, calls: int) -> list[float]:
 
 
 def main() -> int:
-    os.environ["ROS_DOMAIN_ID"] = str(_claim_domain())
+    domain, _lock = domains.claim_domain(highest_first=True)  # held until this process exits
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     from coral.executor.context import ExecutorContext

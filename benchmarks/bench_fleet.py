@@ -1,8 +1,9 @@
 """Benchmark: one CoralSystem over 100, 500 and 1000 kwok robots against a DaemonSet (DESIGN section 8).
 
 Run by `make bench-fleet` (part of `make bench`); `python benchmarks/bench_fleet.py 100` runs one
-size. For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
-scheduler, kwok) with that many kwok robots, in the same run:
+size; `--plot DIR` also draws the times against robot count into DIR/fleet.png. For each size, on
+a fresh local control plane (etcd, kube-apiserver, controller manager, scheduler, kwok) with that
+many kwok robots, in the same run:
 
 1. DaemonSet: one pod with the same three containers per robot; time until every pod is Ready,
    then a rolling update (`maxUnavailable: 10%`) after one environment variable changes.
@@ -22,11 +23,13 @@ operator, its CPU time and the request kinds it spent most on (the profile behin
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import plots
 from coral_testbed.cluster import controlplane
 from fleet import audit, coral, daemonset, robots
 from kubernetes import client as k8s
@@ -67,7 +70,7 @@ def note(text: str) -> None:
     print(f"# {text}", flush=True)
 
 
-def run_size(count: int, work: Path) -> None:
+def run_size(count: int, work: Path) -> plots.FleetPoint:
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -150,6 +153,13 @@ def run_size(count: int, work: Path) -> None:
             "<=",
             round(REQUESTS_ALLOWANCE * ds_per_robot, 1),
         )
+        return plots.FleetPoint(
+            robots=count,
+            coral_ready_s=result.ready_seconds,
+            coral_update_s=result.update_seconds,
+            daemonset_ready_s=ds.ready_seconds,
+            daemonset_update_s=ds.update_seconds,
+        )
     finally:
         if operator is not None:
             operator.stop()
@@ -194,10 +204,16 @@ def _apply_crds(env: dict[str, str]) -> bool:
 
 
 def main(argv: list[str]) -> int:
-    sizes = [int(a) for a in argv] or list(SIZES)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("sizes", nargs="*", type=int, help=f"robot counts (default: {SIZES})")
+    parser.add_argument("--plot", type=Path, metavar="DIR", help="also write fleet.png into DIR")
+    args = parser.parse_args(argv)
+    points = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
-        for count in sizes:
-            run_size(count, Path(folder) / f"n{count}")
+        for count in args.sizes or SIZES:
+            points.append(run_size(count, Path(folder) / f"n{count}"))
+    if args.plot is not None:
+        note(f"plot: {plots.fleet_times(points, args.plot)}")
     return 0
 
 

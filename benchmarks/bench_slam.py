@@ -26,7 +26,8 @@ The machine is shared, so the two sides alternate (`--repeat` pairs, in ABBA ord
 trend favours neither) and the ratio is judged on the median of the per-pair ratios (each pair ran
 under similar load); the worst pair and the best ratio (best Coral over best KISS-ICP) are printed
 too. Both trajectories are scored the same way (ATE after rigid alignment, coral.lidar.trajectory).
-Run: `python benchmarks/bench_slam.py [--scans N] [--seed S] [--repeat R]` (prints BENCH lines).
+Run: `python benchmarks/bench_slam.py [--scans N] [--seed S] [--repeat R] [--plot DIR]` (prints BENCH
+lines; with --plot, also DIR/slam_throughput.png).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import plots
 import yaml
 from coral.lidar import demo, generating, trajectory
 
@@ -84,11 +86,15 @@ def kiss_icp_pipeline(dataset: Path, scratch: Path, threads: int) -> Run:
     from kiss_icp.pipeline import OdometryPipeline
 
     config = scratch / "kiss_icp.yaml"
-    config.write_text(yaml.safe_dump({
-        "out_dir": str(scratch / "kiss"),
-        "data": {"max_range": 40.0, "min_range": 0.3, "deskew": True},
-        "registration": {"max_num_threads": threads},
-    }))
+    config.write_text(
+        yaml.safe_dump(
+            {
+                "out_dir": str(scratch / "kiss"),
+                "data": {"max_range": 40.0, "min_range": 0.3, "deskew": True},
+                "registration": {"max_num_threads": threads},
+            }
+        )
+    )
     loader = RosbagDataset(dataset / "bag", topic=generating.POINTS_TOPIC)
     pipeline = OdometryPipeline(loader, config=config)
     with contextlib.redirect_stderr(io.StringIO()):  # its progress bar
@@ -121,7 +127,8 @@ def coral_run(dataset: Path, scratch: Path, threads: int) -> Run:
     if code != 0:
         raise SystemExit(f"coral run failed with exit code {code}; logs in {scratch / 'state'}")
     stats = json.loads((output / "slam_map.stats.json").read_text())
-    scans, _, error, _ = demo.score(output, dataset)
+    evaluation = demo.evaluate(output, dataset, draw=False)
+    scans, error = evaluation.scans, evaluation.error
     assert error is not None
     detail = (
         f"{stats['delivered']} scans in {stats['process_calls']} calls, {stats['active_s']:.2f} s "
@@ -144,6 +151,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--repeat", type=int, default=5, help="KISS-ICP/Coral pairs (odd: a true median)")
     parser.add_argument("--threads", type=int, default=0, help="KISS-ICP threads, both sides (0: all cores)")
+    parser.add_argument("--plot", type=Path, metavar="DIR", help="also write slam_throughput.png into DIR")
     args = parser.parse_args()
     dataset = generating.cached_dataset(generating.BagParams(seed=args.seed, scans=args.scans))
     # Kept when a run fails (coral_run exits with its path), for the components' logs.
@@ -159,8 +167,10 @@ def main() -> None:
             kiss = kiss_icp_process(dataset, scratch, args.threads)
         pairs.append((kiss, coral))
         print(f"pair {index + 1}: kiss-icp {kiss.scans_per_s:.1f} scans/s ({kiss.detail})")
-        print(f"pair {index + 1}: coral    {coral.scans_per_s:.1f} scans/s ({coral.detail}); "
-              f"ratio {coral.scans_per_s / kiss.scans_per_s:.2f}")
+        print(
+            f"pair {index + 1}: coral    {coral.scans_per_s:.1f} scans/s ({coral.detail}); "
+            f"ratio {coral.scans_per_s / kiss.scans_per_s:.2f}"
+        )
     shutil.rmtree(scratch, ignore_errors=True)
     kiss_runs, coral_runs = [k for k, _ in pairs], [c for _, c in pairs]
     ratios = [c.scans_per_s / k.scans_per_s for k, c in pairs]
@@ -168,10 +178,20 @@ def main() -> None:
     best_coral = max(run.scans_per_s for run in coral_runs)
     kiss_ate = statistics.median(run.ate_m for run in kiss_runs)
     coral_ate = statistics.median(run.ate_m for run in coral_runs)
-    bench("slam_kiss_icp_pipeline_scans_per_s", statistics.median(r.scans_per_s for r in kiss_runs),
-          "scans/s", ">=", 0)
-    bench("slam_coral_scans_per_s", statistics.median(r.scans_per_s for r in coral_runs), "scans/s", ">=",
-          THROUGHPUT_TARGET * statistics.median(r.scans_per_s for r in kiss_runs))
+    bench(
+        "slam_kiss_icp_pipeline_scans_per_s",
+        statistics.median(r.scans_per_s for r in kiss_runs),
+        "scans/s",
+        ">=",
+        0,
+    )
+    bench(
+        "slam_coral_scans_per_s",
+        statistics.median(r.scans_per_s for r in coral_runs),
+        "scans/s",
+        ">=",
+        THROUGHPUT_TARGET * statistics.median(r.scans_per_s for r in kiss_runs),
+    )
     bench("slam_throughput_ratio", statistics.median(ratios), "x", ">=", THROUGHPUT_TARGET)
     bench("slam_throughput_ratio_worst", min(ratios), "x", ">=", 0)
     bench("slam_throughput_ratio_best", best_coral / best_kiss, "x", ">=", THROUGHPUT_TARGET)
@@ -179,6 +199,9 @@ def main() -> None:
     bench("slam_coral_ate", coral_ate, "m", "<=", ERROR_TARGET * kiss_ate)
     bench("slam_ate_ratio", coral_ate / kiss_ate, "x", "<=", ERROR_TARGET)
     bench("slam_coral_scans_processed", min(run.scans for run in coral_runs), "scans", ">=", args.scans)
+    if args.plot is not None:
+        drawn = plots.slam_throughput([(k.scans_per_s, c.scans_per_s) for k, c in pairs], args.plot)
+        print(f"# plot: {drawn}")
 
 
 if __name__ == "__main__":

@@ -24,6 +24,11 @@ apiVersion: v1
 kind: Namespace
 metadata:
   name: {NAMESPACE}
+  labels:
+    # The operator's own pod meets Pod Security's restricted level; nothing else runs here.
+    pod-security.kubernetes.io/enforce: restricted
+    pod-security.kubernetes.io/enforce-version: latest
+    pod-security.kubernetes.io/warn: restricted
 """
 
 

@@ -40,7 +40,8 @@ class OperatorProcess:
         self._stop = threading.Event()
         self.process = subprocess.Popen(
             [sys.executable, "-m", "coral_operator", "-n", namespace],
-            env={**env, "PYTHONUNBUFFERED": "1"},
+            # The benchmark's systems use the host network, as robots running DDS do.
+            env={**env, "CORAL_POLICY_HOST_NETWORK_NAMESPACES": namespace, "PYTHONUNBUFFERED": "1"},
             stdout=log.open("w"),
             stderr=subprocess.STDOUT,
             start_new_session=True,

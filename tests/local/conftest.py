@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 import yaml
 from coral.lidar.generating import BagParams, generate
+from fixtures.processes import Spawn
+from run_helpers import StartRun, coral
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "lidar-slam"
 SHORT_BAG = BagParams(seed=11, scans=40)
@@ -39,3 +42,20 @@ def example_copy(tmp_path: Path) -> Callable[..., Path]:
 def run_env(ros_env: dict[str, str], tmp_path: Path, short_bag: Path) -> dict[str, str]:
     """Environment for `coral run`: private ROS domain, private state folder, the short bag."""
     return {**ros_env, "CORAL_STATE_DIR": str(tmp_path / "state"), "CORAL_BAG": str(short_bag / "bag")}
+
+
+@pytest.fixture
+def start_run(spawned: Spawn, run_env: dict[str, str]) -> StartRun:
+    """Starts `coral run EXAMPLE --output OUTPUT --no-live [EXTRA...]` in the test's environment,
+    stdout and stderr together as text (read them with `communicate`)."""
+
+    def start(example: Path, output: Path, *extra: str) -> subprocess.Popen[str]:
+        return spawned(
+            coral("run", str(example), "--output", str(output), "--no-live", *extra),
+            env=run_env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+
+    return start

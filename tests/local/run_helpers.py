@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from coral.local import state
+
+StartRun = Callable[..., "subprocess.Popen[str]"]
+"""The `start_run` fixture: `start_run(example, output, *extra)` starts `coral run` (see conftest)."""
 
 
 def coral(*args: str) -> list[str]:
@@ -25,14 +30,7 @@ def component_pids(env: dict[str, str]) -> list[int]:
 
 
 def alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
-    except OSError:
-        return False
+    return state.pid_alive(pid)
 
 
 def interrupt(process: subprocess.Popen[Any]) -> None:

@@ -12,22 +12,16 @@ from pathlib import Path
 import pytest
 from coral_testbed.waiting import wait_for
 from fixtures.processes import Spawn
-from run_helpers import alive, component_pids, coral, interrupt, run_records, tree_running
+from run_helpers import StartRun, alive, component_pids, coral, interrupt, run_records, tree_running
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def test_sigint_mid_mission_stops_every_component_and_exits_non_zero(
-    spawned: Spawn, run_env: dict[str, str], example_copy: Callable[..., Path], tmp_path: Path
+    start_run: StartRun, run_env: dict[str, str], example_copy: Callable[..., Path], tmp_path: Path
 ) -> None:
     example = example_copy(rate=0.2)  # 40 scans over 20 s: still running when interrupted
-    process = spawned(
-        coral("run", str(example), "--output", str(tmp_path / "out"), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, tmp_path / "out")
     wait_for(lambda: tree_running(run_env), timeout=120, message="the mission to be running")
     pids = component_pids(run_env)
     assert len(pids) == 4 and all(alive(pid) for pid in pids)
@@ -44,16 +38,10 @@ def test_sigint_mid_mission_stops_every_component_and_exits_non_zero(
 
 
 def test_a_crashing_skillset_is_reported_and_ends_the_run(
-    spawned: Spawn, run_env: dict[str, str], example_copy: Callable[..., Path], tmp_path: Path
+    start_run: StartRun, run_env: dict[str, str], example_copy: Callable[..., Path], tmp_path: Path
 ) -> None:
     example = example_copy(rate=0.2)
-    process = spawned(
-        coral("run", str(example), "--output", str(tmp_path / "out"), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, tmp_path / "out")
     wait_for(lambda: tree_running(run_env), timeout=120, message="the mission to be running")
     slam = next(c for c in run_records(run_env)[0]["components"] if c["name"] == "slam")
     pids = component_pids(run_env)

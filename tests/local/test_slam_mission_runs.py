@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 import yaml
-from coral.lidar import demo
+from coral import tree_picture
+from coral.lidar import demo, picture
+from coral.local.console import outline_of
 from coral_testbed.waiting import wait_for
-from fixtures.processes import Spawn
-from run_helpers import alive, component_pids, coral, node_successes, run_records
+from fixtures import pictures
+from run_helpers import StartRun, alive, component_pids, node_successes, run_records
 
 # Measured on this 40-scan bag through Coral: 0.04 m (the same as KISS-ICP's own pipeline).
 ATE_BOUND_M = 0.25
@@ -21,7 +22,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_error(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -29,22 +30,30 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
 ) -> None:
     example = example_copy(rate=2.0)
     output = tmp_path / "out"
-    process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output, "--tree-png", str(tmp_path / "tree.png"))
     log, _ = process.communicate(timeout=240)
     assert process.returncode == 0, log
     assert "tree SUCCESS" in log and "Executor executor finished: tree SUCCESS, exit code 0" in log
 
-    scans, total, error, points = demo.score(output, short_bag)
-    assert scans == total == 40
-    assert points > 1000 and (output / "slam_map.ply").stat().st_size > 12 * 1000
-    assert error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag)
+    assert evaluation.scans == evaluation.ground_truth_scans == 40
+    assert evaluation.map_points > 1000 and (output / "slam_map.ply").stat().st_size > 12 * 1000
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
+    # The picture beside the map shows the map, the estimate (red) over the ground truth (green).
+    assert evaluation.picture_path == output / "slam_map.png"
+    rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
+    assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
     assert list((output / "snapshots").glob("snapshot-*/snapshot.json"))
+
+    # The tree picture: the SLAM nodes in the colours of their last results, the path printed.
+    assert f"Tree picture: {tmp_path / 'tree.png'}" in log
+    outline = outline_of(example / "tree.xml")
+    rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
+    green, red = (
+        tuple(int(tree_picture.FILL[s][i : i + 2], 16) for i in (1, 3, 5)) for s in ("SUCCESS", "FAILURE")
+    )
+    assert pictures.count_near(rgb, green, 6) > 1000  # most nodes succeeded last
+    assert pictures.count_near(rgb, red, 6) > 100  # ForceFailure and the iteration it wraps failed
 
     record = run_records(run_env)[0]
     assert record["state"] == "finished" and record["exit_code"] == 0
@@ -52,7 +61,7 @@ def test_the_example_mission_ends_in_success_with_a_map_and_a_small_trajectory_e
 
 
 def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -63,13 +72,7 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
 
     example = example_copy(rate=0.2)  # 40 scans over 20 s: stopped long before the data ends
     output = tmp_path / "out"
-    process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output)
     # Two ProcessScan successes mean at least two registered scans, the fewest a trajectory
     # error can be computed from; a stop sent earlier would leave nothing to score.
     wait_for(
@@ -94,13 +97,13 @@ def test_a_stop_signal_ends_the_mission_early_with_the_map_saved(
         rclpy.shutdown(context=context)
     log, _ = process.communicate(timeout=60)
     assert process.returncode == 0, log
-    scans, total, error, points = demo.score(output, short_bag)
-    assert 0 < scans < total and points > 0
-    assert error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag, draw=False)
+    assert 0 < evaluation.scans < evaluation.ground_truth_scans and evaluation.map_points > 0
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
 
 
 def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_batches(
-    spawned: Spawn,
+    start_run: StartRun,
     run_env: dict[str, str],
     example_copy: Callable[..., Path],
     short_bag: Path,
@@ -111,18 +114,13 @@ def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_
     params["slam"]["ros__parameters"]["subscribe_on_enable"] = True
     (example / "params.yaml").write_text(yaml.safe_dump(params))
     output = tmp_path / "out"
-    process = spawned(
-        coral("run", str(example), "--output", str(output), "--no-live"),
-        env=run_env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process = start_run(example, output)
     log, _ = process.communicate(timeout=240)
     assert process.returncode == 0, log
 
-    scans, total, error, _ = demo.score(output, short_bag)
-    assert scans == total == 40 and error is not None and error.ate_rmse_m < ATE_BOUND_M
+    evaluation = demo.evaluate(output, short_bag, draw=False)
+    assert evaluation.scans == evaluation.ground_truth_scans == 40
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < ATE_BOUND_M
     stats = json.loads((output / "slam_map.stats.json").read_text())
     assert stats["processed"] == stats["delivered"] == 40 and stats["failed"] == 0
     # Subscribed at EnableLocalization: the bag player waited for it, so the scans did not pile up

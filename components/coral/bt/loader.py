@@ -1,12 +1,16 @@
 """Loads BT.CPP v4 (and v3) XML into a `TreeDocument`: documents, `<include>`s relative to the including
 file with cycle detection, BT.CPP's main-tree rules, compact/explicit syntax, `<TreeNodesModel>` SubTree
 port defaults, and v3 names converted with warnings. Entry points: `load_tree_file`, `load_tree_text`.
+
+Includes are read from the filesystem unless the caller injects an `IncludeResolver`: whoever loads
+trees on someone else's behalf (the operator) resolves them among the files it was given instead.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from coral.bt.errors import BTLoadError
@@ -39,6 +43,9 @@ _PORT_TAGS = {
     "inout_port": PortDirection.INOUT,
 }
 
+IncludeResolver = Callable[[str, str, int], tuple[str, str]]
+"""(path attribute, including file, line) -> (name of the included file, its text); raises BTLoadError."""
+
 
 @dataclass
 class _State:
@@ -49,6 +56,7 @@ class _State:
     warnings: list[str] = field(default_factory=list)
     stack: list[str] = field(default_factory=list)
     unnamed: int = 0
+    resolve_include: IncludeResolver | None = None
 
     def warn(self, file: str, line: int, message: str) -> None:
         text = f"{file}:{line}: {message}"
@@ -74,14 +82,20 @@ def load_tree_text(
     *,
     filename: str = "<string>",
     main_tree: str | None = None,
+    resolve_include: IncludeResolver | None = None,
 ) -> TreeDocument:
-    return _load(text, filename, os.getcwd(), registry, main_tree)
+    return _load(text, filename, os.getcwd(), registry, main_tree, resolve_include)
 
 
 def _load(
-    text: str, filename: str, base_dir: str, registry: NodeRegistry | None, main_tree: str | None
+    text: str,
+    filename: str,
+    base_dir: str,
+    registry: NodeRegistry | None,
+    main_tree: str | None,
+    resolve_include: IncludeResolver | None = None,
 ) -> TreeDocument:
-    state = _State(registry)
+    state = _State(registry, resolve_include=resolve_include)
     root = _parse_document(text, filename, base_dir, state, depth=0)
     doc = TreeDocument(state.trees, state.models, None, state.files, state.warnings)
     wanted = main_tree or root.get("main_tree_to_execute")
@@ -159,6 +173,13 @@ def _include(el: XmlElement, filename: str, base_dir: str, state: _State, depth:
         )
     if depth + 1 > _MAX_INCLUDE_DEPTH:
         raise BTLoadError("include nesting is deeper than 256", file=filename, line=el.line)
+    if state.resolve_include is not None:
+        target, text = state.resolve_include(rel, filename, el.line)
+        if target in state.stack:
+            chain = " -> ".join(state.stack + [target])
+            raise BTLoadError(f"include cycle: {chain}", file=filename, line=el.line)
+        _parse_document(text, target, base_dir, state, depth + 1)
+        return
     target = rel if os.path.isabs(rel) else os.path.join(base_dir, rel)
     target = os.path.abspath(target)
     if target in state.stack:

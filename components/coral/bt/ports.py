@@ -24,6 +24,8 @@ class PortSpec:
     type: str = "any"
     default: str | None = None
     description: str = ""
+    required: bool = False
+    """The node cannot run without this port (BT.CPP finds out at the first tick; we at load time)."""
 
 
 _INT = {

@@ -1,6 +1,7 @@
 """Static validation of a `TreeDocument` against a registry: every problem with file:line, without
 building. Reports unknown node types, undeclared or mistyped ports, mandatory SubTree ports not
-remapped, SubTree cycles, wrong child counts and invalid scripts. Called by `TreeDocument.validate`.
+remapped, required ports left out (BT.CPP fails only at the first tick), SubTree cycles, wrong child
+counts and invalid scripts. Called by `TreeDocument.validate`.
 """
 
 from __future__ import annotations
@@ -92,6 +93,9 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
     if spec.kind == NodeKind.SUBTREE:
         return out + _check_subtree(el, doc)
     specs = {p.name: p for p in spec.ports}
+    for port in spec.ports:
+        if port.required and port.name not in el.attrs:
+            out.append(_err(el, f"<{el.node_id}> needs the port [{port.name}]; it has no default"))
     for key, value in el.attrs.items():
         if not key[:1].isalpha() or key in ("name", "ID"):
             continue

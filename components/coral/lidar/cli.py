@@ -7,63 +7,48 @@ from pathlib import Path
 
 import click
 
+from coral import terminal
 from coral.lidar import generating
+from coral.local.cli import TREE_PNG, output_option
 
 DEFAULT_EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
 
 
+# (option, type, help) of each BagParams field the verbs expose; defaults come from BagParams.
+BAG_OPTIONS = (
+    ("seed", int, "Scene and noise seed."),
+    ("scans", click.IntRange(min=2), "Number of 10 Hz sweeps."),
+    ("beams", click.IntRange(min=2), "Lasers per column."),
+    ("columns", click.IntRange(min=16), "Firing columns per sweep."),
+    ("speed", float, "Metres per second."),
+)
+
+
 def bag_options(function: click.decorators.FC) -> click.decorators.FC:
     defaults = generating.BagParams()
-    for option in reversed(
-        [
-            click.option(
-                "--seed", type=int, default=defaults.seed, show_default=True, help="Scene and noise seed."
-            ),
-            click.option(
-                "--scans",
-                type=click.IntRange(min=2),
-                default=defaults.scans,
-                show_default=True,
-                help="Number of 10 Hz sweeps.",
-            ),
-            click.option(
-                "--beams",
-                type=click.IntRange(min=2),
-                default=defaults.beams,
-                show_default=True,
-                help="Lasers per column.",
-            ),
-            click.option(
-                "--columns",
-                type=click.IntRange(min=16),
-                default=defaults.columns,
-                show_default=True,
-                help="Firing columns per sweep.",
-            ),
-            click.option(
-                "--speed", type=float, default=defaults.speed, show_default=True, help="Metres per second."
-            ),
-        ]
-    ):
+    for name, kind, text in reversed(BAG_OPTIONS):
+        option = click.option(
+            f"--{name}", type=kind, default=getattr(defaults, name), show_default=True, help=text
+        )
         function = option(function)
     return function
 
 
 @click.command("generate-bag")
 @bag_options
-@click.option(
-    "--output",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=None,
-    help="Dataset folder to create (default: the cache, ~/.cache/coral-on-kubernetes/bags/...).",
-)
+@output_option(None, "Dataset folder to create (default: the cache, ~/.cache/coral-on-kubernetes/bags/...).")
 def generate_bag_command(
-    seed: int, scans: int, beams: int, columns: int, speed: float, output: Path | None
+    seed: int, scans: int, beams: int, columns: int, speed: float, output_dir: Path | None
 ) -> None:
     """Write a synthetic LiDAR ROS 2 bag (PointCloud2 + ground truth) from a seed; print its folder."""
     params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
     try:
-        folder = generating.generate(params, output) if output else generating.cached_dataset(params)
+        with terminal.progress("Generating the bag", stream=sys.stderr) as step:
+            folder = (
+                generating.generate(params, output_dir, step)
+                if output_dir
+                else generating.cached_dataset(params, progress=step)
+            )
     except (ValueError, OSError) as err:
         raise click.ClickException(str(err)) from err
     click.echo(folder)
@@ -78,15 +63,9 @@ def generate_bag_command(
     show_default=True,
     help="The example project to run.",
 )
-@click.option(
-    "--output",
-    "output_dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=Path("out/lidar-slam"),
-    show_default=True,
-    help="Where the map and trajectory go.",
-)
+@output_option(Path("out/lidar-slam"), "Where the map, trajectory and picture go.")
 @click.option("--live/--no-live", default=None, help="Live tree view (default: on a terminal).")
+@TREE_PNG
 def slam_demo_command(
     seed: int,
     scans: int,
@@ -96,21 +75,20 @@ def slam_demo_command(
     example: Path,
     output_dir: Path,
     live: bool | None,
+    tree_png: Path | None,
 ) -> None:
     """The LiDAR SLAM mission end to end: bag, `coral run`, map, trajectory error against ground truth."""
     from coral.lidar import demo
 
     params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
-    result = demo.run_demo(example, params, output_dir=output_dir.resolve(), live=live, echo=click.echo)
+    result = demo.run_demo(
+        example, params, output_dir=output_dir.resolve(), live=live, echo=click.echo, tree_png=tree_png
+    )
     click.echo("")
     click.echo(
         f"Mission exit code : {result.exit_code} ({'SUCCESS' if result.exit_code == 0 else 'not SUCCESS'})"
     )
-    click.echo(f"Scans processed   : {result.scans} of {result.ground_truth_scans}")
-    click.echo(f"Map               : {result.map_path} ({result.map_points} points)")
-    if result.ate_m is not None:
-        click.echo(f"Trajectory error  : ATE {result.ate_m:.3f} m RMSE, RPE {result.rpe_m:.3f} m per scan")
-    else:
-        click.echo("Trajectory error  : not available (no trajectory saved)")
+    for line in result.evaluation.summary():
+        click.echo(line)
     click.echo(f"Demo duration     : {result.duration_s:.1f} s")
     sys.exit(result.exit_code)

@@ -21,12 +21,13 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from coral.lidar import clouds
+from coral.lidar import clouds, trajectory
 from coral.lidar.motion import Motion, quaternion_from_matrix
 from coral.lidar.scene import build_scene
 from coral.lidar.sensor import SensorModel, sweep
@@ -59,21 +60,27 @@ def default_cache_root() -> Path:
     return Path(base) / "coral-on-kubernetes" / "bags"
 
 
-def cached_dataset(params: BagParams, cache_root: Path | None = None) -> Path:
+Progress = Callable[[int, int], None]
+"""Told `(scans written, scans in all)` after each scan."""
+
+
+def cached_dataset(
+    params: BagParams, cache_root: Path | None = None, progress: Progress | None = None
+) -> Path:
     """Folder of the dataset for `params`, generating it first if the cache lacks it."""
     root = cache_root or default_cache_root()
     target = root / f"seed{params.seed}-n{params.scans}-{params.key()}"
     if (target / "params.json").is_file():
         return target
-    return generate(params, target)
+    return generate(params, target, progress)
 
 
-def generate(params: BagParams, target: Path) -> Path:
+def generate(params: BagParams, target: Path, progress: Progress | None = None) -> Path:
     """Generates the dataset into `target` atomically (built aside, then renamed into place)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=target.parent))
     try:
-        _write_dataset(params, staging)
+        _write_dataset(params, staging, progress or (lambda done, total: None))
         try:
             staging.rename(target)
         except OSError:
@@ -85,7 +92,7 @@ def generate(params: BagParams, target: Path) -> Path:
     return target
 
 
-def _write_dataset(params: BagParams, folder: Path) -> None:
+def _write_dataset(params: BagParams, folder: Path, progress: Progress) -> None:
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -103,7 +110,7 @@ def _write_dataset(params: BagParams, folder: Path) -> None:
     mid_poses = motion.poses(starts + sensor.period / 2)
     relative = np.linalg.inv(mid_poses[0]) @ mid_poses
 
-    rows: list[str] = ["stamp_ns,x,y,z,qx,qy,qz,qw"]
+    stamps: list[int] = []
     with Writer(folder / "bag", version=9) as writer:
         points_conn = writer.add_connection(POINTS_TOPIC, "sensor_msgs/msg/PointCloud2", typestore=store)
         truth_conn = writer.add_connection(GROUND_TRUTH_TOPIC, "nav_msgs/msg/Odometry", typestore=store)
@@ -128,13 +135,11 @@ def _write_dataset(params: BagParams, folder: Path) -> None:
                 is_dense=True,
             )
             writer.write(points_conn, stamp_ns, store.serialize_cdr(cloud, cloud.__msgtype__))
-            pose = relative[index]
-            odometry = _odometry(store, header, pose)
+            odometry = _odometry(store, header, relative[index])
             writer.write(truth_conn, stamp_ns, store.serialize_cdr(odometry, odometry.__msgtype__))
-            qx, qy, qz, qw = quaternion_from_matrix(pose[:3, :3])
-            x, y, z = pose[:3, 3]
-            rows.append(f"{stamp_ns},{x:.6f},{y:.6f},{z:.6f},{qx:.9f},{qy:.9f},{qz:.9f},{qw:.9f}")
-    (folder / "ground_truth.csv").write_text("\n".join(rows) + "\n")
+            stamps.append(stamp_ns)
+            progress(index + 1, len(starts))
+    trajectory.write_poses_csv(folder / "ground_truth.csv", np.asarray(stamps, dtype=np.int64), relative)
     (folder / "params.json").write_text(json.dumps(dataclasses.asdict(params), indent=2) + "\n")
 
 

@@ -10,26 +10,56 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import click
+from rich.text import Text
 
-from coral.local import state
+from coral.local import polling, state
+
+# How `coral ps` colours run and component states on a terminal.
+RUN_STATE_STYLE = {
+    "running": "green",
+    "ready": "green",
+    "starting": "yellow",
+    "stopping": "yellow",
+    "pending": "bright_black",
+    "finished": "bright_black",
+    "exited": "bright_black",
+    "stopped": "bright_black",
+    "failed": "red",
+}
 
 TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
+
+
+def output_option(default: Path | None, text: str) -> Callable[[click.decorators.FC], click.decorators.FC]:
+    """`--output DIR` (parameter `output_dir`) of `coral run`, `coral slam-demo` and `coral demo`."""
+    return click.option(
+        "--output",
+        "output_dir",
+        type=click.Path(path_type=Path, file_okay=False),
+        default=default,
+        show_default=default is not None,
+        help=text,
+    )
+
+
+# Shared by `coral run`, `coral slam-demo` and `coral demo`.
+TREE_PNG = click.option(
+    "--tree-png",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="When the mission ends, draw its behavior tree into this PNG, nodes coloured by last status.",
+)
 
 
 @click.command("run")
 @TARGET
 @click.option("--handle", default=None, help="Name of this instance (default: <project>-<random>).")
 @click.option("--group", default=None, help="Group for `coral stop --group` (default: the project name).")
-@click.option(
-    "--output",
-    "output_dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    default=None,
-    help="Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).",
-)
+@output_option(None, "Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).")
 @click.option("--detach", "-d", is_flag=True, help="Run in the background; print the handle.")
 @click.option(
     "--live/--no-live", default=None, help="Live tree view (default: on when stdout is a terminal)."
@@ -37,6 +67,7 @@ TARGET = click.argument("target", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
 )
+@TREE_PNG
 def run_command(
     target: Path,
     handle: str | None,
@@ -45,6 +76,7 @@ def run_command(
     detach: bool,
     live: bool | None,
     env_pairs: tuple[str, ...],
+    tree_png: Path | None,
 ) -> None:
     """Run a Coral project (compose file, tree, parameters) as local processes."""
     from coral.local import compose, running
@@ -54,13 +86,23 @@ def run_command(
         if env_pairs:
             raise click.UsageError("--env cannot be combined with --detach; export the variables instead")
         try:
-            print(running.start_detached(target, handle=handle, group=group, output_dir=output_dir))
+            print(
+                running.start_detached(
+                    target, handle=handle, group=group, output_dir=output_dir, tree_png=tree_png
+                )
+            )
         except (compose.ComposeError, RuntimeError) as err:
             raise click.ClickException(str(err)) from err
         return
     sys.exit(
         running.run_project(
-            target, handle=handle, group=group, output_dir=output_dir, live=live, extra_env=extra_env
+            target,
+            handle=handle,
+            group=group,
+            output_dir=output_dir,
+            live=live,
+            extra_env=extra_env,
+            tree_png=tree_png,
         )
     )
 
@@ -69,19 +111,32 @@ def run_command(
 @click.option("--all", "-a", "everything", is_flag=True, help="Include finished runs.")
 def ps_command(everything: bool) -> None:
     """List Coral runs on this machine and their components."""
+    from coral import terminal
+
     runs = [r for r in state.load_runs() if everything or r.state != "finished"]
     if not runs:
         click.echo("no runs" if everything else "no running instances (use -a for finished ones)")
         return
-    click.echo(f"{'HANDLE':<28} {'GROUP':<16} {'STATE':<10} {'AGE':>7}  COMPONENTS")
+    rows = []
     for run in runs:
-        age = f"{time.time() - run.started_at:.0f}s"
-        parts = ", ".join(
-            f"{c.name}({c.role[0]}):{c.state}" + (f"/{c.exit_code}" if c.exit_code is not None else "")
+        components = Text(", ").join(
+            Text.assemble(
+                f"{c.name}({c.role[0]}):",
+                (
+                    c.state + (f"/{c.exit_code}" if c.exit_code is not None else ""),
+                    RUN_STATE_STYLE.get(c.state, ""),
+                ),
+            )
             for c in run.components
         )
         state_text = run.state if run.exit_code is None else f"{run.state}({run.exit_code})"
-        click.echo(f"{run.handle:<28} {run.group:<16} {state_text:<10} {age:>7}  {parts}")
+        age = f"{time.time() - run.started_at:.0f}s"
+        rows.append(
+            [run.handle, run.group, Text(state_text, RUN_STATE_STYLE.get(run.state, "")), age, components]
+        )
+    terminal.console().print(
+        terminal.table(["HANDLE", "GROUP", "STATE", "AGE", "COMPONENTS"], rows, right=["AGE"])
+    )
 
 
 @click.command("stop")
@@ -109,11 +164,13 @@ def stop_command(handle: str | None, group: str | None, everything: bool, timeou
             os.kill(run.supervisor_pid, signal.SIGINT)
         except ProcessLookupError:
             continue
-    deadline = time.monotonic() + timeout
     pending = list(runs)
-    while pending and time.monotonic() < deadline:
-        pending = [r for r in pending if state.pid_alive(r.supervisor_pid)]
-        time.sleep(0.1)  # polling the supervisors' pids, bounded by the deadline
+
+    def all_stopped() -> bool:
+        pending[:] = [r for r in pending if state.pid_alive(r.supervisor_pid)]
+        return not pending
+
+    polling.poll_until(all_stopped, timeout_s=timeout, interval_s=0.1)
     for run in runs:
         click.echo(f"{run.handle}: {'still stopping' if run in pending else 'stopped'}")
     if pending:

@@ -102,38 +102,28 @@ def command_for(
     if service.command is not None:
         return render_command(service.command, project, service, paths)
     if service.role == "executor":
-        argv = [
-            sys.executable,
-            "-m",
-            "coral.executor",
-            "--tree",
-            str(project.tree),
-            "--plugins",
-            str(paths.plugins),
-            "--status-jsonl",
-            str(paths.status_jsonl),
-            "--name",
-            service.name,
-        ]
-        if project.params is not None:
-            argv += ["--params", str(project.params)]
+        module, first = "coral.executor", ["--tree", str(project.tree)]
+        middle = ["--status-jsonl", str(paths.status_jsonl)]
+    else:
+        module, first, middle = "coral.sdk.run", [component_target(service, known)], []
+    argv = [
+        sys.executable,
+        "-m",
+        module,
+        *first,
+        "--plugins",
+        str(paths.plugins),
+        *middle,
+        "--name",
+        service.name,
+    ]
+    if project.params is not None:
+        argv += ["--params", str(project.params)]
+    if service.role == "executor":
         main_tree = service.main_tree or project.main_tree
         if main_tree:
             argv += ["--main-tree", main_tree]
         rate = service.rate or project.rate
         if rate:
             argv += ["--rate", f"{rate:g}"]
-        return argv
-    argv = [
-        sys.executable,
-        "-m",
-        "coral.sdk.run",
-        component_target(service, known),
-        "--plugins",
-        str(paths.plugins),
-        "--name",
-        service.name,
-    ]
-    if project.params is not None:
-        argv += ["--params", str(project.params)]
     return argv

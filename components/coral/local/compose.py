@@ -6,8 +6,9 @@ ignored on one machine):
 - `name`: project name (default: the folder's name).
 - `services.<name>.profiles`: exactly one of `drivers`, `skillsets`, `executors` gives the role.
 - `services.<name>.image`: looked up as an installed component (see `coral.local.components`).
-- `services.<name>.environment`: mapping or `KEY=VALUE` list, with `${VAR}`, `${VAR:-default}`,
-  `${VAR-default}`, `${VAR:?message}` interpolation (from the environment, then `.env` beside the file).
+- `services.<name>.environment`: mapping or `KEY=VALUE` list. Every value of the file is
+  interpolated as Docker Compose does (`${VAR}`, `${VAR:-default}`, `${VAR:?message}`,
+  `${VAR:+alt}`, `$$`, ...), from the environment, then `.env` beside the file.
 - `services.<name>.x-coral`: `command` (argv list or string, run instead of the image's component;
   placeholders `{plugins}`, `{params}`, `{tree}`, `{name}`, `{output}`, `{python}`), `transient`
   (a driver that may exit 0 and count as done), `ready_timeout_s`, `main_tree` / `rate` (executors).
@@ -28,13 +29,11 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from dotenv.parser import parse_stream
 
 ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
 COMPOSE_NAMES = ("compose.yaml", "compose.yml", "docker-compose.yaml", "docker-compose.yml")
 SERVICE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_VARIABLE = re.compile(
-    r"\$(?:(\$)|\{([A-Za-z_][A-Za-z0-9_]*)(?:(:?[-?])([^}]*))?\}|([A-Za-z_][A-Za-z0-9_]*))"
-)
 SERVICE_EXTENSION_KEYS = {"command", "transient", "ready_timeout_s", "main_tree", "rate", "component"}
 TOP_EXTENSION_KEYS = {"tree", "params", "ready_timeout_s", "on_timeout", "main_tree", "rate"}
 
@@ -95,35 +94,111 @@ def find_compose_file(target: Path) -> Path:
     raise ComposeError(target, None, f"no compose file in the folder (looked for {', '.join(COMPOSE_NAMES)})")
 
 
-def read_dotenv(folder: Path) -> dict[str, str]:
+def read_dotenv(folder: Path, environ: dict[str, str]) -> dict[str, str]:
+    """The `.env` beside the compose file, as Docker Compose reads it: python-dotenv's parser reads
+    the syntax (quotes, `export`, comments, multi-line values); values are then interpolated with
+    the compose rules against the environment and the lines above, except single-quoted ones,
+    which compose takes literally. A line python-dotenv cannot parse is a ComposeError."""
     path = folder / ".env"
+    if not path.is_file():
+        return {}
     values: dict[str, str] = {}
-    if path.is_file():
-        for line in path.read_text().splitlines():
-            line = line.strip()
-            if line and not line.startswith("#") and "=" in line:
-                key, _, value = line.partition("=")
-                values[key.strip()] = value.strip().strip("'\"")
+    with path.open(encoding="utf-8") as stream:
+        for binding in parse_stream(stream):
+            if binding.error:
+                raise ComposeError(path, binding.original.line, f"cannot parse {binding.original.string!r}")
+            if binding.key is None or binding.value is None:
+                continue
+            literal = binding.original.string.partition("=")[2].lstrip().startswith("'")
+            values[binding.key] = (
+                binding.value
+                if literal
+                else interpolate(binding.value, {**values, **environ}, path, binding.original.line)
+            )
     return values
 
 
+# Hand-written on purpose: python-dotenv only knows `${VAR:-default}`, and no maintained Python
+# library implements the compose-spec grammar (`:?`/`?` errors, `:+`/`+`, nested defaults, `$$`).
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_OPERATORS = (":-", ":?", ":+", "-", "?", "+")
+
+
 def interpolate(text: str, env: dict[str, str], file: Path, line: int) -> str:
-    """Compose-style variable substitution; `${VAR:?msg}` with VAR unset raises ComposeError."""
+    """Variable substitution as the compose specification defines it (interpolation.md).
 
-    def substitute(match: re.Match[str]) -> str:
-        if match.group(1):
-            return "$"
-        name = match.group(2) or match.group(5)
-        operator, argument = match.group(3), match.group(4) or ""
-        value = env.get(name)
-        empty = value is None or (operator is not None and operator.startswith(":") and value == "")
-        if operator in (":-", "-") and (value is None if operator == "-" else empty):
-            return argument
-        if operator in (":?", "?") and (value is None if operator == "?" else empty):
-            raise ComposeError(file, line, f"variable {name} is required: {argument or 'not set'}")
+    `$VAR` and `${VAR}` (unset: empty), `${VAR:-default}` / `${VAR-default}` (unset or empty /
+    unset), `${VAR:?message}` / `${VAR?message}` (raise ComposeError), `${VAR:+alt}` / `${VAR+alt}`
+    (alt when set and non-empty / set), `$$` for a literal `$`; defaults, messages and alternatives
+    may themselves hold variables, expanded only when used.
+    """
+    out: list[str] = []
+    index = 0
+    while index < len(text):
+        dollar = text.find("$", index)
+        if dollar < 0:
+            out.append(text[index:])
+            break
+        out.append(text[index:dollar])
+        following = text[dollar + 1 : dollar + 2]
+        if following == "$":
+            out.append("$")
+            index = dollar + 2
+        elif following == "{":
+            end = _closing_brace(text, dollar + 2)
+            if end < 0:
+                raise ComposeError(file, line, f"invalid interpolation format in {text!r}: missing '}}'")
+            out.append(_braced(text[dollar + 2 : end], text, env, file, line))
+            index = end + 1
+        elif match := _NAME.match(text, dollar + 1):
+            out.append(env.get(match.group(), ""))
+            index = match.end()
+        else:
+            raise ComposeError(
+                file, line, f"invalid interpolation format in {text!r}: write $$ for a literal '$'"
+            )
+    return "".join(out)
+
+
+def _closing_brace(text: str, start: int) -> int:
+    """Index of the `}` closing a `${` whose body starts at `start` (nested `${...}` skipped), or -1."""
+    depth = 1
+    index = start
+    while index < len(text):
+        if text.startswith("$$", index):
+            index += 2
+            continue
+        if text.startswith("${", index):
+            depth += 1
+            index += 2
+            continue
+        if text[index] == "}":
+            depth -= 1
+            if depth == 0:
+                return index
+        index += 1
+    return -1
+
+
+def _braced(body: str, text: str, env: dict[str, str], file: Path, line: int) -> str:
+    match = _NAME.match(body)
+    operator = next((op for op in _OPERATORS if match and body.startswith(op, match.end())), None)
+    if match is None or (operator is None and match.end() != len(body)):
+        raise ComposeError(file, line, f"invalid interpolation format in {text!r}: ${{{body}}}")
+    name = match.group()
+    value = env.get(name)
+    if operator is None:
         return value or ""
-
-    return _VARIABLE.sub(substitute, text)
+    argument = body[match.end() + len(operator) :]
+    missing = value is None or (operator.startswith(":") and value == "")
+    if operator.endswith("-"):
+        return interpolate(argument, env, file, line) if missing else str(value)
+    if operator.endswith("?"):
+        if missing:
+            message = interpolate(argument, env, file, line) or ("not set" if value is None else "empty")
+            raise ComposeError(file, line, f"variable {name} is required: {message}")
+        return str(value)
+    return "" if missing else interpolate(argument, env, file, line)
 
 
 def _line(node: yaml.Node) -> int:
@@ -265,7 +340,8 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
         text = file.read_text(encoding="utf-8")
     except OSError as err:
         raise ComposeError(file, None, f"cannot read: {err.strerror}") from err
-    env = {**read_dotenv(file.parent), **(os.environ if environ is None else environ)}
+    environ = dict(os.environ if environ is None else environ)
+    env = {**read_dotenv(file.parent, environ), **environ}
     warnings: list[str] = []
     if lenient:
         placeholders, warnings = _placeholders_for_required(text, env, file)

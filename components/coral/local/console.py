@@ -1,33 +1,47 @@
 """The terminal side of `coral run`: prefixed, coloured component logs and the live tree view.
 
-On a terminal the tree view is a footer redrawn below the scrolling logs; elsewhere (pipes, CI,
-tests) it degrades to one plain progress line whenever the root status or active node changes,
-at most every `progress_interval_s`. `TreeView` folds the executor's status records (JSON lines,
-`transition` and `status` events) into what is displayed. Called by `coral.local.supervising`.
+Drawn with rich: on a terminal the tree view is a live footer redrawn below the scrolling logs;
+elsewhere (pipes, CI, tests) it degrades to one plain progress line whenever the root status or
+active node changes, at most every `progress_interval_s`, and no line carries ANSI codes.
+`TreeView` folds the executor's status records (JSON lines, `transition` and `status` events)
+into what is displayed. Called by `coral.local.supervising`.
 """
 
 from __future__ import annotations
 
 import json
-import shutil
-import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-COLOURS = [36, 33, 35, 32, 34, 91, 96, 93]
-STATUS_COLOUR = {"RUNNING": 33, "SUCCESS": 32, "FAILURE": 31, "IDLE": 90, "SKIPPED": 90, "HALTED": 90}
+from rich.console import Group
+from rich.live import Live
+from rich.table import Table
+from rich.text import Text
+
+from coral import terminal
+
+PREFIX_STYLES = ["cyan", "yellow", "magenta", "green", "blue", "bright_red", "bright_cyan", "bright_yellow"]
 MAX_VIEW_LINES = 18
+LABEL_WIDTH = 28
 
 
 GENERIC_TAGS = ("Action", "Condition", "Control", "Decorator")
 
 
-def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, tuple[int, str]]:
-    """uid -> (depth, node ID) of the main tree, numbered depth-first from 1 with subtrees expanded,
-    as the engine numbers node paths (`Name::uid`); empty when the file cannot be read."""
+@dataclass(frozen=True)
+class OutlineNode:
+    depth: int
+    node_id: str
+    label: str
+    """What a person reads: `SubTree IterateSLAM` for a subtree, the node's name when it has one."""
+
+
+def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, OutlineNode]:
+    """uid -> node of the main tree, numbered depth-first from 1 with subtrees expanded, as the
+    engine numbers node paths (`Name::uid`); empty when the file cannot be read."""
     import xml.etree.ElementTree as ElementTree
 
     try:
@@ -38,11 +52,15 @@ def outline_of(tree_file: Path, main_tree: str | None = None) -> dict[int, tuple
     main = main_tree or root.get("main_tree_to_execute") or next(iter(trees), None)
     if main not in trees:
         return {}
-    outline: dict[int, tuple[int, str]] = {}
+    outline: dict[int, OutlineNode] = {}
 
     def visit(element: Any, depth: int, open_trees: frozenset[str]) -> None:
-        node_id = element.get("ID") if element.tag in GENERIC_TAGS else element.tag
-        outline[len(outline) + 1] = (depth, str(node_id))
+        node_id = str(element.get("ID") if element.tag in GENERIC_TAGS else element.tag)
+        name = element.get("name")
+        label = f"SubTree {element.get('ID')}" if element.tag == "SubTree" else node_id
+        if name and name != node_id and element.tag != "SubTree":
+            label = f"{name} ({node_id})"
+        outline[len(outline) + 1] = OutlineNode(depth, node_id, label)
         children = list(element)
         if element.tag == "SubTree":
             target = element.get("ID")
@@ -74,7 +92,7 @@ class TreeView:
     finished: dict[str, Any] | None = None
     waiting: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
-    outline: dict[int, tuple[int, str]] = field(default_factory=dict)
+    outline: dict[int, OutlineNode] = field(default_factory=dict)
 
     def apply(self, record: dict[str, Any]) -> None:
         event = record.get("event")
@@ -97,14 +115,8 @@ class TreeView:
             self.root = str(record.get("root", self.root))
             self.ticks = int(record.get("tick_count", self.ticks) or self.ticks)
 
-    def lines(self, colour: bool, max_lines: int = MAX_VIEW_LINES) -> list[str]:
-        def paint(text: str, code: int) -> str:
-            return f"\x1b[{code}m{text}\x1b[0m" if colour else text
-
-        head = f"tree {paint(self.root, STATUS_COLOUR.get(self.root, 0))}  ticks {self.ticks}"
-        if self.waiting:
-            head += f"  waiting for node types: {', '.join(self.waiting)}"
-        out = [head]
+    def rows(self, max_lines: int = MAX_VIEW_LINES) -> list[tuple[bool, int, str, Text]]:
+        """(active?, depth, label, status) of the first `max_lines - 1` nodes, in tree order."""
         base = min((p.count("/") for p in self.nodes), default=0)
 
         def order(path: str) -> int:
@@ -112,21 +124,42 @@ class TreeView:
             return uid if uid is not None else 1 << 30
 
         # Tree order when paths carry uids; the outline gives true depths when it matches the tree.
-        paths = sorted(self.nodes, key=order)
-        for path in paths[: max(1, max_lines - 1)]:
+        rows = []
+        for path in sorted(self.nodes, key=order)[: max(1, max_lines - 1)]:
             node_id, status = self.nodes[path]
             known = self.outline.get(order(path))
-            depth = known[0] if known and known[1] == node_id else path.count("/") - base
-            marker = "▶" if path == self.active else " "
-            shown = paint(status, STATUS_COLOUR.get(status, 0))
+            depth = known.depth if known and known.node_id == node_id else path.count("/") - base
+            shown = terminal.status_text(status)
             if status == "IDLE" and path in self.results:
                 # An idle node shows what it last returned, dimmed, as Groot2 does.
-                shown = paint(f"({self.results[path].lower()})", 90)
+                shown = Text(f"({self.results[path].lower()})", style="bright_black")
             label = node_id
             if node_id == "SubTree":
                 label = f"SubTree {path.rsplit('/', 1)[-1].split('::')[0]}"
-            out.append(f"{marker} {'  ' * depth}{label:<28} {shown}")
-        return out
+            rows.append((path == self.active, depth, label, shown))
+        return rows
+
+    def renderable(self, max_lines: int = MAX_VIEW_LINES) -> Group:
+        """The footer: `tree <root>  ticks N`, then one row a node, indented by depth."""
+        head = Text.assemble("tree ", terminal.status_text(self.root), f"  ticks {self.ticks}")
+        if self.waiting:
+            head.append(f"  waiting for node types: {', '.join(self.waiting)}")
+        grid = Table.grid(padding=(0, 1))
+        grid.add_column(no_wrap=True)
+        grid.add_column(no_wrap=True, min_width=LABEL_WIDTH)
+        grid.add_column(no_wrap=True)
+        for active, depth, label, status in self.rows(max_lines):
+            grid.add_row("▶" if active else " ", f"{'  ' * depth}{label}", status)
+        return Group(head, grid)
+
+    def last_statuses(self) -> dict[int, str]:
+        """uid -> what each node seen last did: its last result once it went back to IDLE."""
+        statuses = {}
+        for path, (_node_id, status) in self.nodes.items():
+            uid = _uid(path)
+            if uid is not None:
+                statuses[uid] = self.results.get(path, status) if status == "IDLE" else status
+        return statuses
 
     def progress_line(self) -> str:
         text = f"tree {self.root} ticks={self.ticks}"
@@ -166,7 +199,11 @@ class StatusTail:
 
 
 class Console:
-    """Serialises log lines and the tree footer onto one stream."""
+    """Log lines of every component and the live tree footer on one rich console.
+
+    On a terminal the footer is a `rich.live.Live` display that log lines scroll above; off a
+    terminal (or with live off) it becomes plain progress lines and nothing carries ANSI codes.
+    """
 
     def __init__(
         self,
@@ -176,50 +213,41 @@ class Console:
         colour: bool | None = None,
         progress_interval_s: float = 2.0,
     ) -> None:
-        self.stream = stream or sys.stdout
-        tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.live = tty if live is None else live
-        self.colour = tty if colour is None else colour
+        self.rich = terminal.console(stream, colour=colour)
+        self.live = self.rich.is_terminal if live is None else live
         self.progress_interval_s = progress_interval_s
         self._lock = threading.Lock()
-        self._footer: list[str] = []
-        self._colours: dict[str, int] = {}
+        self._footer: Live | None = None
+        self._styles: dict[str, str] = {}
         self._width = 0
         self._last_progress = ("", 0.0)
 
     def register(self, name: str) -> None:
-        self._colours.setdefault(name, COLOURS[len(self._colours) % len(COLOURS)])
+        self._styles.setdefault(name, PREFIX_STYLES[len(self._styles) % len(PREFIX_STYLES)])
         self._width = max(self._width, len(name))
 
-    def _clear_footer(self) -> None:
-        if self.live and self._footer:
-            self.stream.write(f"\x1b[{len(self._footer)}F\x1b[J")
-
-    def _draw_footer(self) -> None:
-        if self.live and self._footer:
-            self.stream.write("\n".join(self._footer) + "\n")
-
     def log(self, name: str, line: str) -> None:
-        prefix = f"{name:<{self._width}} | "
-        if self.colour:
-            prefix = f"\x1b[{self._colours.get(name, 0)}m{prefix}\x1b[0m"
+        text = Text.assemble((f"{name:<{self._width}} | ", self._styles.get(name, "")), line.rstrip("\n"))
         with self._lock:
-            self._clear_footer()
-            self.stream.write(prefix + line.rstrip("\n") + "\n")
-            self._draw_footer()
-            self.stream.flush()
+            self.rich.print(text, soft_wrap=True)
 
     def note(self, text: str) -> None:
         self.log("coral", text)
 
     def show(self, view: TreeView) -> None:
         if self.live:
+            footer = view.renderable(max_lines=max(8, self.rich.size.height - 6))
             with self._lock:
-                self._clear_footer()
-                rows = shutil.get_terminal_size((100, 40)).lines
-                self._footer = view.lines(self.colour, max_lines=max(8, rows - 6))
-                self._draw_footer()
-                self.stream.flush()
+                if self._footer is None:
+                    self._footer = Live(
+                        footer,
+                        console=self.rich,
+                        auto_refresh=False,
+                        redirect_stdout=False,
+                        redirect_stderr=False,
+                    )
+                    self._footer.start()
+                self._footer.update(footer, refresh=True)
             return
         line = view.progress_line()
         now = time.monotonic()
@@ -230,5 +258,8 @@ class Console:
             self.note(line)
 
     def close_footer(self) -> None:
+        """Stops redrawing; the last tree view stays on the screen above what follows."""
         with self._lock:
-            self._footer = []
+            if self._footer is not None:
+                self._footer.stop()
+                self._footer = None

@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from coral.local import compose, console, state, supervising
+from coral.local import compose, console, polling, state, supervising
 
 
 def default_output_dir(project: compose.Project) -> Path:
@@ -35,6 +35,7 @@ def run_project(
     live: bool | None = None,
     extra_env: dict[str, str] | None = None,
     stream: object | None = None,
+    tree_png: Path | None = None,
 ) -> int:
     """Runs the project in `target` (folder or compose file) in the foreground; returns the exit code."""
     out = console.Console(stream, live=live)  # type: ignore[arg-type]
@@ -71,12 +72,21 @@ def run_project(
     code = supervisor.supervise()
     run.state, run.exit_code = "finished", code
     run.save()
+    if tree_png is not None:
+        for picture in supervisor.draw_trees(tree_png.resolve()):
+            out.note(f"Tree picture: {picture}")
     out.note(f"Run {handle} finished with exit code {code}")
     return code
 
 
 def start_detached(
-    target: Path, *, handle: str | None, group: str | None, output_dir: Path | None, wait_s: float = 15.0
+    target: Path,
+    *,
+    handle: str | None,
+    group: str | None,
+    output_dir: Path | None,
+    tree_png: Path | None = None,
+    wait_s: float = 15.0,
 ) -> str:
     """Starts `coral run` in the background (own session); returns its handle once it is recorded."""
     project = load_project(target)
@@ -86,21 +96,26 @@ def start_detached(
         argv += ["--group", group]
     if output_dir:
         argv += ["--output", str(output_dir)]
+    if tree_png:
+        argv += ["--tree-png", str(tree_png.resolve())]
     folder = state.runs_root() / handle
     folder.mkdir(parents=True, exist_ok=True)
     with (folder / "supervisor.log").open("ab") as log:
         process = subprocess.Popen(
             argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
         )
-    deadline = time.monotonic() + wait_s
-    while time.monotonic() < deadline:
+
+    def recorded() -> bool:
         if (folder / "run.json").exists():
-            return handle
+            return True
         if process.poll() is not None:
             raise RuntimeError(
                 f"coral run exited with code {process.returncode}; see {folder / 'supervisor.log'}"
             )
-        time.sleep(0.05)  # polling for the record file, bounded by the deadline above
+        return False
+
+    if polling.poll_until(recorded, timeout_s=wait_s, interval_s=0.05):
+        return handle
     raise RuntimeError(
         f"coral run did not record itself within {wait_s:g} s; see {folder / 'supervisor.log'}"
     )

@@ -20,6 +20,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import psutil
+
 
 def state_root() -> Path:
     explicit = os.environ.get("CORAL_STATE_DIR")
@@ -82,19 +84,14 @@ class RunRecord:
 
 
 def pid_alive(pid: int | None) -> bool:
+    """True while `pid` is a process that is not a zombie (psutil reads its state)."""
     if not pid:
         return False
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
         return False
-    except PermissionError:
-        return True
-    # A zombie still answers kill(0); it is not running anything.
-    try:
-        with open(f"/proc/{pid}/stat") as handle:
-            return handle.read().split(")")[-1].split()[0] != "Z"
-    except OSError:
+    except psutil.AccessDenied:
         return True
 
 
@@ -136,14 +133,16 @@ def orphaned_components(run: RunRecord) -> list[ComponentRecord]:
 
 def _runs_command(pid: int, command: list[str]) -> bool:
     try:
-        with open(f"/proc/{pid}/cmdline", "rb") as handle:
-            return handle.read().split(b"\0")[:-1] == [part.encode() for part in command]
-    except OSError:
+        return psutil.Process(pid).cmdline() == command
+    except psutil.Error:
         return False
 
 
 def kill_group(pid: int | None) -> None:
-    """SIGKILLs the process group a component leads (each component runs in its own session)."""
+    """SIGKILLs the process group a component leads (each component runs in its own session).
+
+    Stays on os.killpg: psutil signals single processes, and the group also holds whatever the
+    component started that psutil's children() would miss once reparented."""
     if not pid:
         return
     try:

@@ -27,6 +27,8 @@ from coral.local.compose import Project, Service
 EXIT_COMPONENT_FAILED = 3
 EXIT_NOT_READY = 4
 EXIT_BAD_INPUT = 2
+# The supervisor's loops stay hand-written rather than tenacity retries: each pass reacts to
+# several things at once (a signal, an unexpected exit, each child's readiness or timeout).
 POLL_S = 0.05
 STOP_GRACE_S = 10.0
 
@@ -265,6 +267,24 @@ class Supervisor:
             self.stop_all()
             self.out.close_footer()
 
+    def draw_trees(self, target: Path) -> list[Path]:
+        """Draws each executor's tree with every node's last status; one executor gets `target`,
+        several get `<stem>-<executor>.png` beside it."""
+        from coral import tree_picture
+
+        executors = [c for c in self.children if c.service.role == "executor" and c.view.outline]
+        drawn = []
+        for child in executors:
+            path = (
+                target if len(executors) == 1 else target.with_name(f"{target.stem}-{child.service.name}.png")
+            )
+            title = (
+                f"{self.project.name} / {child.service.name}: tree {child.view.root} "
+                f"after {child.view.ticks} ticks"
+            )
+            drawn.append(tree_picture.draw_tree(child.view.outline, child.view.last_statuses(), path, title))
+        return drawn
+
     def _wait_for_signal(self) -> int:
         """No executor: keep the components up until a signal or an unexpected exit."""
         while not self.stopping.is_set():
@@ -276,7 +296,10 @@ class Supervisor:
 
 
 def stop_process_group(process: subprocess.Popen[Any], grace_s: float) -> None:
-    """SIGINT the child's process group (components shut down cleanly on it), SIGKILL after `grace_s`."""
+    """SIGINT the child's process group (components shut down cleanly on it), SIGKILL after `grace_s`.
+
+    os.killpg, not psutil: psutil signals processes one by one, and the group also holds what the
+    component started and lost track of."""
     try:
         os.killpg(process.pid, signal.SIGINT)
     except ProcessLookupError:

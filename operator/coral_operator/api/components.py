@@ -6,16 +6,17 @@ Used by `api.system` (the user's spec), `api.instance` (the per-robot copy) and
 
 from __future__ import annotations
 
-from typing import Literal
+import re
+from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from coral_operator.api.base import CamelModel
 
 DNS_LABEL = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"
 Role = Literal["driver", "skillset", "executor"]
 ROLES: tuple[Role, ...] = ("driver", "skillset", "executor")
-Quantity = int | str
+Quantity = int | Annotated[str, Field(max_length=64)]
 
 
 class EnvVar(CamelModel):
@@ -27,13 +28,36 @@ class EnvVar(CamelModel):
     """Variable value (literal; parameters belong in the system's parameters file)."""
 
 
+# A Kubernetes quantity as a string (`250m`, `1Gi`, `1e3`); whole numbers may be given as integers.
+QUANTITY = r"^[+]?([0-9]+([.][0-9]*)?|[.][0-9]+)(Ki|Mi|Gi|Ti|Pi|Ei|[numkMGTPE]|[eE][+-]?[0-9]+)?$"
+QUANTITY_SYNTAX = "must be quantities such as 250m, 256Mi or 2"
+
+
+def _check_quantities(values: dict[str, Quantity]) -> dict[str, Quantity]:
+    for name, value in values.items():
+        if (
+            isinstance(value, int)
+            and value < 0
+            or isinstance(value, str)
+            and not re.fullmatch(QUANTITY, value)
+        ):
+            raise ValueError(f"{name}: {value!r} {QUANTITY_SYNTAX}")
+    return values
+
+
 class Resources(CamelModel):
     """Compute resources of the component's container, as in a pod's container spec."""
 
-    requests: dict[str, Quantity] = Field(default_factory=dict)
+    # Checked here (the operator stalls the system naming the field) rather than by CEL: a regex
+    # over map values costs more than the API server's CEL budget allows.
+
+    requests: dict[str, Quantity] = Field(default_factory=dict, max_length=16)
     """Minimum resources, for example `cpu: 250m`, `memory: 256Mi`."""
-    limits: dict[str, Quantity] = Field(default_factory=dict)
+    limits: dict[str, Quantity] = Field(default_factory=dict, max_length=16)
     """Maximum resources, for example `memory: 1Gi`."""
+
+    _requests_syntax = field_validator("requests")(_check_quantities)
+    _limits_syntax = field_validator("limits")(_check_quantities)
 
 
 class DeviceMount(CamelModel):

@@ -31,6 +31,7 @@ _KEEP = {
     "maxLength",
     "minItems",
     "maxItems",
+    "maxProperties",
     "pattern",
     "additionalProperties",
     "x-kubernetes-validations",

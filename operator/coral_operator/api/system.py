@@ -7,7 +7,7 @@ Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
 from __future__ import annotations
 
 import re
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -17,6 +17,15 @@ from coral_operator.api.components import Component
 from coral_operator.api.rollout import RolloutStatus
 
 MAX_COMPONENTS = 32
+# Inline files are capped well below etcd's 1.5 MiB request limit, so an object carrying them (and
+# `kubectl apply`'s copy of them) is refused at admission with the field's name, never by etcd.
+MAX_INLINE_BYTES = 256 * 1024
+MAX_TREE_FILES = 16
+MAX_TREE_FILE_BYTES = 32 * 1024
+TREE_FILE_NAME = r"^[-_a-zA-Z0-9][-._a-zA-Z0-9]{0,62}$"
+# The names the tree and the parameters have in the executor's config folder.
+RESERVED_FILE_NAMES = ("tree.xml", "params.yaml")
+MAX_UNAVAILABLE = r"^((100|[1-9]?[0-9])%|[0-9]+)$"
 
 ROBOTS_NOT_EMPTY = "robots must select with at least one label or expression"
 SOURCE_EXACTLY_ONE = "set exactly one of inline or configMapRef"
@@ -24,6 +33,11 @@ PRIVILEGED_DRIVERS_ONLY = "privileged is allowed only on drivers"
 UNIQUE_NAMES = "component names must be unique across drivers, skillsets and executors"
 NEEDS_EXECUTOR = "at least one executor is required"
 DOMAIN_RANGE = "ros.domainId must be between 0 and 232"
+TREE_FILE_NAMES = (
+    "tree.files names must be file names (letters, digits, '-', '_', '.'; at most 63) "
+    "other than tree.xml and params.yaml"
+)
+MAX_UNAVAILABLE_SYNTAX = "rollout.maxUnavailable must be a count of at least 0 or a percentage like '10%'"
 
 
 def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
@@ -74,8 +88,8 @@ class SourceSpec(CamelModel):
         }
     }
 
-    inline: str | None = Field(default=None, max_length=1048576)
-    """The file's content."""
+    inline: str | None = Field(default=None, max_length=MAX_INLINE_BYTES)
+    """The file's content (at most 256 KiB; larger files belong in a ConfigMap)."""
     config_map_ref: ConfigMapKeyRef | None = None
     """A ConfigMap key holding the file's content."""
 
@@ -88,6 +102,35 @@ class SourceSpec(CamelModel):
 
 class TreeSpec(SourceSpec):
     """The behavior tree: BT.CPP v4 XML, inline or from a ConfigMap."""
+
+    model_config = SourceSpec.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [
+                _cel("has(self.inline) != has(self.configMapRef)", SOURCE_EXACTLY_ONE),
+                _cel(
+                    f"!has(self.files) || self.files.all(k, k.matches('{TREE_FILE_NAME}') "
+                    "&& !(k in ['tree.xml', 'params.yaml']))",
+                    TREE_FILE_NAMES,
+                    ".files",
+                ),
+            ]
+        }
+    }
+
+    files: dict[str, Annotated[str, Field(max_length=MAX_TREE_FILE_BYTES)]] = Field(
+        default_factory=dict, max_length=MAX_TREE_FILES
+    )
+    """Further XML files the tree `<include>`s, by file name (at most 16 of 32 KiB each). Includes
+    resolve only among these: `<include path="nav.xml"/>` reads `files["nav.xml"]`. The robots get
+    them beside the tree."""
+
+    @field_validator("files")
+    @classmethod
+    def _file_names(cls, files: dict[str, str]) -> dict[str, str]:
+        for name in files:
+            if not re.fullmatch(TREE_FILE_NAME, name) or name in RESERVED_FILE_NAMES:
+                raise ValueError(f"{name!r}: {TREE_FILE_NAMES}")
+        return files
 
     main_tree_id: str | None = Field(default=None, max_length=253)
     """ID of the tree to run; the document's `main_tree_to_execute` when omitted."""
@@ -132,7 +175,21 @@ class RolloutSpec(CamelModel):
     Every instance records the revision it runs (`spec.revision`); the rollout decides which
     instances move to the newest revision and when."""
 
-    max_unavailable: int | str = Field(default="25%")
+    model_config = CamelModel.model_config | {
+        "json_schema_extra": {
+            "x-kubernetes-validations": [
+                _cel(
+                    "!has(self.maxUnavailable) || (type(self.maxUnavailable) == int "
+                    "? int(self.maxUnavailable) >= 0 "
+                    f": string(self.maxUnavailable).matches('{MAX_UNAVAILABLE}'))",
+                    MAX_UNAVAILABLE_SYNTAX,
+                    ".maxUnavailable",
+                )
+            ]
+        }
+    }
+
+    max_unavailable: int | Annotated[str, Field(max_length=8)] = Field(default="25%")
     """How many robots may be unavailable (updating or not Ready) at once: a count, or a percentage of
     the matched robots rounded up; at least 1."""
 
@@ -143,7 +200,7 @@ class RolloutSpec(CamelModel):
             if value < 0:
                 raise ValueError("must be a count of at least 0 or a percentage like '10%'")
             return value
-        if not re.fullmatch(r"(100|[1-9]?[0-9])%|[0-9]+", value.strip()):
+        if not re.fullmatch(MAX_UNAVAILABLE, value):
             raise ValueError(f"must be a count or a percentage like '10%', got {value!r}")
         return value
 

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from coral import bt
 
 from coral_operator.api.base import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
@@ -80,9 +81,10 @@ def convert(
         spec["ros"] = ros
     tree_text = tree_file.read_text()
     params_text = params_file.read_text() if params_file else ""
-    problems = validation.validate_tree(tree_text, tree_file.name) + validation.validate_parameters(
-        params_text, params_file.name if params_file else "params.yaml"
-    )
+    included = _included_files(tree_file)
+    problems = validation.validate_tree(
+        tree_text, tree_file.name, files=included, files_label="files"
+    ) + validation.validate_parameters(params_text, params_file.name if params_file else "params.yaml")
     if problems:
         raise ConvertError("; ".join(problems))
     rate = project.rate or next((s.rate for s in project.services if s.rate), None)
@@ -90,6 +92,7 @@ def convert(
     spec["parameters"] = {"inline": params_text}
     spec["tree"] = {
         "inline": tree_text,
+        **({"files": included} if included else {}),
         **({"mainTreeId": main_tree} if main_tree else {}),
         **({"tickRateHz": rate} if rate else {}),
     }
@@ -106,6 +109,26 @@ def convert(
     if namespace:
         metadata["namespace"] = namespace
     return {"apiVersion": API_VERSION, "kind": "CoralSystem", "metadata": metadata, "spec": spec}, warnings
+
+
+def _included_files(tree_file: Path) -> dict[str, str]:
+    """The files the tree includes, by name: a CoralSystem carries them in `spec.tree.files`, and the
+    operator resolves includes only among them."""
+    try:
+        document = bt.load_tree_file(tree_file)
+    except bt.BTLoadError:
+        return {}  # validation reports it with file and line
+    folder = tree_file.resolve().parent
+    files: dict[str, str] = {}
+    for path in document.files[1:]:
+        included = Path(path)
+        if included.parent != folder:
+            raise ConvertError(
+                f"{tree_file.name}: includes {path}; a CoralSystem carries only files beside its tree "
+                "(spec.tree.files), so keep included files in the tree's folder"
+            )
+        files[included.name] = included.read_text()
+    return files
 
 
 class _BlockDumper(yaml.SafeDumper):

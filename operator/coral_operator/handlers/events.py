@@ -18,6 +18,9 @@ _NOTABLE = {
     ("TreeHealthy", "False"): (True, "TreeFailed"),
     ("LibraryDegraded", "True"): (True, "LibraryDegraded"),
 }
+# Reasons of `ComponentsReady=False` that no other Event tells the instance's user about (the pod's
+# own Events name the pod, not the robot's instance, and a refused pod has none).
+_DELIVERY_FAILURES = {"PodRefused", "ImagePullFailed", "PodUnschedulable"}
 
 
 def info(body: kopf.Body, reason: str, message: str) -> None:
@@ -29,10 +32,17 @@ def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[d
     """Post one Event per notable condition whose status or message changed."""
     before = {c.get("type"): c for c in old}
     for condition in new:
+        previous = before.get(condition["type"])
+        if condition["type"] == "ComponentsReady" and condition["reason"] in _DELIVERY_FAILURES:
+            if not previous or (previous.get("reason"), previous.get("message")) != (
+                condition["reason"],
+                condition["message"],
+            ):
+                kopf.event(body, type="Warning", reason=condition["reason"], message=condition["message"])
+            continue
         key = (condition["type"], condition["status"])
         if key not in _NOTABLE:
             continue
-        previous = before.get(condition["type"])
         warning, reason = _NOTABLE[key]
         if previous is None and not warning and condition["type"] != "Ready":
             # Good news is news only as a recovery: a robot reachable from the start says nothing.

@@ -6,7 +6,9 @@ changes, its pods', its robot Node's) on a keyed work queue (`kube.workqueue`); 
 threads run one idempotent, level-based pass per instance from kopf's in-memory indexes
 (`handlers.indexing`), spaced so a burst of events costs one pass. Pods are planned by
 `planning.startup`, status by `status.instance_status` and written with one merge patch when
-it changed; the executor's own fields (`tree`, `plugins`) are read, never written. No timers
+it changed; the executor's own fields (`tree`, `plugins`) are read, never written, and whatever
+else it writes is overwritten by the next pass (`status.ownership`). Pods the API server or an
+admission controller refuses are reported on the instance with the server's message. No timers
 of kopf's, so no finalizer.
 """
 
@@ -27,7 +29,7 @@ from coral_operator.kube import applying
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, pods, rbac, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
-from coral_operator.status import instance_status
+from coral_operator.status import instance_status, ownership
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.transitions import Verdict, merge_conditions
 
@@ -49,10 +51,13 @@ _indices: dict[str, Any] = {}
 # The status this process last wrote per instance uid: the index may still hold the body from
 # before that write, and a pass must neither write the same thing twice nor compute conditions'
 # transition times from an older state.
-_written: dict[str, dict[str, Any]] = {}
+_written: dict[str, tuple[str, dict[str, Any]]] = {}
 # Inputs of an instance's own events that call for a pass (spec generation, executor reports);
 # the operator's own status writes are not among them.
 _inputs: dict[str, tuple[Any, ...]] = {}
+# A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
+# outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
+REFUSED_RETRY_S = 30.0
 # Executor identities created by this process, so each robot's is created once, not per pass.
 _accounts: set[str] = set()
 _node_ready: dict[str, bool] = {}
@@ -118,11 +123,23 @@ async def instance_changed(
             _accounts.discard(uid)
         QUEUE.forget(key)
         return
-    inputs = (meta.get("generation"), naming.content_hash([status.get("tree"), status.get("plugins")]))
+    owned = ownership.operator_part(status)
+    inputs = (
+        meta.get("generation"),
+        naming.content_hash(ownership.executor_part(status)),
+        naming.content_hash(owned),
+    )
     with _lock:
-        if _inputs.get(uid) == inputs:
+        previous = _inputs.get(uid)
+        if previous == inputs:
             return
         _inputs[uid] = inputs
+        version, expected = _written.get(uid, (None, None))
+    # The echo of the operator's own write changes nothing; any other change to its part of the
+    # status (a forged condition) needs a pass to be overwritten.
+    echo = version == meta.get("resourceVersion") and owned == expected
+    if echo and previous is not None and previous[:2] == inputs[:2]:
+        return
     QUEUE.add(key)
 
 
@@ -176,24 +193,34 @@ def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, A
     return {"conditions": conditions, "observedGeneration": record.generation}
 
 
-def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> None:
+def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> dict[str, str]:
+    """Carry out the plan; returns the pods the API server refused for good, with its messages."""
     namespace, name = record.namespace, record.name
-    if any(m["metadata"]["labels"][naming.LABEL_ROLE] == "executor" for m in plan.create):
+    refused: dict[str, str] = {}
+    executors = [m for m in plan.create if m["metadata"]["labels"][naming.LABEL_ROLE] == "executor"]
+    if executors:
         with _lock:
             known = record.uid in _accounts
         if not known:
             # The ServiceAccount must exist before a pod naming it is admitted.
-            applying.apply_rbac(
-                rbac.build_executor_rbac(
-                    instance=name,
-                    namespace=namespace,
-                    instance_uid=record.uid,
-                    system=spec.system,
-                    robot=spec.robot,
+            try:
+                applying.apply_rbac(
+                    rbac.build_executor_rbac(
+                        instance=name,
+                        namespace=namespace,
+                        instance_uid=record.uid,
+                        system=spec.system,
+                        robot=spec.robot,
+                    )
                 )
-            )
-            with _lock:
-                _accounts.add(record.uid)
+                with _lock:
+                    _accounts.add(record.uid)
+            except Exception as error:
+                message = applying.refusal(error)
+                if message is None:
+                    raise
+                for manifest in executors:
+                    refused[manifest["metadata"]["labels"][naming.LABEL_COMPONENT]] = message
     for pod_name in plan.delete:
         applying.delete_pod(namespace, pod_name)
     if plan.delete:
@@ -204,9 +231,18 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
             f"Stopping {', '.join(plan.delete)} to start revision {spec.revision or '?'}",
         )
     for manifest in plan.create:
-        applying.create_pod(manifest)
+        if manifest["metadata"]["labels"][naming.LABEL_COMPONENT] in refused:
+            continue
+        try:
+            applying.create_pod(manifest)
+        except Exception as error:
+            message = applying.refusal(error)
+            if message is None:
+                raise
+            refused[manifest["metadata"]["labels"][naming.LABEL_COMPONENT]] = message
     for pod_name, labels in plan.relabel:
         applying.patch_pod_labels(namespace, pod_name, labels)
+    return refused
 
 
 def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool) -> None:
@@ -233,10 +269,19 @@ def _verdicts(status: dict[str, Any]) -> tuple[Any, ...]:
     return status.get("observedGeneration"), states.get("Ready"), states.get("Stalled")
 
 
+def _patch_value(old: Any, new: Any) -> Any:
+    # A merge patch merges objects key by key: keys the new value lacks must be sent as null, or
+    # the old ones (or forged ones) would stay.
+    if isinstance(old, dict) and isinstance(new, dict):
+        return {**{key: None for key in old if key not in new}, **new}
+    return new
+
+
 def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
-    changes = {key: value for key, value in new.items() if current.get(key) != value}
-    if not changes:
+    changed = {key: value for key, value in new.items() if current.get(key) != value}
+    if not changed:
         return
+    changes = {key: _patch_value(current.get(key), value) for key, value in changed.items()}
     now = time.monotonic()
     with _lock:
         last = _last_write.get(record.uid, 0.0)
@@ -244,9 +289,11 @@ def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str
         # Progress only (a stage started, a pod's phase): one write per interval carries it.
         QUEUE.add((record.namespace, record.name), STATUS_INTERVAL_S - (now - last))
         return
-    if applying.patch_instance_status(record.namespace, record.name, changes):
+    version = applying.patch_instance_status(record.namespace, record.name, changes)
+    if version is not None:
         with _lock:
-            _written[record.uid] = {**_written.get(record.uid, {}), **changes}
+            after = {key: value for key, value in {**current, **changed}.items() if value is not None}
+            _written[record.uid] = (version, ownership.operator_part(after))
             _last_write[record.uid] = now
         # After the write, so a deferred or failed one cannot post the same transition twice.
         events.on_condition_changes(
@@ -271,10 +318,14 @@ def _reconcile(record: InstanceRecord) -> None:
     """One pass over one instance: plan and apply its pods, then write its status if it changed."""
     now = datetime.now(UTC)
     with _lock:
-        written = _written.get(record.uid, {})
-    # Only this process writes these keys (the executor writes `tree` and `plugins`), so what it
-    # wrote last is newer than, or the same as, what the index holds.
-    status = {**record.status, **written}
+        version, written = _written.get(record.uid, (None, {}))
+    # The index may still hold the body from before this process's last write; until it holds
+    # that write or a later version, what was written is the operator's part. After that, the
+    # object as observed is compared with, so whatever else wrote there is overwritten.
+    if ownership.at_or_after(record.resource_version, version):
+        status = record.status
+    else:
+        status = {**record.status, **written}
     try:
         parsed = CoralInstanceSpec.model_validate(record.spec)
     except ValidationError as error:
@@ -290,7 +341,9 @@ def _reconcile(record: InstanceRecord) -> None:
     plan = startup.plan_startup(
         desired=desired, observed=observed, transient=transient, startup=parsed.startup, now=now
     )
-    _apply(record, parsed, plan)
+    refused = _apply(record, parsed, plan)
+    if refused:
+        QUEUE.add((record.namespace, record.name), REFUSED_RETRY_S)
     if plan.wake_at is not None:
         # Pass again when the waiting stage's health timeout falls due, even if nothing changes.
         QUEUE.add((record.namespace, record.name), max((plan.wake_at - now).total_seconds(), 0.0) + 0.5)
@@ -303,6 +356,7 @@ def _reconcile(record: InstanceRecord) -> None:
         transient=transient,
         tree=status.get("tree"),
         plugins=status.get("plugins"),
+        refused=refused,
     )
     old_conditions = list(status.get("conditions") or [])
     new = instance_status.build_instance_status(

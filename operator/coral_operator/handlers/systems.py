@@ -8,6 +8,7 @@ timers and no change handlers, so kopf puts no finalizer on it. The decisions ar
 
 from __future__ import annotations
 
+import logging
 from datetime import UTC, datetime
 from typing import Any
 
@@ -24,6 +25,7 @@ from coral_operator.status import system_status
 from coral_operator.status.conditions import Reason
 
 CONFIG = config.from_environment()
+log = logging.getLogger(__name__)
 CORAL = ("coral.dev", "v1alpha1", "coralsystems")
 
 
@@ -60,18 +62,30 @@ def _prepare(name: str, namespace: str, spec: CoralSystemSpec) -> tuple[str, str
     params = _read_source(namespace, name, spec.parameters, "parameters")
     if isinstance(params, system_status.Problem):
         return params
-    problems = validation.validate_tree(tree[0], tree[1], spec.tree.main_tree_id)
+    problems = validation.validate_tree(
+        tree[0],
+        tree[1],
+        spec.tree.main_tree_id,
+        spec.tree.files,
+        files_label=f"coralsystem/{name} spec.tree.files",
+    )
     if problems:
-        return system_status.Problem(Reason.INVALID_TREE, "; ".join(problems))
+        return system_status.Problem(Reason.INVALID_TREE, _listed(problems))
     problems = validation.validate_parameters(params[0], params[1])
     if problems:
-        return system_status.Problem(Reason.INVALID_PARAMETERS, "; ".join(problems))
+        return system_status.Problem(Reason.INVALID_PARAMETERS, _listed(problems))
     denied = policy.evaluate_policy(namespace, spec, CONFIG.policy)
     if denied:
         return system_status.Problem(
-            Reason.POLICY_DENIED, "Refused by the operator's policy: " + "; ".join(denied)
+            Reason.POLICY_DENIED, "Refused by the operator's policy: " + _listed(denied)
         )
     return tree[0], params[0]
+
+
+def _listed(problems: list[str], shown: int = 20) -> str:
+    """The first problems, then how many more: a tree can have thousands."""
+    more = len(problems) - shown
+    return "; ".join(problems[:shown]) + (f"; and {more} more problems" if more > 0 else "")
 
 
 def _names(names: list[str]) -> str:
@@ -162,16 +176,35 @@ def _reconcile_system(
         parsed = None
         problem = system_status.Problem(Reason.INVALID_SPEC, _format_validation(error))
     if parsed is not None:
-        prepared = _prepare(name, namespace, parsed)
+        try:
+            prepared = _prepare(name, namespace, parsed)
+        except Exception as error:  # noqa: BLE001 - one system's input must not stop the others
+            if applying.is_api_error(error):
+                raise  # reading a source ConfigMap failed: kopf retries
+            log.warning(
+                "Validating CoralSystem %s/%s failed: %s: %s", namespace, name, type(error).__name__, error
+            )
+            prepared = system_status.Problem(
+                Reason.VALIDATION_FAILED, f"The spec could not be validated ({type(error).__name__})."
+            )
         if isinstance(prepared, system_status.Problem):
             problem = prepared
         else:
-            matched, fleet = _deploy(
-                body, name, namespace, uid, parsed, prepared, observed, robot_nodes, status
-            )
+            try:
+                matched, fleet = _deploy(
+                    body, name, namespace, uid, parsed, prepared, observed, robot_nodes, status
+                )
+            except Exception as error:
+                refused = applying.refusal(error)
+                if refused is None:
+                    raise
+                problem = system_status.Problem(
+                    Reason.APPLY_REFUSED, f"The API server refused a write: {refused}"
+                )
             # Counts and Ready follow the revision robots are moved to (an earlier one after undo).
-            revision = fleet.target
-            if fleet.failed:
+            if fleet is not None:
+                revision = fleet.target
+            if fleet is not None and fleet.failed:
                 problem = system_status.Problem(Reason.HEALTH_GATE_FAILED, fleet.status.get("message", ""))
     # Instances stopping because their robot left are no longer part of the system's counts.
     counted = [instance for instance in observed if not instance.spec.get("retiring")]
@@ -206,7 +239,13 @@ def _deploy(
 ) -> tuple[int, rollouts.FleetPlan]:
     """Make the instances follow the robots and the rollout; returns (matched robots, rollout plan)."""
     tree_cm = configmaps.build_config_map(
-        system=name, namespace=namespace, system_uid=uid, kind="tree", key=configmaps.TREE_KEY, text=files[0]
+        system=name,
+        namespace=namespace,
+        system_uid=uid,
+        kind="tree",
+        key=configmaps.TREE_KEY,
+        text=files[0],
+        beside=spec.tree.files,
     )
     params_cm = configmaps.build_config_map(
         system=name,

@@ -6,6 +6,7 @@ a 404 on delete means it is already gone. Called by the handlers only.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
@@ -30,6 +31,24 @@ def in_parallel(call: Callable[[T], R], items: Iterable[T]) -> list[R]:
 def _ignore(error: ApiException, *codes: int) -> None:
     if error.status not in codes:
         raise error
+
+
+def is_api_error(error: BaseException) -> bool:
+    return isinstance(error, ApiException)
+
+
+def refusal(error: BaseException) -> str | None:
+    """The API server's message when it refused a write for good (validation, admission, quota,
+    Pod Security, forbidden); None for errors worth retrying (conflicts, throttling, outages)."""
+    if not isinstance(error, ApiException) or error.status is None:
+        return None
+    if not 400 <= error.status < 500 or error.status in (404, 408, 409, 429):
+        return None
+    try:
+        message = json.loads(error.body or "{}").get("message")
+    except (ValueError, AttributeError):
+        message = None
+    return str(message or error.reason or f"HTTP {error.status}")
 
 
 def _drain(response: Any) -> int:
@@ -69,25 +88,28 @@ def patch_pod_labels(namespace: str, name: str, labels: dict[str, str]) -> None:
         _ignore(error, 404)
 
 
-def patch_instance_status(namespace: str, name: str, changes: dict[str, Any]) -> bool:
-    """Merge `changes` into an instance's status; False when the instance is gone."""
+def patch_instance_status(namespace: str, name: str, changes: dict[str, Any]) -> str | None:
+    """Merge `changes` into an instance's status; the resourceVersion it made, None when the
+    instance is gone."""
     try:
-        _drain(
-            client.custom().patch_namespaced_custom_object_status(
-                GROUP,
-                VERSION,
-                namespace,
-                "coralinstances",
-                name,
-                {"status": changes},
-                _content_type="application/merge-patch+json",
-                _preload_content=False,
-            )
+        response = client.custom().patch_namespaced_custom_object_status(
+            GROUP,
+            VERSION,
+            namespace,
+            "coralinstances",
+            name,
+            {"status": changes},
+            _content_type="application/merge-patch+json",
+            _preload_content=False,
         )
     except ApiException as error:
         _ignore(error, 404)
-        return False
-    return True
+        return None
+    try:
+        version = json.loads(response.data)["metadata"]["resourceVersion"]
+    except (ValueError, KeyError, TypeError):
+        return ""
+    return str(version)
 
 
 def create_config_map(manifest: dict[str, Any]) -> None:

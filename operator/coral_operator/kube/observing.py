@@ -49,7 +49,8 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     status = body.get("status") or {}
     statuses = status.get("containerStatuses") or []
     ready = _condition(status.get("conditions"), "Ready")
-    waiting_reasons = {((s.get("state") or {}).get("waiting") or {}).get("reason") for s in statuses}
+    waiting = [((s.get("state") or {}).get("waiting") or {}) for s in statuses]
+    waiting_reasons = {w.get("reason") for w in waiting}
     return ObservedPod(
         name=metadata.get("name", ""),
         component=labels.get(naming.LABEL_COMPONENT, ""),
@@ -62,7 +63,38 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
         deleting=bool(metadata.get("deletionTimestamp")),
         restarts=sum(int(s.get("restartCount") or 0) for s in statuses),
         crash_looping="CrashLoopBackOff" in waiting_reasons,
+        image_problem=next(
+            (_reason_and_message(w) for w in waiting if w.get("reason") in _IMAGE_PROBLEMS), None
+        ),
+        unschedulable=_unschedulable(status),
     )
+
+
+_IMAGE_PROBLEMS = frozenset(
+    {
+        "ErrImagePull",
+        "ImagePullBackOff",
+        "InvalidImageName",
+        "ErrImageNeverPull",
+        "CreateContainerConfigError",
+    }
+)
+
+
+def _reason_and_message(state: Mapping[str, Any]) -> str:
+    reason, message = state.get("reason") or "", (state.get("message") or "").strip()
+    return f"{reason}: {message[:500]}" if message else reason
+
+
+def _unschedulable(status: Mapping[str, Any]) -> str | None:
+    scheduled = _condition(status.get("conditions"), "PodScheduled")
+    if scheduled and scheduled.get("status") == "False" and scheduled.get("reason") == "Unschedulable":
+        return _reason_and_message(scheduled)
+    # A pod bound to its robot by nodeName skips the scheduler; the kubelet's admission refuses it
+    # instead (OutOfcpu, NodeAffinity, ...), failing the pod with a reason and never starting it.
+    if status.get("phase") == "Failed" and status.get("reason") and not status.get("containerStatuses"):
+        return _reason_and_message(status)
+    return None
 
 
 def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
@@ -104,4 +136,5 @@ def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
         generation=metadata.get("generation"),
         spec=dict(body.get("spec") or {}),
         status=dict(body.get("status") or {}),
+        resource_version=metadata.get("resourceVersion"),
     )

@@ -7,6 +7,7 @@ handler, applied by `kube.applying`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from coral_operator.api.base import API_VERSION
@@ -24,9 +25,12 @@ def build_config_map(
     kind: str,
     key: str,
     text: str,
+    beside: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
-    """The ConfigMap manifest of one validated file (`kind` is `tree` or `params`)."""
-    digest = naming.content_hash({key: text})
+    """The ConfigMap manifest of one validated file (`kind` is `tree` or `params`), with the files
+    it includes `beside` it, so that they resolve on the robot as they did in validation."""
+    data = {**(beside or {}), key: text}
+    digest = naming.content_hash(data if beside else {key: text})
     return {
         "apiVersion": "v1",
         "kind": "ConfigMap",
@@ -40,7 +44,7 @@ def build_config_map(
             "ownerReferences": [naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)],
         },
         "immutable": True,
-        "data": {key: text},
+        "data": data,
     }
 
 

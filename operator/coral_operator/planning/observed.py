@@ -36,6 +36,10 @@ class ObservedPod:
     deleting: bool = False
     restarts: int = 0
     crash_looping: bool = False
+    image_problem: str | None = None
+    """Why the kubelet cannot pull or start an image, with its message (`ErrImagePull: ...`)."""
+    unschedulable: str | None = None
+    """Why the robot cannot run the pod (the scheduler's or the kubelet's admission message)."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,7 @@ class InstanceRecord:
     generation: int | None
     spec: dict[str, Any]
     status: dict[str, Any]
+    resource_version: str | None = None
 
     @property
     def reference(self) -> dict[str, Any]:

@@ -6,8 +6,8 @@ message. Pure; called by the instance handler with the observed state and the cl
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
@@ -32,6 +32,8 @@ class InstanceView:
     transient: set[str]
     tree: dict[str, Any] | None
     plugins: dict[str, Any] | None
+    refused: Mapping[str, str] = field(default_factory=dict)
+    """Components whose pod the API server refused in this pass, with the server's message."""
 
 
 def _robot_verdict(view: InstanceView) -> Verdict:
@@ -51,7 +53,37 @@ def _robot_verdict(view: InstanceView) -> Verdict:
     return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} is Ready.")
 
 
+def _delivery_verdict(view: InstanceView) -> Verdict | None:
+    """Why a component pod cannot even start, in the words of whoever refused it; None if none."""
+    if view.refused:
+        details = "; ".join(f"{name}: {message}" for name, message in sorted(view.refused.items()))
+        return Verdict(
+            C.COMPONENTS_READY, False, R.POD_REFUSED, f"The API server refused the pod of {details}"
+        )
+    pulling = sorted(
+        f"{p.component}: {p.image_problem}" for p in view.pods if p.image_problem and not p.deleting
+    )
+    if pulling:
+        return Verdict(
+            C.COMPONENTS_READY, False, R.IMAGE_PULL_FAILED, f"Image cannot be pulled for {'; '.join(pulling)}"
+        )
+    unschedulable = sorted(
+        f"{p.component}: {p.unschedulable}" for p in view.pods if p.unschedulable and not p.deleting
+    )
+    if unschedulable:
+        return Verdict(
+            C.COMPONENTS_READY,
+            False,
+            R.POD_UNSCHEDULABLE,
+            f"The robot cannot run the pod of {'; '.join(unschedulable)}",
+        )
+    return None
+
+
 def _components_verdict(view: InstanceView) -> Verdict:
+    delivery = _delivery_verdict(view)
+    if delivery is not None:
+        return delivery
     crashing = [
         p.component
         for p in view.pods
@@ -168,7 +200,7 @@ def build_instance_status(
     robot = _robot_verdict(view)
     components = _components_verdict(view)
     ready = evaluate_ready(view)
-    stalled = components.reason in (R.COMPONENT_FAILED,) or (
+    stalled = components.reason in (R.COMPONENT_FAILED, R.POD_REFUSED) or (
         components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
     )
     reconciling = not ready.status and not stalled and robot.status is True

@@ -28,6 +28,17 @@ class Verdict:
         return "Unknown" if self.status is None else ("True" if self.status else "False")
 
 
+# Messages quote what users and API servers wrote, which may be long; the schema allows 32768
+# characters, and a status the API server refuses would leave the old one in place.
+MAX_MESSAGE = 8192
+
+
+def _bounded(message: str) -> str:
+    if len(message) <= MAX_MESSAGE:
+        return message
+    return message[: MAX_MESSAGE - 30] + f" ... ({len(message)} characters)"
+
+
 def rfc3339(moment: datetime) -> str:
     """Kubernetes' timestamp format, second precision, UTC."""
     return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
@@ -60,7 +71,7 @@ def merge_conditions(
             "type": verdict.type.value,
             "status": verdict.status_text,
             "reason": verdict.reason.value,
-            "message": verdict.message,
+            "message": _bounded(verdict.message),
             "lastTransitionTime": rfc3339(now) if flipped else before["lastTransitionTime"],
         }
         if generation is not None:

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import click
+from coral import terminal
 
 from coral_testbed.cluster import binaries, controlplane, demo
 from coral_testbed.cluster.client import Cluster
@@ -112,9 +113,11 @@ def status(state_dir: Path) -> None:
     if not report["components"]:
         click.echo(f"not running (state folder {report['state_dir']})")
         raise SystemExit(1)
-    for row in report["components"]:
-        health = "healthy" if row["healthy"] else ("unhealthy" if row["alive"] else "stopped")
-        click.echo(f"{row['name']:<24} pid {row['pid']:<8} {health:<10} {row['log']}")
+    rows = [
+        [r["name"], str(r["pid"]), terminal.health_text(r["healthy"], r["alive"]), r["log"]]
+        for r in report["components"]
+    ]
+    terminal.console().print(terminal.table(["COMPONENT", "PID", "HEALTH", "LOG"], rows, right=["PID"]))
     click.echo(f"server      {report['server']}")
     click.echo(f"kubeconfig  {report['kubeconfig']}")
     if not report["healthy"]:

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
+from coral.local.cli import TREE_PNG, output_option
 
 
 @click.command("demo")
@@ -19,9 +21,20 @@ import click
     "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
-def demo_command(mission: str, scans: int | None, timeout: float) -> None:
+@TREE_PNG
+@output_option(Path("out/demo"), "Where the SLAM map, trajectory and picture are kept after the demo.")
+def demo_command(
+    mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
+) -> None:
     """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
     from coral_testbed.missions import demo
 
-    outcome = demo.run(mission, scans or (300 if mission == "slam" else 60), timeout, echo=click.echo)
+    outcome = demo.run(
+        mission,
+        scans or (300 if mission == "slam" else 60),
+        timeout,
+        echo=click.echo,
+        tree_png=tree_png,
+        output_dir=output_dir,
+    )
     sys.exit(0 if outcome.success else 1)

@@ -8,15 +8,21 @@ trajectory against ground truth, and stops everything it started, also on error 
 
 from __future__ import annotations
 
+import dataclasses
 import os
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+from coral import terminal, tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
+from coral.local.console import outline_of
+from rich.live import Live
 
 from coral_testbed.cluster import controlplane
 from coral_testbed.cluster.client import Cluster
@@ -25,6 +31,8 @@ from coral_testbed.missions.stack import MissionStack
 from coral_testbed.waiting import wait_for
 
 NAMESPACE = "coral-demo"
+# Where the SLAM mission's map, trajectory and picture are kept after the demo's robots are gone.
+DEFAULT_OUTPUT = Path("out/demo")
 Echo = Callable[[str], None]
 
 
@@ -58,13 +66,23 @@ def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) 
         f"==> Following the CoralInstances' tree status (robot, root, ticks, active node),"
         f" up to {timeout:.0f} s"
     )
-    instances = following.follow(
-        stack.instances,
-        lambda items: following.finished(items, robots),
-        timeout=timeout,
-        echo=echo,
-        check=stack.check_operator,
-    )
+
+    def watch(**display: Any) -> list[dict[str, Any]]:
+        return following.follow(
+            stack.instances,
+            lambda items: following.finished(items, robots),
+            timeout=timeout,
+            check=stack.check_operator,
+            **display,
+        )
+
+    out = terminal.console()
+    if out.is_terminal:
+        # A table redrawn in place; it stays on the screen with the final statuses.
+        with Live(following.table([]), console=out, auto_refresh=False) as live:
+            instances = watch(show=lambda items: live.update(following.table(items), refresh=True))
+    else:
+        instances = watch(echo=echo)
     return {following.robot(i): str(following.tree(i).get("rootStatus")) for i in instances}
 
 
@@ -81,7 +99,9 @@ def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) 
         echo(f"    ({error})")
 
 
-def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+def _slam(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
     assert stack.runner is not None
     link = manifests.place_bag(stack.runner, manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
     echo(f"==> The bag is on {manifests.SLAM_ROBOT} at hostPath {manifests.SLAM_BAG} ({link})")
@@ -94,19 +114,55 @@ def _slam(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo:
     if output is None:
         echo("No SLAM pod folder: no map to score")
         return roots
-    scans, total, error, points = slam_demo.score(output, dataset)
+    evaluation = keep_outputs(slam_demo.evaluate(output, dataset), kept)
     echo("")
     echo(f"Mission           : {roots.get(manifests.SLAM_ROBOT)} on {manifests.SLAM_ROBOT}")
-    echo(f"Scans processed   : {scans} of {total}")
-    echo(f"Map               : {output / slam_demo.EXAMPLE_MAP_NAME} ({points} points)")
-    if error is not None:
-        echo(f"Trajectory error  : ATE {error.ate_rmse_m:.3f} m RMSE, RPE {error.rpe_rmse_m:.3f} m per scan")
-    else:
-        echo("Trajectory error  : not available (no trajectory saved)")
+    echo(f"Robot's files     : {output} (removed with the demo's robots)")
+    for line in evaluation.summary():
+        echo(line)
     return roots
 
 
-def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo) -> dict[str, str]:
+def keep_outputs(evaluation: slam_demo.Evaluation, folder: Path) -> slam_demo.Evaluation:
+    """Copies the map, trajectory, stats and picture out of the robot's files (which go when the
+    demo stops) into `folder`; the evaluation then names the copies."""
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = evaluation.map_path.stem
+    for path in evaluation.map_path.parent.glob(f"{stem}.*"):
+        shutil.copy2(path, folder / path.name)
+    picture = evaluation.picture_path
+    return dataclasses.replace(
+        evaluation,
+        map_path=folder / evaluation.map_path.name,
+        picture_path=folder / picture.name if picture is not None else None,
+    )
+
+
+def draw_trees(stack: MissionStack, robots: list[str], target: Path, echo: Echo) -> None:
+    """Draws each robot's deployed tree (from its instance's ConfigMap) coloured by what the
+    instance reports; one robot gets `target`, several `<stem>-<robot>.png` beside it."""
+    for robot in robots:
+        instance = stack.instance_of(robot)
+        if instance is None:
+            echo(f"No CoralInstance for {robot}: no tree picture")
+            continue
+        spec = instance["spec"]["tree"]
+        config_map = stack.core.read_namespaced_config_map(spec["configMap"], stack.namespace)
+        with tempfile.TemporaryDirectory(prefix="coral-tree-") as folder:
+            tree_file = Path(folder) / "tree.xml"
+            tree_file.write_text(config_map.data["tree.xml"])
+            outline = outline_of(tree_file, spec.get("mainTreeId"))
+        path = target if len(robots) == 1 else target.with_name(f"{target.stem}-{robot}.png")
+        status = following.tree(instance)
+        title = f"{robot}: tree {status.get('rootStatus')} after {status.get('tickCount', 0)} ticks"
+        tree_picture.draw_tree(outline, following.tree_statuses(instance), path, title)
+        echo(f"Tree picture      : {path}")
+
+
+def _relay(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
+    """The three-robot relay; its results stay on the site share, so `kept` is not used."""
     assert stack.runner is not None
     survey, server, worker = manifests.RELAY_ROBOTS
     manifests.place_bag(stack.runner, survey, dataset / "bag", manifests.SURVEY_BAG)
@@ -124,12 +180,20 @@ def _relay(stack: MissionStack, dataset: Path, domain: int, timeout: float, echo
     return roots
 
 
-def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome:
+def run(
+    mission: str,
+    scans: int,
+    timeout: float,
+    echo: Echo = print,
+    tree_png: Path | None = None,
+    output_dir: Path = DEFAULT_OUTPUT,
+) -> Outcome:
     """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring."""
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
     echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
-    dataset = generating.cached_dataset(params)
+    with terminal.progress("    Generating the bag") as step:
+        dataset = generating.cached_dataset(params, progress=step)
     echo(f"    {dataset / 'bag'}")
     robots = [manifests.SLAM_ROBOT] if mission == "slam" else list(manifests.RELAY_ROBOTS)
     run_mission = _slam if mission == "slam" else _relay
@@ -151,7 +215,9 @@ def run(mission: str, scans: int, timeout: float, echo: Echo = print) -> Outcome
                 )
                 with MissionStack(cluster, NAMESPACE, robots, Path(folder) / "mission") as stack:
                     _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
-                    roots = run_mission(stack, dataset, domain, timeout, echo)
+                    roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
+                    if tree_png is not None:
+                        draw_trees(stack, robots, tree_png.resolve(), echo)
                     echo("==> Stopping the robot runner and the operator")
                 cluster.close()
             finally:

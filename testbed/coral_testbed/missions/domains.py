@@ -1,9 +1,10 @@
-"""A ROS domain no other process on this machine uses, for the demo's robots.
+"""A ROS domain no other process on this machine uses: for the demo's robots, each test, a benchmark.
 
 Robots of the runner reach the host through their bridge, so a ROS process on the host on the same
-domain (a `coral run` on the default domain 0, say) would hear and talk to them. The demo claims a
-domain with the lock files the test suite's `ros_env` fixture uses (same folder and range), so the
-demo, the tests and other demos never share one. The lock lasts while the returned fd is open.
+domain (a `coral run` on the default domain 0, say) would hear and talk to them. Domains are
+claimed with an exclusive file lock in one folder, so the demo, the tests (the `ros_env` fixture),
+the benchmarks and parallel runs on the same machine never share one. The lock lasts while the
+returned fd is open.
 """
 
 from __future__ import annotations
@@ -13,14 +14,16 @@ import os
 import tempfile
 from pathlib import Path
 
+# Domain IDs 1..101 are valid on every platform and leave 0 (the ROS default) to people.
 DOMAIN_RANGE = range(1, 102)
 LOCK_DIR = Path(tempfile.gettempdir()) / "coral-ros-domains"
 
 
-def claim_domain() -> tuple[int, int]:
-    """(domain id, lock fd) of a domain no other process on this machine holds."""
+def claim_domain(*, highest_first: bool = False) -> tuple[int, int]:
+    """(domain id, lock fd) of a domain no other process on this machine holds; `highest_first`
+    keeps a long-lived claimer (a benchmark) out of the low domains the tests take first."""
     LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    for domain in DOMAIN_RANGE:
+    for domain in reversed(DOMAIN_RANGE) if highest_first else DOMAIN_RANGE:
         fd = os.open(LOCK_DIR / f"{domain}.lock", os.O_CREAT | os.O_RDWR, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

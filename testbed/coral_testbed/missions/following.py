@@ -1,14 +1,20 @@
-"""Follows the CoralInstances of a mission live: one line per robot whenever its tree moves.
+"""Follows the CoralInstances of a mission live: a table redrawn in place on a terminal, else one
+plain line per robot whenever its tree moves.
 
-Pure formatting (`describe`, `finished`) plus `follow`, the polling loop that `coral demo` prints
-and the mission tests use to wait (bounded) for every robot's tree to end.
+Pure formatting (`describe`, `table`, `finished`) plus `follow`, the polling loop that `coral demo`
+shows and the mission tests use to wait (bounded) for every robot's tree to end.
 """
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from typing import Any
+
+from coral import terminal
+from rich.table import Table
+from rich.text import Text
 
 DONE = ("SUCCESS", "FAILURE")
 
@@ -34,15 +40,60 @@ def describe(instance: dict[str, Any], width: int = 70) -> str:
     if len(path) > width:
         path = "..." + path[-(width - 3) :]
     parts = [f"{robot(instance):<16}", f"{root:<8}", f"ticks {status.get('tickCount', 0):<5}", path]
+    return "  ".join(p for p in [*parts, *problems(instance)] if p).rstrip()
+
+
+def problems(instance: dict[str, Any]) -> list[str]:
+    """What is wrong with the robot's instance, as `[Reason]` / `(message)` notes."""
+    notes = []
     ready = condition(instance, "Ready")
     if ready and ready.get("status") != "True":
-        parts.append(f"[{ready.get('reason')}]")
+        notes.append(f"[{ready.get('reason')}]")
     degraded = condition(instance, "LibraryDegraded")
     if degraded.get("status") == "True":
-        parts.append(f"[LibraryDegraded: {degraded.get('message')}]")
-    if status.get("message"):
-        parts.append(f"({status['message']})")
-    return "  ".join(p for p in parts if p).rstrip()
+        notes.append(f"[LibraryDegraded: {degraded.get('message')}]")
+    message = tree(instance).get("message")
+    if message:
+        notes.append(f"({message})")
+    return notes
+
+
+def table(instances: list[dict[str, Any]]) -> Table:
+    """One row a robot: root status (coloured), ticks, active node path, what is wrong."""
+    rows = []
+    for instance in sorted(instances, key=robot):
+        status = tree(instance)
+        root = status.get("rootStatus") or ("IDLE" if status else "-")
+        rows.append(
+            [
+                robot(instance),
+                terminal.status_text(str(root)),
+                str(status.get("tickCount", 0)),
+                str(status.get("activePath") or ""),
+                Text("  ".join(problems(instance)), style="red"),
+            ]
+        )
+    return terminal.table(["ROBOT", "TREE", "TICKS", "ACTIVE NODE", "PROBLEMS"], rows, right=["TICKS"])
+
+
+def _uids(path: str) -> list[int]:
+    return [int(uid) for uid in re.findall(r"::(\d+)(?=/|$)", path)]
+
+
+def tree_statuses(instance: dict[str, Any]) -> dict[int, str]:
+    """uid -> status of the nodes the instance's status speaks of: the root (uid 1), the active
+    chain while the tree runs, and the node of the last failure. Other nodes are not reported."""
+    status = tree(instance)
+    statuses: dict[int, str] = {}
+    root = status.get("rootStatus")
+    if root:
+        statuses[1] = str(root)
+    if root == "RUNNING":
+        statuses.update(dict.fromkeys(_uids(str(status.get("activePath") or "")), "RUNNING"))
+    failed = _uids(str((status.get("lastFailure") or {}).get("path") or ""))
+    if failed:
+        statuses[failed[-1]] = "FAILURE"
+    return statuses
 
 
 def finished(instances: list[dict[str, Any]], robots: list[str]) -> bool:
@@ -58,8 +109,10 @@ def follow(
     echo: Callable[[str], None] | None = None,
     check: Callable[[], None] = lambda: None,
     interval: float = 0.5,
+    show: Callable[[list[dict[str, Any]]], None] | None = None,
 ) -> list[dict[str, Any]]:
-    """Polls the instances until `until(instances)`; echoes a robot's line when it changes.
+    """Polls the instances until `until(instances)`; echoes a robot's line when it changes, and
+    hands every poll's instances to `show` (a live display), if given.
 
     Raises:
         TimeoutError: `until` did not hold within `timeout` seconds (the message has every line).
@@ -69,6 +122,8 @@ def follow(
     while True:
         check()
         instances = list_instances()
+        if show is not None:
+            show(instances)
         for instance in sorted(instances, key=robot):
             # Tick counts change on every report; show a robot again only when something else did.
             line = describe(instance)

@@ -19,6 +19,7 @@ from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
 from coral_testbed.cluster.client import Cluster
+from coral_testbed.missions import manifests
 from coral_testbed.missions.entrypoints import reference_entrypoints
 from coral_testbed.runner import RobotRunner
 from coral_testbed.waiting import wait_for
@@ -119,7 +120,14 @@ class MissionStack:
         )
 
     def _start_operator(self) -> None:
-        env = {**self.cluster.env(), "PYTHONUNBUFFERED": "1"}
+        env = {
+            **self.cluster.env(),
+            "PYTHONUNBUFFERED": "1",
+            # The operator's policy opened for this namespace as an administrator would for these
+            # missions: DDS over the host network, and the relay's site share beside the bags.
+            "CORAL_POLICY_HOST_NETWORK_NAMESPACES": self.namespace,
+            "CORAL_POLICY_HOST_PATH_PREFIXES": f"/var/lib/coral,{manifests.SITE_SHARE}",
+        }
         with self.operator_log.open("ab") as log:
             self.operator = subprocess.Popen(
                 [sys.executable, "-m", "coral_operator", "-n", self.namespace],

@@ -63,9 +63,17 @@ def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> No
         status = _coral("status", "--dir", str(state_dir))
         assert status.returncode == 0, status.stdout + status.stderr
         assert str(kubeconfig) in status.stdout
+        lines = status.stdout.splitlines()
+        header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["COMPONENT", "PID"])
+        rows = [
+            line.split()
+            for line in lines[header + 1 :]
+            if line.split()[:1] not in (["server"], ["kubeconfig"])
+        ]
         assert {"etcd", "kube-apiserver", "kube-controller-manager", "kube-scheduler", "kwok"} == {
-            line.split()[0] for line in status.stdout.splitlines() if "pid" in line
+            row[0] for row in rows
         }
+        assert {row[2] for row in rows} == {"healthy"} and "\x1b" not in status.stdout
 
         nodes = _kubectl(kubeconfig, "get", "nodes", "-L", "coral.dev/robot,coral.dev/model", "--no-headers")
         rows = sorted(line.split() for line in nodes.splitlines())

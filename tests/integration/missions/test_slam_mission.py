@@ -8,10 +8,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from coral import tree_picture
 from coral.lidar import demo as slam_demo
+from coral.lidar import picture
+from coral.local.console import outline_of
 from coral_testbed.cluster import Cluster
+from coral_testbed.missions import demo as mission_demo
 from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
+from fixtures import pictures
 from kubernetes import client as k8s
 
 from .conftest import TEST_SCANS, StartStack, wait_finished
@@ -26,6 +31,7 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     suffix: str,
     short_bag: Path,
     ros_env: dict[str, str],
+    tmp_path: Path,
 ) -> None:
     robot = f"m-slam-{suffix}"
     stack = start_stack([robot])
@@ -46,10 +52,30 @@ def test_slam_mission_applied_with_kubectl_maps_the_bag(
     assert output is not None and stack.runner.robot_dir(robot) in output.parents
     map_file = output / slam_demo.EXAMPLE_MAP_NAME
     assert map_file.is_file(), sorted(p.name for p in output.iterdir())
-    scans, total, error, points = slam_demo.score(output, short_bag)
-    assert total == TEST_SCANS and scans >= TEST_SCANS - 2, (scans, total)
-    assert points > 1000
-    assert error is not None and error.ate_rmse_m < 0.5, error
+    evaluation = slam_demo.evaluate(output, short_bag)
+    assert evaluation.ground_truth_scans == TEST_SCANS and evaluation.scans >= TEST_SCANS - 2, evaluation
+    assert evaluation.map_points > 1000
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < 0.5, evaluation.error
+    # The picture lands beside the map in the robot's files, as `coral demo` prints it.
+    assert evaluation.picture_path == map_file.with_suffix(".png")
+    rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
+    assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
+
+    # What `coral demo` keeps once the robot's files are gone: the same files, picture included.
+    kept = mission_demo.keep_outputs(evaluation, tmp_path / "kept")
+    assert kept.map_path == tmp_path / "kept" / "slam_map.ply" and kept.map_path.is_file()
+    assert kept.picture_path is not None
+    assert kept.picture_path.read_bytes() == evaluation.picture_path.read_bytes()
+    assert (tmp_path / "kept" / "slam_map.trajectory.csv").is_file()
+
+    # `coral demo --tree-png`: the deployed tree, its root in the colour of the mission's result.
+    said: list[str] = []
+    mission_demo.draw_trees(stack, [robot], tmp_path / "tree.png", said.append)
+    assert said == [f"Tree picture      : {tmp_path / 'tree.png'}"]
+    outline = outline_of(manifests.ROOT / "examples" / "lidar-slam" / "tree.xml")
+    rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
+    green = tuple(int(tree_picture.FILL["SUCCESS"][i : i + 2], 16) for i in (1, 3, 5))
+    assert pictures.count_near(rgb, green, 6) > 200
 
     # The mission is over: the executor pod ends Succeeded and is not started again.
     core = k8s.CoreV1Api(cluster.api_client)

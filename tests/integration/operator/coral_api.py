@@ -23,6 +23,18 @@ def fleet_mission(name: str, fleet: str) -> dict[str, Any]:
     return manifest
 
 
+def client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
+    """An API client authenticated as a ServiceAccount, as a pod running under it would be."""
+    token = cluster.kubectl("create", "token", account, "-n", namespace, "--duration=10m").stdout.strip()
+    base = cluster.api_client.configuration
+    configuration = k8s.Configuration()
+    configuration.host = base.host
+    configuration.ssl_ca_cert = base.ssl_ca_cert
+    configuration.verify_ssl = base.verify_ssl
+    configuration.api_key = {"authorization": f"Bearer {token}"}
+    return k8s.ApiClient(configuration)
+
+
 class Coral:
     """Typed-enough access to one namespace."""
 

@@ -48,6 +48,38 @@ REJECTIONS = [
         lambda s: s["tree"].update(configMapRef={"name": "x", "key": "tree.xml"}),
         "set exactly one of inline or configMapRef",
     ),
+    (
+        "In without values",
+        lambda s: s.update(robots={"matchExpressions": [{"key": "fleet", "operator": "In", "values": []}]}),
+        "operator In and NotIn need at least one value",
+    ),
+    (
+        "Exists with values",
+        lambda s: s.update(
+            robots={"matchExpressions": [{"key": "fleet", "operator": "Exists", "values": ["a"]}]}
+        ),
+        "operator Exists and DoesNotExist take no values",
+    ),
+    (
+        "a label key that is not one",
+        lambda s: s.update(robots={"matchLabels": {"not a key!": "a"}}),
+        "matchLabels keys and values must be Kubernetes label keys and values",
+    ),
+    (
+        "a label value that is not one",
+        lambda s: s.update(robots={"matchLabels": {"fleet": "not a value!"}}),
+        "spec.robots.matchLabels.fleet",
+    ),
+    (
+        "maxUnavailable in words",
+        lambda s: s.update(rollout={"maxUnavailable": "lots"}),
+        "rollout.maxUnavailable must be a count of at least 0 or a percentage like '10%'",
+    ),
+    (
+        "an include file under the tree's own name",
+        lambda s: s["tree"].update(files={"tree.xml": "<root/>"}),
+        "tree.files names must be file names",
+    ),
 ]
 
 

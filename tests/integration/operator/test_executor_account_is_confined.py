@@ -6,23 +6,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import GROUP, VERSION, Coral, fleet_mission, is_current_and_true
+from coral_api import GROUP, VERSION, Coral, client_as, fleet_mission, is_current_and_true
 from coral_operator.sink import kubernetes as sink
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
-
-
-def _client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
-    token = cluster.kubectl("create", "token", account, "-n", namespace, "--duration=10m").stdout.strip()
-    base = cluster.api_client.configuration
-    configuration = k8s.Configuration()
-    configuration.host = base.host
-    configuration.ssl_ca_cert = base.ssl_ca_cert
-    configuration.verify_ssl = base.verify_ssl
-    configuration.api_key = {"authorization": f"Bearer {token}"}
-    return k8s.ApiClient(configuration)
 
 
 def _denied(call: Callable[[], Any]) -> bool:
@@ -46,7 +35,7 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(
     coral.create_system(fleet_mission("fleet", fleet_label))
     wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
     instance = f"fleet-{mine}"
-    as_executor = _client_as(cluster, namespace, f"{instance}-executor")
+    as_executor = client_as(cluster, namespace, f"{instance}-executor")
 
     status_sink = sink.KubernetesStatusSink(
         sink.build_patcher(as_executor, namespace, instance), background=False

@@ -14,6 +14,7 @@ import pytest
 import yaml
 from coral_api import Coral, fleet_mission, is_current_and_true
 from coral_testbed.cluster import binaries
+from fixtures.operator import opened_policy
 from fixtures.processes import stop_process_group
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -112,6 +113,8 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
         "--wait=false",
         "--set",
         f"watchNamespaces={{{namespace}}}",
+        "--set",
+        f"policy.hostNetworkNamespaces={{{namespace}}}",
         # Keep the chart's own operator pod off the simulated robots; this test runs it as a process.
         "--set",
         "nodeSelector.coral-test=no-such-node",
@@ -123,7 +126,7 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
         log = (tmp_path / "operator.log").open("w")
         process = subprocess.Popen(
             [sys.executable, "-m", "coral_operator", "-n", namespace],
-            env={**env, "KUBECONFIG": str(kubeconfig), "PYTHONUNBUFFERED": "1"},
+            env={**env, **opened_policy(namespace), "KUBECONFIG": str(kubeconfig), "PYTHONUNBUFFERED": "1"},
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,

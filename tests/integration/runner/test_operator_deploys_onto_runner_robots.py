@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 from coral_testbed.cluster import Cluster
 from coral_testbed.waiting import wait_for
+from fixtures.operator import opened_policy
 from fixtures.processes import Spawn
 from kubernetes import client as k8s
 
@@ -89,7 +90,7 @@ def test_coral_system_runs_skillset_then_executor_on_a_runner_robot(
     with (tmp_path / "operator.log").open("w") as log:
         operator = spawned(
             [sys.executable, "-m", "coral_operator", "-n", namespace],
-            env={**cluster.env(), "PYTHONUNBUFFERED": "1"},
+            env={**cluster.env(), **opened_policy(namespace), "PYTHONUNBUFFERED": "1"},
             stdout=log,
             stderr=subprocess.STDOUT,
         )

@@ -39,49 +39,115 @@ def test_a_required_variable_that_is_unset_is_reported_with_its_line() -> None:
         parse_compose(find_compose_file(EXAMPLE), {})
 
 
+# The cases of the compose specification's interpolation.md and Docker Compose's documentation.
 @pytest.mark.parametrize(
     ("text", "env", "expected"),
     [
         ("${A}", {"A": "1"}, "1"),
+        ("$A", {"A": "1"}, "1"),
+        ("${MISSING}", {}, ""),
         ("${A:-x}", {"A": ""}, "x"),
+        ("${A:-x}", {}, "x"),
+        ("${A:-x}", {"A": "1"}, "1"),
         ("${A-x}", {"A": ""}, ""),
         ("${A-x}", {}, "x"),
+        ("${A:+alt}", {"A": "1"}, "alt"),
+        ("${A:+alt}", {"A": ""}, ""),
+        ("${A:+alt}", {}, ""),
+        ("${A+alt}", {"A": ""}, "alt"),
+        ("${A+alt}", {}, ""),
+        ("${A?err}", {"A": ""}, ""),
         ("$A/$$B", {"A": "a"}, "a/$B"),
-        ("${MISSING}", {}, ""),
+        ("$$", {}, "$"),
+        ("$${A}", {"A": "1"}, "${A}"),
+        ("${A:-${B}}", {"B": "b"}, "b"),
+        ("${A:-${B:-default}}", {}, "default"),
+        ("${A:-x}y${B}", {"B": "z"}, "xyz"),
+        ("${A:-a b}", {}, "a b"),
+        ("pre-$A-post", {"A": "1"}, "pre-1-post"),
+        ("${A:-{x}}", {}, "{x}"),
     ],
 )
 def test_variables_are_interpolated_as_compose_does(text: str, env: dict[str, str], expected: str) -> None:
     assert interpolate(text, env, Path("f"), 1) == expected
 
 
-def test_a_service_without_a_coral_profile_is_named_with_its_line(tmp_path: Path) -> None:
-    file = _project(tmp_path, "services:\n  a:\n    image: x\n    profiles: [tools]\n")
-    with pytest.raises(ComposeError, match=r"compose.yaml:4: service a needs exactly one of the profiles"):
-        parse_compose(file, {})
+@pytest.mark.parametrize(
+    ("text", "env", "message"),
+    [
+        ("${A:?set A first}", {}, "variable A is required: set A first"),
+        ("${A:?set A first}", {"A": ""}, "variable A is required: set A first"),
+        ("${A?}", {}, "variable A is required: not set"),
+        ("${A:?}", {"A": ""}, "variable A is required: empty"),
+        ("${A:?need $B}", {"B": "bee"}, "variable A is required: need bee"),
+    ],
+)
+def test_a_required_variable_that_is_missing_is_an_error_with_the_message(
+    text: str, env: dict[str, str], message: str
+) -> None:
+    with pytest.raises(ComposeError, match=f"^f:3: {message}$"):
+        interpolate(text, env, Path("f"), 3)
 
 
-def test_an_unknown_x_coral_option_is_named_with_its_line(tmp_path: Path) -> None:
+@pytest.mark.parametrize("text", ["${A", "${}", "${A B}", "${-x}", "$5", "cost: 5$", "${A:x}"])
+def test_an_invalid_interpolation_is_refused_with_its_line(text: str) -> None:
+    with pytest.raises(ComposeError, match="^f:7: invalid interpolation format"):
+        interpolate(text, {"A": "1"}, Path("f"), 7)
+
+
+def test_dotenv_values_are_parsed_by_dotenv_rules_and_interpolated(tmp_path: Path) -> None:
     file = _project(
         tmp_path,
-        "services:\n  a:\n    image: x\n    profiles: [drivers]\n    x-coral:\n"
-        "      transient: true\n      restart: always\n",
+        "services:\n  d:\n    image: x\n    profiles: [drivers]\n"
+        "    environment: [A=$A, B=$B, C=$C, D=$D, E=$E]\n",
+        **{
+            ".env": "# comment\nexport A='single $quoted'\nB=\"${FROM_ENV}/x\"  # trailing\n"
+            'C=${A}-c\nD="two\nlines"\nE=${FROM_ENV:-unused}\n'
+        },
     )
-    with pytest.raises(ComposeError, match=r"compose.yaml:7: unknown x-coral option 'restart' in service a"):
-        parse_compose(file, {})
+    service = parse_compose(file, {"FROM_ENV": "env", "E": "from the environment"}).services[0]
+    assert service.environment == {
+        "A": "single $quoted",
+        "B": "env/x",
+        "C": "single $quoted-c",
+        "D": "two\nlines",
+        "E": "from the environment",
+    }
 
 
-def test_only_drivers_may_be_transient(tmp_path: Path) -> None:
-    file = _project(
-        tmp_path,
-        "services:\n  s:\n    image: x\n    profiles: [skillsets]\n    x-coral:\n      transient: true\n",
-    )
-    with pytest.raises(ComposeError, match=r"compose.yaml:6: only drivers can be transient"):
-        parse_compose(file, {})
-
-
-def test_invalid_yaml_is_reported_with_its_line(tmp_path: Path) -> None:
-    file = _project(tmp_path, "services:\n  a:\n    image: [x\n")
-    with pytest.raises(ComposeError, match=r"compose.yaml:4: invalid YAML"):
+@pytest.mark.parametrize(
+    ("compose", "dotenv", "message"),
+    [
+        pytest.param("services: {}\n", "A=1\nB='unclosed\n", r"\.env:2: cannot parse", id="bad .env line"),
+        pytest.param(
+            "services:\n  a:\n    image: x\n    profiles: [tools]\n",
+            None,
+            r"compose.yaml:4: service a needs exactly one of the profiles",
+            id="no Coral profile",
+        ),
+        pytest.param(
+            "services:\n  a:\n    image: x\n    profiles: [drivers]\n    x-coral:\n"
+            "      transient: true\n      restart: always\n",
+            None,
+            r"compose.yaml:7: unknown x-coral option 'restart' in service a",
+            id="unknown x-coral option",
+        ),
+        pytest.param(
+            "services:\n  s:\n    image: x\n    profiles: [skillsets]\n    x-coral:\n      transient: true\n",
+            None,
+            r"compose.yaml:6: only drivers can be transient",
+            id="transient skillset",
+        ),
+        pytest.param(
+            "services:\n  a:\n    image: [x\n", None, r"compose.yaml:4: invalid YAML", id="invalid YAML"
+        ),
+    ],
+)
+def test_a_file_coral_cannot_run_is_refused_with_file_and_line(
+    tmp_path: Path, compose: str, dotenv: str | None, message: str
+) -> None:
+    file = _project(tmp_path, compose, **({".env": dotenv} if dotenv is not None else {}))
+    with pytest.raises(ComposeError, match=message):
         parse_compose(file, {})
 
 

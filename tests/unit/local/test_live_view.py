@@ -6,7 +6,15 @@ import io
 import json
 from pathlib import Path
 
+from coral import terminal
 from coral.local.console import Console, StatusTail, TreeView, outline_of
+
+
+def _rendered(view: TreeView) -> list[str]:
+    """The footer as plain text, as a pipe would receive it."""
+    stream = io.StringIO()
+    terminal.console(stream, colour=False).print(view.renderable())
+    return [line.rstrip() for line in stream.getvalue().splitlines()]
 
 
 def _records() -> list[dict[str, object]]:
@@ -23,7 +31,7 @@ def test_the_view_shows_each_node_with_its_latest_status_indented_by_depth() -> 
     view = TreeView()
     for record in _records():
         view.apply(record)
-    lines = view.lines(colour=False)
+    lines = _rendered(view)
     assert lines[0] == "tree SUCCESS  ticks 9"
     assert lines[1].split() == ["Sequence", "RUNNING"]
     assert lines[2].startswith("▶   ProcessScan") and lines[2].split()[-1] == "SUCCESS"
@@ -69,9 +77,11 @@ def test_the_status_tail_reads_only_complete_new_lines(tmp_path: Path) -> None:
 def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
     tree = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam" / "tree.xml"
     outline = outline_of(tree)
-    assert outline[1] == (0, "Sequence")
-    assert outline[2] == (1, "SubTree") and outline[4] == (3, "EnableLocalization")
-    assert outline[14] == (4, "SubTree") and outline[16] == (6, "ProcessScan")
+    assert (outline[1].depth, outline[1].node_id) == (0, "Sequence")
+    assert (outline[2].depth, outline[2].label) == (1, "SubTree StartSLAM")
+    assert (outline[4].depth, outline[4].node_id) == (3, "EnableLocalization")
+    assert (outline[14].depth, outline[14].label) == (4, "SubTree IterateSLAM")
+    assert (outline[16].depth, outline[16].node_id) == (6, "ProcessScan")
     view = TreeView(outline=outline)
     view.apply(
         {
@@ -82,7 +92,7 @@ def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
         }
     )
     view.apply({"event": "transition", "path": "IterateSLAM::14", "node_id": "SubTree", "status": "RUNNING"})
-    assert view.lines(colour=False)[1:] == [
-        f"  {'  ' * 4}{'SubTree IterateSLAM':<28} RUNNING",
-        f"  {'  ' * 6}{'ProcessScan':<28} RUNNING",
-    ]
+    subtree, scan = _rendered(view)[1:]
+    # Indented by the outline's depth (two spaces a level after the marker), statuses in one column.
+    assert subtree.index("SubTree IterateSLAM") == 2 + 2 * 4 and scan.index("ProcessScan") == 2 + 2 * 6
+    assert subtree.endswith("RUNNING") and scan.endswith("RUNNING") and len(subtree) == len(scan)

@@ -71,9 +71,36 @@ def test_verify_refuses_what_is_not_a_component() -> None:
 def test_nodes_model_lists_every_behavior_of_the_project_for_groot(project: Path) -> None:
     result = CliRunner().invoke(main, ["nodes-model", str(project)])
     assert result.exit_code == 0, result.output
-    assert "<TreeNodesModel>" in result.output
+    lines = result.output.splitlines()
+    # BT.CPP's layout: 4-space indentation, empty nodes closed as `<X/>`, C++ type names.
+    assert lines[:3] == [
+        '<root BTCPP_format="4">',
+        "    <TreeNodesModel>",
+        '        <Action ID="DisableLocalization"/>',
+    ]
     for node_id in ("ProcessScan", "SaveMap", "IsDataExhausted", "TakeSnapshot"):
         assert f'ID="{node_id}"' in result.output
+    assert (
+        '            <input_port name="topic" type="std::string" default="/slam/stop">std_msgs/Empty topic'
+        "</input_port>" in lines
+    )
+    assert 'type="string"' not in result.output
+
+
+def test_a_tree_saved_by_groot_with_the_palette_in_it_still_validates(project: Path) -> None:
+    """Groot2 writes the palette it loaded into the tree file it saves: `coral validate` accepts it."""
+    palette = CliRunner().invoke(main, ["nodes-model", str(project)])
+    assert palette.exit_code == 0, palette.output
+    tree = project / "tree.xml"
+    model = palette.output.split('<root BTCPP_format="4">', 1)[1].rsplit("</root>", 1)[0]
+    tree.write_text(tree.read_text().replace("</root>", model + "</root>"))
+    assert "<TreeNodesModel>" in tree.read_text()
+    result = CliRunner().invoke(main, ["validate", str(project)])
+    assert result.exit_code == 0, result.output
+    # The palette in the file does not override the manifests: a port they lack is still an error.
+    tree.write_text(tree.read_text().replace("<IsStopRequested topic=", "<IsStopRequested topc="))
+    result = CliRunner().invoke(main, ["validate", str(project)])
+    assert result.exit_code == 1 and f"{tree}:{_line_of(tree, 'topc=')}" in result.output
 
 
 def test_an_unset_required_variable_is_a_warning_for_validation(

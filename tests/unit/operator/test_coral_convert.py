@@ -106,3 +106,21 @@ def test_the_examples_missions_are_the_output_of_convert(
     assert result.exit_code == 0, result.output
     committed = (folder / "mission.yaml").read_text()
     assert yaml.safe_load(committed) == yaml.safe_load(result.stdout)
+
+
+def test_included_files_beside_the_tree_travel_in_the_system(tmp_path: Path) -> None:
+    folder = _folder(tmp_path, "x-coral:\n  tree: tree.xml\n" + COMPOSE)
+    nav = (
+        '<root BTCPP_format="4">\n  <BehaviorTree ID="Nav">\n    <AlwaysSuccess/>\n'
+        "  </BehaviorTree>\n</root>\n"
+    )
+    (folder / "nav.xml").write_text(nav)
+    tree = (
+        '<root BTCPP_format="4" main_tree_to_execute="Main">\n  <include path="nav.xml"/>\n'
+        '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n</root>\n'
+    )
+    (folder / "tree.xml").write_text(tree)
+    result = CliRunner().invoke(convert_command, [str(folder), "--robots", "fleet=a"])
+    assert result.exit_code == 0, result.output
+    spec = CoralSystemSpec.model_validate(yaml.safe_load(result.stdout)["spec"])
+    assert spec.tree.files == {"nav.xml": nav}

@@ -76,3 +76,25 @@ def test_the_tree_nodes_model_lists_behaviors_with_their_ports(tmp_path: Path) -
         "Upper bound",
     )
     assert model.find("Action/output_port").get("name") == "greeting"  # type: ignore[union-attr]
+
+
+# Manifest spelling -> what BT.CPP's writeTreeNodesModelXML prints (BT::demangle of the C++ type).
+BT_CPP_TYPE_NAMES = {
+    "string": "std::string",
+    "std::string": "std::string",
+    "any": "BT::AnyTypeAllowed",
+    "": "BT::AnyTypeAllowed",
+    "int": "int",
+    "double": "double",
+    "bool": "bool",
+    "unsigned int": "unsigned int",
+    "NodeStatus": "BT::NodeStatus",
+    "list[double]": "std::vector<double>",
+    "list:string": "std::vector<std::string>",
+    "geometry_msgs::msg::Pose": "geometry_msgs::msg::Pose",
+}
+
+
+@pytest.mark.parametrize(("declared", "written"), BT_CPP_TYPE_NAMES.items())
+def test_port_types_are_written_with_bt_cpp_names(declared: str, written: str) -> None:
+    assert model_xml.cpp_type_name(declared) == written

@@ -44,7 +44,9 @@ def test_plugins_model_prints_a_groot_palette(tmp_path: Path) -> None:
     result = CliRunner().invoke(main, ["plugins", "model", str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert '<Condition ID="IsAtLeast">' in result.output
-    assert '<input_port name="who" type="string" default="world">Who to greet</input_port>' in result.output
+    assert (
+        '<input_port name="who" type="std::string" default="world">Who to greet</input_port>' in result.output
+    )
 
 
 def test_skillset_verb_rejects_a_target_without_a_class() -> None:

@@ -50,7 +50,7 @@ def _compile_code(node: Any, config: NodeConfig) -> Any:
 class Script(SyncAction):
     """Runs `code`; always SUCCESS. A script error aborts the tick with a BTRuntimeError."""
 
-    PORTS = [PortSpec("code", type="string", description="Piece of code that can be parsed")]
+    PORTS = [PortSpec("code", type="string", required=True, description="Piece of code that can be parsed")]
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)
@@ -70,7 +70,10 @@ class Script(SyncAction):
 class ScriptCondition(ConditionNode):
     PORTS = [
         PortSpec(
-            "code", type="string", description="Piece of code that can be parsed. Must return false or true"
+            "code",
+            type="string",
+            required=True,
+            description="Piece of code that can be parsed. Must return false or true",
         )
     ]
 
@@ -173,7 +176,7 @@ class WasEntryUpdated(SyncAction):
 class Sleep(StatefulAction):
     """RUNNING until `msec` elapsed on the wall clock (a timer wakes the tree up), then SUCCESS."""
 
-    PORTS = [PortSpec("msec", type="unsigned")]
+    PORTS = [PortSpec("msec", type="unsigned", required=True)]
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

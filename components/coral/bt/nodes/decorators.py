@@ -63,6 +63,7 @@ class Repeat(DecoratorNode):
         PortSpec(
             "num_cycles",
             type="int",
+            required=True,
             description="Repeat a successful child up to N times. Use -1 to create an infinite loop.",
         )
     ]
@@ -112,6 +113,7 @@ class RetryUntilSuccessful(DecoratorNode):
         PortSpec(
             "num_attempts",
             type="int",
+            required=True,
             description="Execute again a failing child up to N times. Use -1 to create an infinite loop.",
         )
     ]
@@ -179,7 +181,10 @@ class RunOnce(DecoratorNode):
 class Precondition(DecoratorNode):
     """Ticks the child only if `if` is true (checked again only after the child completes)."""
 
-    PORTS = [PortSpec("if", type="string"), PortSpec("else", type="NodeStatus", default="FAILURE")]
+    PORTS = [
+        PortSpec("if", type="string", required=True),
+        PortSpec("else", type="NodeStatus", default="FAILURE"),
+    ]
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

@@ -15,6 +15,7 @@ class Timeout(DecoratorNode):
         PortSpec(
             "msec",
             type="unsigned",
+            required=True,
             description="After a certain amount of time, halt() the child if it is still running.",
         )
     ]
@@ -64,7 +65,14 @@ class Timeout(DecoratorNode):
 class Delay(DecoratorNode):
     """RUNNING without ticking the child until `delay_msec` elapsed (wall clock), then mirrors it."""
 
-    PORTS = [PortSpec("delay_msec", type="unsigned", description="Tick the child after a few milliseconds")]
+    PORTS = [
+        PortSpec(
+            "delay_msec",
+            type="unsigned",
+            required=True,
+            description="Tick the child after a few milliseconds",
+        )
+    ]
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

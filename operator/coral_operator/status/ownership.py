@@ -1,0 +1,35 @@
+"""Who owns which part of a CoralInstance's status (DESIGN section 3, "Who owns which status").
+
+The executor writes `tree` and `plugins`; everything else is the operator's, recomputed from
+what it observes on every pass. The executor's account may patch the status subresource (RBAC
+cannot narrow a patch to fields), so whatever it writes into the operator's part is treated as
+a change to correct, never as input. Pure; used by the instance handler.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+EXECUTOR_KEYS = frozenset({"tree", "plugins"})
+
+
+def operator_part(status: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields of `status` the operator computes."""
+    return {key: value for key, value in status.items() if key not in EXECUTOR_KEYS}
+
+
+def executor_part(status: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields of `status` the executor reports."""
+    return {key: value for key, value in status.items() if key in EXECUTOR_KEYS}
+
+
+def at_or_after(observed: str | None, written: str | None) -> bool:
+    """Whether an object at resourceVersion `observed` already includes the write that returned
+    `written`. etcd-backed API servers hand out increasing integers; anything else is trusted
+    only when equal."""
+    if observed is None or written is None:
+        return False
+    if observed == written:
+        return True
+    return observed.isdigit() and written.isdigit() and int(observed) > int(written)

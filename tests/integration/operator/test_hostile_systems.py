@@ -1,0 +1,410 @@
+"""CoralSystems written to hurt: each ends in a clear status or an admission refusal within a minute,
+while the operator (under a memory cap) stays up, logs no traceback, and keeps serving a healthy
+system in another namespace.
+
+One operator serves three namespaces for the whole module: `hostile` (the attacks), `healthy` (a
+system that must stay Ready with the same pods throughout) and `baseline` (labelled for Pod
+Security's baseline level, which refuses Coral's pods). The policy is the shipped default, opened
+only for the host network, as an administrator running ROS 2 over DDS would.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import resource
+import socket
+import subprocess
+import sys
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from coral_api import Coral, client_as, condition, fleet_mission, is_current_and_true
+from coral_testbed.waiting import holds_for, wait_for
+from fixtures.cluster import create_test_namespace
+from fixtures.processes import stop_process_group
+from kubernetes import client as k8s
+from kubernetes.client.exceptions import ApiException
+
+pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+
+# Address space, not RSS: what RLIMIT_AS can cap without cgroups. Python, kopf's threads and the
+# kubernetes client need about 0.5 GiB of it; an include of /dev/zero used to take more than 4 GiB.
+MEMORY_CAP_BYTES = 1536 * 1024 * 1024
+CLEAR_WITHIN_S = 60
+# The chart's memory limit for the operator container.
+CHART_MEMORY_LIMIT_KIB = 512 * 1024
+HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
+SUBTREE_MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n'
+
+
+def _cap_memory() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
+
+
+@dataclass
+class Stage:
+    cluster: Any
+    hostile: str
+    healthy: str
+    baseline: str
+    fleet: str
+    operator: subprocess.Popen[Any]
+    log: Path
+    healthy_pods: dict[str, str]
+
+    def coral(self, namespace: str) -> Coral:
+        return Coral(self.cluster.api_client, namespace)
+
+    def logs(self) -> str:
+        return self.log.read_text()
+
+    def peak_rss_kib(self) -> int:
+        status = Path(f"/proc/{self.operator.pid}/status").read_text()
+        return int(next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:")))
+
+    def assert_still_serving(self) -> None:
+        """The operator is the same process, logged no traceback, and the healthy system is untouched."""
+        assert self.operator.poll() is None, f"the operator exited:\n{self.logs()[-3000:]}"
+        assert "Traceback" not in self.logs(), self.logs()[-5000:]
+        assert self.peak_rss_kib() < CHART_MEMORY_LIMIT_KIB
+        healthy = self.coral(self.healthy)
+        assert is_current_and_true(healthy.system("healthy"), "Ready")
+        assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
+
+
+@pytest.fixture(scope="module")
+def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stage]:
+    core = k8s.CoreV1Api(cluster.api_client)
+    baseline_labels = {"pod-security.kubernetes.io/enforce": "baseline"}
+    namespaces = [
+        create_test_namespace(core, "hostile"),
+        create_test_namespace(core, "healthy"),
+        create_test_namespace(core, "baseline", baseline_labels),
+    ]
+    hostile, healthy, baseline = namespaces
+    fleet = f"f{uuid.uuid4().hex[:8]}"
+    robot = f"r{uuid.uuid4().hex[:5]}-1"
+    cluster.add_robots([robot], {"fleet": fleet})
+    log = tmp_path_factory.mktemp("hostile") / "operator.log"
+    args = [sys.executable, "-m", "coral_operator"] + [f"--namespace={n}" for n in namespaces]
+    env = {
+        **cluster.env(),
+        "PYTHONUNBUFFERED": "1",
+        # glibc reserves 64 MiB of address space per thread arena; a capped process wants few.
+        "MALLOC_ARENA_MAX": "2",
+        "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces),
+    }
+    with log.open("w") as out:
+        operator = subprocess.Popen(
+            args,
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            preexec_fn=_cap_memory,
+        )
+    try:
+        coral = Coral(cluster.api_client, healthy)
+        coral.create_system(fleet_mission("healthy", fleet))
+        wait_for(
+            lambda: is_current_and_true(coral.system("healthy"), "Ready"),
+            timeout=90,
+            message=lambda: f"the healthy system to become Ready; operator log:\n{log.read_text()[-3000:]}",
+        )
+        pods = {n: p.metadata.uid for n, p in coral.pods().items()}
+        yield Stage(cluster, hostile, healthy, baseline, fleet, operator, log, pods)
+    finally:
+        stop_process_group(operator, timeout=15)
+        for name in namespaces:
+            core.delete_namespace(name)
+        cluster.remove_robots([robot])
+
+
+def _stalled(stage: Stage, namespace: str, name: str) -> dict[str, Any]:
+    coral = stage.coral(namespace)
+    return wait_for(
+        lambda: is_current_and_true(coral.system(name), "Stalled") and coral.system(name),
+        timeout=CLEAR_WITHIN_S,
+        interval=0.3,
+        message=lambda: f"{name} to be Stalled; operator log:\n{stage.logs()[-3000:]}",
+    )
+
+
+def _attack(stage: Stage, name: str, change: Callable[[dict[str, Any]], None]) -> dict[str, str]:
+    """Create the system in the hostile namespace; its Stalled condition once it is clear."""
+    manifest = copy.deepcopy(fleet_mission(name, stage.fleet))
+    change(manifest["spec"])
+    coral = stage.coral(stage.hostile)
+    coral.create_system(manifest)
+    stalled = condition(_stalled(stage, stage.hostile, name), "Stalled")
+    assert not [i for i in coral.instances().values() if i["spec"]["system"] == name]
+    return stalled
+
+
+def _tree(text: str) -> Callable[[dict[str, Any]], None]:
+    def change(spec: dict[str, Any]) -> None:
+        spec["tree"] = {"inline": text}
+
+    return change
+
+
+def _including(path: str) -> Callable[[dict[str, Any]], None]:
+    return _tree(f'{HEAD}  <include path="{path}"/>\n{SUBTREE_MAIN}</root>\n')
+
+
+def _driver(**fields: Any) -> Callable[[dict[str, Any]], None]:
+    def change(spec: dict[str, Any]) -> None:
+        spec["drivers"][0].update(fields)
+
+    return change
+
+
+def test_an_include_of_dev_zero_is_refused_without_reading_it(stage: Stage) -> None:
+    stalled = _attack(stage, "zero", _including("/dev/zero"))
+    assert stalled["reason"] == "InvalidTree"
+    assert (
+        "coralsystem/zero spec.tree.inline:2: <include path='/dev/zero'> names no file of this CoralSystem"
+        in (stalled["message"])
+    )
+    stage.assert_still_serving()
+
+
+def test_an_include_of_a_host_file_reveals_nothing_about_it(stage: Stage) -> None:
+    host = _attack(stage, "hostname", _including("/etc/hostname"))
+    missing = _attack(stage, "missing", _including("/etc/no-such-file"))
+    # The same words whether the host has such a file or not.
+    assert host["message"].replace("hostname", "X") == missing["message"].replace("missing", "X").replace(
+        "no-such-file", "X"
+    )
+    assert socket.gethostname() not in host["message"]
+    stage.assert_still_serving()
+
+
+def test_a_tree_700_deep_is_refused_with_its_depth(stage: Stage) -> None:
+    body = "<Inverter>" * 700 + "<AlwaysSuccess/>" + "</Inverter>" * 700
+    stalled = _attack(stage, "deep", _tree(f'{HEAD}<BehaviorTree ID="Main">{body}</BehaviorTree></root>'))
+    assert stalled["reason"] == "InvalidTree"
+    assert "spec.tree.inline:2: elements nest 703 levels deep; the limit is 128" in stalled["message"]
+    stage.assert_still_serving()
+
+
+def test_billion_laughs_is_refused(stage: Stage) -> None:
+    entities = '<!ENTITY a "lol">' + "".join(
+        f'<!ENTITY {chr(98 + i)} "{("&" + chr(97 + i) + ";") * 10}">' for i in range(9)
+    )
+    text = f'<?xml version="1.0"?>\n<!DOCTYPE root [{entities}]>\n{HEAD}{SUBTREE_MAIN}<x v="&j;"/></root>\n'
+    stalled = _attack(stage, "laughs", _tree(text))
+    assert "spec.tree.inline:2: entity declarations are not allowed (<!ENTITY a>)" in stalled["message"]
+    stage.assert_still_serving()
+
+
+def test_a_tree_with_thousands_of_errors_is_summarised(stage: Stage) -> None:
+    sleeps = "<Sleep/>" * 5000
+    stalled = _attack(
+        stage,
+        "errors",
+        _tree(f'{HEAD}<BehaviorTree ID="Main"><Sequence>{sleeps}</Sequence></BehaviorTree></root>'),
+    )
+    assert "<Sleep> needs the port [msec]; it has no default" in stalled["message"]
+    assert stalled["message"].endswith("; and 4980 more problems")
+    stage.assert_still_serving()
+
+
+def test_a_tree_of_almost_a_megabyte_is_refused_at_admission_naming_the_field(stage: Stage) -> None:
+    padding = "<!--" + "x" * 990_000 + "-->"
+    manifest = fleet_mission("huge", stage.fleet)
+    manifest["spec"]["tree"] = {"inline": f"{HEAD}{padding}{SUBTREE_MAIN}</root>"}
+    with pytest.raises(ApiException) as refused:
+        stage.coral(stage.hostile).create_system(manifest)
+    assert refused.value.status == 422
+    message = json.loads(refused.value.body)["message"]
+    assert "spec.tree.inline: Too long: may not be more than 262144 bytes" in message
+    stage.assert_still_serving()
+
+
+def test_a_privileged_driver_is_refused_by_the_default_policy(stage: Stage) -> None:
+    stalled = _attack(stage, "privileged", _driver(privileged=True))
+    assert stalled["reason"] == "PolicyDenied"
+    assert (
+        f"spec.drivers[0] (lidar-driver): privileged is not allowed in namespace {stage.hostile}"
+        in (stalled["message"])
+    )
+    stage.assert_still_serving()
+
+
+def test_a_host_path_of_the_root_folder_is_refused(stage: Stage) -> None:
+    stalled = _attack(
+        stage, "rootfs", _driver(hostPaths=[{"hostPath": "/", "mountPath": "/host", "readOnly": False}])
+    )
+    assert (
+        "hostPaths[0].hostPath: host path / is outside the allowed prefixes (/var/lib/coral)"
+        in (stalled["message"])
+    )
+    stage.assert_still_serving()
+
+
+def test_run_as_root_is_refused(stage: Stage) -> None:
+    stalled = _attack(stage, "root", _driver(runAsRoot=True))
+    assert (
+        f"spec.drivers[0] (lidar-driver): runAsRoot is not allowed in namespace {stage.hostile}"
+        in (stalled["message"])
+    )
+    stage.assert_still_serving()
+
+
+def test_a_plugin_root_of_etc_is_refused(stage: Stage) -> None:
+    def plugins_in_etc(spec: dict[str, Any]) -> None:
+        spec["plugins"] = {"hostPathRoot": "/etc"}
+
+    stalled = _attack(stage, "etc", plugins_in_etc)
+    assert (
+        "spec.plugins.hostPathRoot: /etc is not an allowed plugin root (/var/lib/coral/plugins)"
+        in (stalled["message"])
+    )
+    stage.assert_still_serving()
+
+
+def test_a_dot_dot_path_is_compared_after_normalising(stage: Stage) -> None:
+    climbing = [{"hostPath": "/var/lib/coral/../../../etc", "mountPath": "/etc-of-robot"}]
+    stalled = _attack(stage, "climb", _driver(hostPaths=climbing))
+    assert "host path /etc is outside the allowed prefixes (/var/lib/coral)" in stalled["message"]
+    stage.assert_still_serving()
+
+
+def _baseline_instance(stage: Stage) -> dict[str, Any]:
+    coral = stage.coral(stage.baseline)
+    if coral.system("psa") is None:
+        coral.create_system(fleet_mission("psa", stage.fleet))
+
+    def refused() -> dict[str, Any] | None:
+        for instance in coral.instances().values():
+            ready = condition(instance, "ComponentsReady")
+            if ready.get("reason") == "PodRefused" and condition(instance, "Stalled").get("status") == "True":
+                return instance
+        return None
+
+    return wait_for(
+        refused,
+        timeout=CLEAR_WITHIN_S,
+        interval=0.3,
+        message=lambda: f"the instance to report its refused pod; operator log:\n{stage.logs()[-3000:]}",
+    )
+
+
+def test_a_pod_refused_by_pod_security_admission_is_reported_with_the_servers_message(stage: Stage) -> None:
+    instance = _baseline_instance(stage)
+    message = condition(instance, "Stalled")["message"]
+    assert "The API server refused the pod of lidar-driver:" in message
+    assert 'violates PodSecurity "baseline:latest"' in message and "hostPath volumes" in message
+    assert condition(instance, "Ready")["status"] == "False"
+    core = k8s.CoreV1Api(stage.cluster.api_client)
+    name = instance["metadata"]["name"]
+
+    def event() -> bool:
+        events = core.list_namespaced_event(
+            stage.baseline, field_selector=f"involvedObject.name={name}"
+        ).items
+        return any(e.reason == "PodRefused" and "PodSecurity" in (e.message or "") for e in events)
+
+    wait_for(event, timeout=CLEAR_WITHIN_S, message="a PodRefused Event on the instance")
+    stage.assert_still_serving()
+
+
+def test_a_forged_ready_condition_is_overwritten(stage: Stage) -> None:
+    instance = _baseline_instance(stage)
+    name = instance["metadata"]["name"]
+    custom = k8s.CustomObjectsApi(stage.cluster.api_client)
+    forged = [
+        {
+            "type": "Ready",
+            "status": "True",
+            "reason": "Ready",
+            "message": "forged by the executor",
+            "observedGeneration": instance["metadata"]["generation"],
+            "lastTransitionTime": "2026-01-01T00:00:00Z",
+        }
+    ]
+    custom.patch_namespaced_custom_object_status(
+        "coral.dev",
+        "v1alpha1",
+        stage.baseline,
+        "coralinstances",
+        name,
+        {"status": {"conditions": forged}},
+        _content_type="application/merge-patch+json",
+    )
+
+    def corrected() -> bool:
+        current = custom.get_namespaced_custom_object(
+            "coral.dev", "v1alpha1", stage.baseline, "coralinstances", name
+        )
+        ready = condition(current, "Ready")
+        return ready.get("status") == "False" and ready.get("reason") == "PodRefused"
+
+    wait_for(corrected, timeout=CLEAR_WITHIN_S, interval=0.3, message="the forged Ready to be overwritten")
+    stage.assert_still_serving()
+
+
+def test_settled_statuses_are_not_rewritten(stage: Stage) -> None:
+    """Overwriting forged fields must not turn into rewriting the operator's own ones forever."""
+    _baseline_instance(stage)
+    custom = k8s.CustomObjectsApi(stage.cluster.api_client)
+
+    def versions() -> dict[str, str]:
+        seen = {}
+        for namespace in (stage.healthy, stage.baseline):
+            items = custom.list_namespaced_custom_object("coral.dev", "v1alpha1", namespace, "coralinstances")
+            seen |= {i["metadata"]["name"]: i["metadata"]["resourceVersion"] for i in items["items"]}
+        return seen
+
+    before = versions()
+    holds_for(lambda: versions() == before, duration=6, message="instance statuses left alone once settled")
+    stage.assert_still_serving()
+
+
+def test_a_condition_forged_with_the_executors_own_identity_is_overwritten(stage: Stage) -> None:
+    coral = stage.coral(stage.healthy)
+    (name,) = [n for n, i in coral.instances().items() if i["spec"]["system"] == "healthy"]
+    as_executor = k8s.CustomObjectsApi(client_as(stage.cluster, stage.healthy, f"{name}-executor"))
+    instance = coral.instances()[name]
+    forged = [
+        {**entry, "reason": "Forged", "message": "forged by the executor", "observedGeneration": 999}
+        for entry in instance["status"]["conditions"]
+        if entry["type"] == "Ready"
+    ]
+    as_executor.patch_namespaced_custom_object_status(
+        "coral.dev",
+        "v1alpha1",
+        stage.healthy,
+        "coralinstances",
+        name,
+        {"status": {"conditions": forged, "observedGeneration": 999}},
+        _content_type="application/merge-patch+json",
+    )
+
+    def restored() -> bool:
+        current = coral.instances()[name]
+        ready = condition(current, "Ready")
+        generation = current["metadata"]["generation"]
+        return (
+            ready.get("reason") == "Ready"
+            and ready.get("observedGeneration") == generation
+            and current["status"].get("observedGeneration") == generation
+            and {c["type"] for c in current["status"]["conditions"]} > {"Ready", "Stalled", "Reconciling"}
+        )
+
+    wait_for(restored, timeout=CLEAR_WITHIN_S, interval=0.3, message="the operator's conditions restored")
+    # The forged generation made this robot look out of date to its own system for a moment; the
+    # system follows the restored instance back to Ready.
+    wait_for(
+        lambda: is_current_and_true(coral.system("healthy"), "Ready"),
+        timeout=CLEAR_WITHIN_S,
+        interval=0.3,
+        message="the healthy system Ready again",
+    )
+    stage.assert_still_serving()

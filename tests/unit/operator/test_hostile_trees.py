@@ -1,0 +1,115 @@
+"""Trees written to hurt the operator are refused with a figure, never followed onto its disk.
+
+The operator validates every namespace's trees in one process; these are the inputs that used to
+grow it past its memory limit, crash it with a RecursionError or read its files.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from coral.bt.limits import TreeLimits
+from coral_operator.planning import validation
+
+HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
+MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n'
+NAV = '<root BTCPP_format="4">\n  <BehaviorTree ID="Nav">\n    <AlwaysSuccess/>\n  </BehaviorTree>\n</root>\n'
+
+
+def _including(path: str) -> str:
+    return f'{HEAD}  <include path="{path}"/>\n{MAIN}</root>\n'
+
+
+def test_an_include_resolves_among_the_files_the_system_carries() -> None:
+    assert validation.validate_tree(_including("nav.xml"), "tree.xml", files={"nav.xml": NAV}) == []
+    assert validation.validate_tree(_including("./nav.xml"), "tree.xml", files={"nav.xml": NAV}) == []
+
+
+@pytest.mark.parametrize(
+    "path", ["/dev/zero", "/etc/hostname", "/no/such/file", "../../etc/passwd", "nav.xml"]
+)
+def test_an_include_outside_the_system_reveals_nothing_about_the_host(path: str) -> None:
+    (problem,) = validation.validate_tree(_including(path), "tree.xml", files={"other.xml": NAV})
+    assert problem.startswith("tree.xml:2: ")
+    assert "names no file of this CoralSystem" in problem and "(given: other.xml)" in problem
+    # The same words whether the host has such a file or not.
+    assert problem.replace(path, "P") == validation.validate_tree(
+        _including("/x/y"), "tree.xml", files={"other.xml": NAV}
+    )[0].replace("/x/y", "P")
+
+
+def test_validation_never_opens_a_file(monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError(f"validation opened {args[0]!r}")
+
+    monkeypatch.setattr("builtins.open", refuse)
+    monkeypatch.setattr(os, "open", refuse)
+    assert validation.validate_tree(_including("/etc/hostname"), "tree.xml")
+    assert validation.validate_tree(_including("nav.xml"), "tree.xml", files={"nav.xml": NAV}) == []
+
+
+def test_a_tree_700_deep_is_refused_with_its_depth() -> None:
+    depth = 700
+    body = "<Inverter>" * depth + "<AlwaysSuccess/>" + "</Inverter>" * depth
+    text = f'{HEAD}<BehaviorTree ID="Main">{body}</BehaviorTree></root>'
+    (problem,) = validation.validate_tree(text, "tree.xml")
+    assert problem == "tree.xml:2: elements nest 703 levels deep; the limit is 128"
+
+
+def test_billion_laughs_is_refused_before_any_expansion() -> None:
+    entities = '<!ENTITY lol "lol">' + "".join(
+        f'<!ENTITY lol{i} "{("&lol%s;" % (i - 1 if i > 1 else "")) * 10}">' for i in range(1, 10)
+    )
+    text = f'<?xml version="1.0"?>\n<!DOCTYPE root [{entities}]>\n{HEAD}{MAIN}<x a="&lol9;"/></root>'
+    (problem,) = validation.validate_tree(text, "tree.xml")
+    assert problem.startswith("tree.xml:2: entity declarations are not allowed (<!ENTITY lol>)")
+
+
+def test_too_many_elements_too_many_bytes_and_too_many_includes_give_their_figures() -> None:
+    limits = TreeLimits(max_bytes=4000, max_elements=50, max_depth=128, max_includes=2)
+    many = (
+        f'{HEAD}<BehaviorTree ID="Main"><Sequence>{"<AlwaysSuccess/>" * 60}</Sequence></BehaviorTree></root>'
+    )
+    assert validation.validate_tree(many, "t.xml", limits=limits) == [
+        "t.xml:2: the tree has 63 elements with its includes (63 in this file); the limit is 50"
+    ]
+    big = f"{HEAD}{MAIN}<!--{'x' * 5000}--></root>"
+    assert validation.validate_tree(big, "t.xml", limits=limits) == [
+        f"t.xml:1: the tree is {len(big)} bytes with its includes; the limit is 4000"
+    ]
+    chain = {f"f{i}.xml": f'<root BTCPP_format="4"><include path="f{i + 1}.xml"/></root>' for i in range(5)}
+    chain["f5.xml"] = NAV
+    (problem,) = validation.validate_tree(_including("f0.xml"), "t.xml", files=chain, limits=limits)
+    assert problem.endswith("more than 2 <include>s; the limit is 2")
+
+
+def test_a_cycle_of_includes_is_named() -> None:
+    files = {
+        "a.xml": '<root BTCPP_format="4"><include path="b.xml"/></root>',
+        "b.xml": '<root BTCPP_format="4"><include path="a.xml"/></root>',
+    }
+    (problem,) = validation.validate_tree(_including("a.xml"), "t.xml", files=files)
+    assert "include cycle" in problem
+
+
+def test_a_script_nested_past_the_stack_is_a_problem_not_a_crash() -> None:
+    code = "(" * 20000 + "1" + ")" * 20000
+    text = f'{HEAD}<BehaviorTree ID="Main"><Script code="x:={code}"/></BehaviorTree></root>'
+    assert validation.validate_tree(text, "t.xml") == [
+        "t.xml: an expression (a script or port value) nests too deeply to be read"
+    ]
+
+
+def test_deeply_nested_parameters_are_a_problem_not_a_crash() -> None:
+    (problem,) = validation.validate_parameters("a: " + "[" * 5000 + "]" * 5000 + "\n", "params.yaml")
+    assert problem.startswith("params.yaml:")
+
+
+def test_the_robot_still_reads_includes_from_its_folder(tmp_path: Path) -> None:
+    from coral import bt
+
+    (tmp_path / "nav.xml").write_text(NAV)
+    (tmp_path / "tree.xml").write_text(_including("nav.xml"))
+    assert bt.load_tree_file(tmp_path / "tree.xml").main_tree == "Main"

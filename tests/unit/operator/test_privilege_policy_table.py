@@ -1,0 +1,194 @@
+"""The privilege policy, one table: what the default refuses, what an opened namespace may do.
+
+Every row is a change to a valid spec, the namespace it is created in, the operator's policy
+environment, and the problems the operator must report (empty: allowed).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from coral_operator import config
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.planning import policy
+from operator_specs import BASE_SPEC
+
+OPEN_NETWORK = {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": "robots"}
+POD_NETWORK = {"ros": {"network": "Pod"}}
+
+
+def _driver(**fields: Any) -> Callable[[dict[str, Any]], None]:
+    def change(spec: dict[str, Any]) -> None:
+        spec["drivers"][0].update(fields)
+
+    return change
+
+
+def _spec(**top: Any) -> Callable[[dict[str, Any]], None]:
+    def change(spec: dict[str, Any]) -> None:
+        spec.update(copy.deepcopy(top))
+
+    return change
+
+
+def _nothing(spec: dict[str, Any]) -> None:
+    pass
+
+
+DEVICES = "(/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
+OUTSIDE = "is outside the allowed prefixes (/var/lib/coral)"
+HOST_NET_DENIED = "spec.ros.network: the host network (Host) is not allowed in namespace robots; use Pod"
+ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str]]] = [
+    ("pod network needs nothing", _spec(**POD_NETWORK), {}, []),
+    ("host network is closed by default", _nothing, {}, [HOST_NET_DENIED]),
+    ("host network opened for the namespace", _nothing, OPEN_NETWORK, []),
+    ("host network opened for every namespace", _nothing, {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": "*"}, []),
+    (
+        "host network opened elsewhere only",
+        _nothing,
+        {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": "lab"},
+        [HOST_NET_DENIED],
+    ),
+    (
+        "privileged driver by default",
+        _driver(privileged=True),
+        OPEN_NETWORK,
+        ["spec.drivers[0] (lidar): privileged is not allowed in namespace robots"],
+    ),
+    (
+        "privileged driver in an opened namespace",
+        _driver(privileged=True),
+        {**OPEN_NETWORK, "CORAL_POLICY_PRIVILEGED_NAMESPACES": "robots"},
+        [],
+    ),
+    (
+        "runAsRoot by default",
+        _driver(runAsRoot=True),
+        OPEN_NETWORK,
+        ["spec.drivers[0] (lidar): runAsRoot is not allowed in namespace robots"],
+    ),
+    (
+        "runAsRoot in an opened namespace",
+        _driver(runAsRoot=True),
+        {**OPEN_NETWORK, "CORAL_POLICY_ROOT_NAMESPACES": "robots"},
+        [],
+    ),
+    (
+        "hostPath / by default",
+        _driver(hostPaths=[{"hostPath": "/", "mountPath": "/host", "readOnly": False}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path / {OUTSIDE}"],
+    ),
+    (
+        "a .. path climbing out of the allowed folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/../../../etc", "mountPath": "/x"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /etc {OUTSIDE}"],
+    ),
+    (
+        "a look-alike prefix is not the folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coralx", "mountPath": "/x"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coralx {OUTSIDE}"],
+    ),
+    (
+        "data under the allowed folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/bags", "mountPath": "/bags"}]),
+        OPEN_NETWORK,
+        [],
+    ),
+    (
+        "another namespace's plugins",
+        _driver(
+            hostPaths=[{"hostPath": "/var/lib/coral/plugins/other", "mountPath": "/p", "readOnly": False}]
+        ),
+        OPEN_NETWORK,
+        [
+            "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/plugins/other overlaps "
+            "the plugin root, which holds other systems' plugins"
+        ],
+    ),
+    (
+        "a folder holding every namespace's plugins",
+        _driver(hostPaths=[{"hostPath": "//var/lib/./coral/", "mountPath": "/p"}]),
+        OPEN_NETWORK,
+        [
+            "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral overlaps "
+            "the plugin root, which holds other systems' plugins"
+        ],
+    ),
+    (
+        "host paths opened by the administrator",
+        _driver(hostPaths=[{"hostPath": "/srv/maps", "mountPath": "/maps"}]),
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATH_PREFIXES": "/var/lib/coral,/srv"},
+        [],
+    ),
+    ("an allowed device", _driver(devices=[{"hostPath": "/dev/ttyUSB0"}]), OPEN_NETWORK, []),
+    (
+        "/dev/mem",
+        _driver(devices=[{"hostPath": "/dev/mem"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device {DEVICES}"],
+    ),
+    (
+        "a device pattern does not cross folders",
+        _driver(devices=[{"hostPath": "/dev/video0/../mem"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): devices[0].hostPath /dev/mem is not an allowed device {DEVICES}"],
+    ),
+    (
+        "hostPathRoot /etc",
+        _spec(plugins={"hostPathRoot": "/etc"}),
+        OPEN_NETWORK,
+        ["spec.plugins.hostPathRoot: /etc is not an allowed plugin root (/var/lib/coral/plugins)"],
+    ),
+    (
+        "hostPathRoot inside another namespace's plugins",
+        _spec(plugins={"hostPathRoot": "/var/lib/coral/plugins/victims"}),
+        OPEN_NETWORK,
+        [
+            "spec.plugins.hostPathRoot: /var/lib/coral/plugins/victims is not an allowed plugin root "
+            "(/var/lib/coral/plugins)"
+        ],
+    ),
+    (
+        "hostPathRoot spelled differently",
+        _spec(plugins={"hostPathRoot": "/var/lib/coral/plugins/"}),
+        OPEN_NETWORK,
+        [],
+    ),
+    (
+        "everything at once is reported at once",
+        _driver(privileged=True, runAsRoot=True, devices=[{"hostPath": "/dev/sda"}]),
+        {},
+        [
+            HOST_NET_DENIED,
+            "spec.drivers[0] (lidar): privileged is not allowed in namespace robots",
+            "spec.drivers[0] (lidar): runAsRoot is not allowed in namespace robots",
+            f"spec.drivers[0] (lidar): devices[0].hostPath /dev/sda is not an allowed device {DEVICES}",
+        ],
+    ),
+]
+
+
+@pytest.mark.parametrize(("story", "change", "environment", "expected"), ROWS, ids=[row[0] for row in ROWS])
+def test_the_policy_refuses_exactly_what_it_does_not_allow(
+    story: str,
+    change: Callable[[dict[str, Any]], None],
+    environment: dict[str, str],
+    expected: list[str],
+) -> None:
+    raw = copy.deepcopy(BASE_SPEC)
+    change(raw)
+    spec = CoralSystemSpec.model_validate(raw)
+    assert policy.evaluate_policy("robots", spec, config.from_environment(environment).policy) == expected
+
+
+def test_the_default_policy_is_the_restrictive_one() -> None:
+    assert config.from_environment({}).policy == policy.Policy()
+    default = policy.Policy()
+    assert not default.privileged_namespaces and not default.root_namespaces
+    assert not default.host_network_namespaces
