@@ -59,8 +59,14 @@ def to_int64(value: float) -> int:
 def copy_into(dst: Any, value: Any) -> Any:
     """`Any::copyInto`: an empty destination takes the value as it is; numbers convert to the
     destination's kind (int64 refuses a non-integral double); strings only replace strings."""
-    if type(dst) is type(value) or dst is EMPTY:
+    dst_type = type(dst)
+    if dst_type is type(value) or dst is EMPTY:
         return value
+    # The common script case first: an arithmetic result (double) into an int64 entry.
+    if dst_type is int and type(value) is float:
+        if value.is_integer():
+            return int(value)
+        raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
     if not _builtin_kind(dst) and not _builtin_kind(value):
         # Two user types: a Python behavior's output of one declared type may take several Python
         # types (None, dict, a message); BT.CPP's C++ port always writes the same T.

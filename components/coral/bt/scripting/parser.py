@@ -201,12 +201,15 @@ def _numeric(op: str, a: float, b: float) -> float:
     return ieee_divide(a, b)
 
 
+_NUMBER = (int, float)
+
+
 def _arith(op: str, a: Any, b: Any) -> Any:
     if a is EMPTY:
         raise ScriptError(not_initialized("left", op))
     if b is EMPTY:
         raise ScriptError(not_initialized("right", op))
-    if is_number(a) and is_number(b):
+    if isinstance(a, _NUMBER) and isinstance(b, _NUMBER):
         if op in ("+", "-", "*", "/"):
             return _numeric(op, float(a), float(b))
         if op in ("&", "|", "^"):

@@ -81,8 +81,8 @@ def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
         x: object = a
         y: object = b
     else:
-        if is_number(a) and is_number(b):
-            x, y = float(a), float(b)  # type: ignore[arg-type]
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+            x, y = float(a), float(b)
         elif isinstance(a, str) and is_number(b):
             x, y = string_to_number(a, enums), float(b)  # type: ignore[arg-type]
         elif is_number(a) and isinstance(b, str):
