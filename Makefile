@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test venv control-plane image-builder images lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -21,6 +21,15 @@ venv: $(STAMP)
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
+# buildah, mmdebstrap and docker-registry from Debian (needs root; idempotent).
+# Without them the tests that need images are skipped, so a missing install does not stop `make test`.
+image-builder:
+	@bash hack/setup-image-builder.sh || echo "==> image builder not installed: tests that need images will be skipped"
+
+# Every image from the repository's Dockerfiles, pushed to the local registry (docs/images.md).
+images: venv image-builder
+	@$(VENV)/bin/coral images build
+
 # The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
 demo: venv control-plane
 	@$(VENV)/bin/coral demo
@@ -33,7 +42,7 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane
+test: venv control-plane image-builder
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

@@ -4,6 +4,8 @@ Each role has one import package living in its own source root, so the folder na
 (`operator/`, `components/skillsets/`, ...) never become import names themselves.
 """
 
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 PACKAGE_ROOTS = {
@@ -18,6 +20,9 @@ PACKAGE_ROOTS = {
 def _packages() -> list[str]:
     found: list[str] = []
     for name, path in PACKAGE_ROOTS.items():
+        # Container images copy only the roots they run (no test tooling); absent ones are skipped.
+        if not (Path(__file__).parent / path).is_dir():
+            continue
         found.append(name)
         found.extend(f"{name}.{sub}" for sub in find_packages(path))
     return found

@@ -23,6 +23,7 @@ VERBS: dict[str, str] = {
     "generate-bag": "coral.lidar.cli:generate_bag_command",
     "slam-demo": "coral.lidar.cli:slam_demo_command",
     "dev-cluster": "coral_testbed.cluster.cli:dev_cluster",
+    "images": "coral_testbed.images.cli:images",
     "executor": "coral.executor.cli:executor_command",
     "skillset": "coral.sdk.cli:skillset_command",
     "plugins": "coral.plugins.cli:plugins_command",

@@ -8,7 +8,9 @@ XML length, the instantiated tree as XML with `_uid`s, uint64 start time, then 9
 
 from __future__ import annotations
 
+import functools
 import os
+import re
 import struct
 import tempfile
 from collections.abc import Callable
@@ -50,6 +52,7 @@ class Outcomes:
     scripts: dict[str, list[int]]
     cursor: dict[str, int] = field(default_factory=dict)
     halts: list[str] = field(default_factory=list)
+    calls: list[tuple[str, tuple[tuple[str, str], ...]]] | None = None  # set to a list to record
 
     def next(self, name: str) -> int:
         seq = self.scripts.get(name) or [2]
@@ -64,6 +67,136 @@ class Run:
     statuses: list[object]
     transitions: list[tuple[int, int]]
     error: str = ""
+    # With `observe=True`: per tick, the leaf calls (name and the local entries of the blackboard
+    # the leaf sees, i.e. its subtree's) and the root blackboard after the tick; then haltTree().
+    calls: list[list[tuple[str, tuple[tuple[str, str], ...]]]] = field(default_factory=list)
+    boards: list[dict[str, str]] = field(default_factory=list)
+    halted: list[str] = field(default_factory=list)
+    after_halt: dict[str, str] = field(default_factory=dict)
+    # Ticks after haltTree(): the tree must start over as BT.CPP's does (statuses, boards).
+    restarted: list[tuple[object, dict[str, str]]] = field(default_factory=list)
+
+    def trace(self, with_transitions: bool = True) -> tuple[object, ...]:
+        return (
+            self.verdict,
+            error_site(self.error) if self.verdict == "TICKERR" else None,
+            self.statuses,
+            self.transitions if with_transitions else None,
+            self.calls,
+            self.boards,
+            self.halted,
+            self.after_halt,
+            self.restarted,
+        )
+
+
+EMPTY_TEXT = "<empty>"
+OBJECT_TEXT = "<object>"  # a queue or another value BT.CPP cannot print as text
+RESTART_TICKS = 3
+TRACE_FIELDS = (
+    "verdict",
+    "error site",
+    "statuses",
+    "transitions",
+    "calls",
+    "boards",
+    "halted",
+    "after_halt",
+    "restarted",
+)
+_SCRIPT_ERROR = re.compile(r"Error in script \[(.*?)\]", re.DOTALL)
+# BT.CPP 4.8 names no node in a runtime error, so an error is located by the script that raised it
+# (its text, which the generator draws per node) and by its cause. BT.CPP wraps only its own
+# RuntimeErrors with the script's text: for the causes raised as std::runtime_error (Any casts and
+# conversions) the cause alone is compared.
+_UNWRAPPED_CAUSES = (
+    "Any failed string to number conversion",
+    "Invalid floating point to integer conversion",
+    "convertFromString",
+    "Any::cast failed because it is empty",
+    "Any::copyInto fails",
+    "stod",
+    "ExprUnaryArithmetic: undefined",
+)
+_CAUSES = (
+    "Missing parameter",
+    "Variable not found",
+    "not initialized",
+    "doesn't exist",
+    "Operation not permitted",
+    "Invalid operator",
+    "can't be converted",
+    "can't convert to",
+    "Can't convert string",
+    "once declared",
+    "Can't find the port",
+    "Can't mix different types",
+)
+
+
+def error_site(message: str) -> tuple[str, str]:
+    cause = next((c for c in _UNWRAPPED_CAUSES if c in message), "")
+    if cause:
+        return ("", cause)
+    found = _SCRIPT_ERROR.search(message)
+    cause = next((c for c in _CAUSES if c in message), "other")
+    return (found.group(1) if found else "", cause)
+
+
+_NUMERIC_TEXT = re.compile(r"-?(?:[0-9]+(?:\.[0-9]+)?|inf|nan)")
+
+
+@functools.cache
+def _probe_factory() -> btpy.BehaviorTreeFactory:
+    return btpy.BehaviorTreeFactory()
+
+
+def _is_text_entry(board: btpy.Blackboard, key: str) -> bool:
+    """Does this entry hold text? Asked of BT.CPP itself: `key + 0` is refused for a string only."""
+    probe = (
+        f'<root BTCPP_format="4"><BehaviorTree ID="Probe"><Script code="{key} + 0"/></BehaviorTree></root>'
+    )
+    tree = _probe_factory().create_tree_from_text(probe, board)
+    try:
+        tree.tick_exactly_once()
+    except Exception:  # noqa: BLE001 - "Operation not permitted": the entry is a string
+        return True
+    return False
+
+
+def typed_text(text: str, is_text: bool) -> str:
+    """The value as printed, with text that reads like a number quoted so "2" and 2 differ."""
+    return f"'{text}'" if is_text and _NUMERIC_TEXT.fullmatch(text) else text
+
+
+def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
+    """Every local entry as `std::to_string` prints it (so 2 and 2.0 differ: "2" vs "2.000000"),
+    numeric-looking text quoted."""
+    out = {}
+    for key in board.get_keys():
+        try:
+            text = board.get_string(key)
+        except Exception as err:  # noqa: BLE001 - an empty entry, or one that is no number or text
+            out[key] = EMPTY_TEXT if "hasn't been initialized" in str(err) else OBJECT_TEXT
+            continue
+        numeric = _NUMERIC_TEXT.fullmatch(text) is not None
+        out[key] = typed_text(text, numeric and _is_text_entry(board, key))
+    return dict(sorted(out.items()))
+
+
+def coral_board_text(board: bt.Blackboard) -> dict[str, str]:
+    from coral.bt.anyvalue import EMPTY, std_to_string
+
+    out = {}
+    for key in board.keys():
+        value = board.storage[key].value
+        if value is EMPTY:
+            out[key] = EMPTY_TEXT
+        elif isinstance(value, (int, float, str)):
+            out[key] = typed_text(std_to_string(value), isinstance(value, str))
+        else:
+            out[key] = OBJECT_TEXT
+    return dict(sorted(out.items()))
 
 
 # ----------------------------------------------------------------------------------------- BT.CPP
@@ -94,13 +227,17 @@ def run_btcpp(
     leaf_ids: tuple[str, ...] = ("Leaf",),
     cond_ids: tuple[str, ...] = ("Cond",),
     deco_ids: tuple[str, ...] = (),
-    int_vars: dict[str, int] | None = None,
+    host_vars: dict[str, object] | None = None,
     log_transitions: bool = True,
     batch: list[_Pending] | None = None,
+    observe: bool = False,
 ) -> Run:
     factory = btpy.BehaviorTreeFactory()
+    calls: list[tuple[str, tuple[tuple[str, str], ...]]] = []
 
     def on_start(node: btpy.TreeNode) -> btpy.NodeStatus:
+        if observe:
+            calls.append((node.name(), tuple(btcpp_board_text(node.config().blackboard).items())))
         return TO_BTCPP[outcomes.next(node.name())]
 
     def on_halted(node: btpy.TreeNode) -> None:
@@ -113,10 +250,17 @@ def run_btcpp(
     for deco in deco_ids:
         factory.register_simple_decorator(deco, lambda status, node: status)
     board = None
-    if int_vars:
+    if host_vars:
         board = btpy.Blackboard.create()
-        for k, v in int_vars.items():
-            board.set_int(k, v)
+        for k, v in host_vars.items():
+            if isinstance(v, bool):
+                board.set_bool(k, v)
+            elif isinstance(v, int):
+                board.set_int(k, v)
+            elif isinstance(v, float):
+                board.set_double(k, v)
+            else:
+                board.set_string(k, str(v))
     try:
         if main_tree is not None:
             if file is not None:
@@ -137,14 +281,37 @@ def run_btcpp(
     statuses: list[object] = []
     verdict, error = "LOADED", ""
     tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
+    run = Run(verdict, statuses, [], error)
     for _ in range(ticks):
         try:
             statuses.append(BTCPP_STATUS[tick()])
         except Exception as err:  # noqa: BLE001 - a tick exception is compared as a verdict
             statuses.append(ERROR)
-            verdict, error = "TICKERR", str(err)
+            run.verdict, run.error = "TICKERR", str(err)
+        if observe:
+            run.calls.append(list(calls))
+            calls.clear()
+            run.boards.append(btcpp_board_text(tree.root_blackboard()))
+        if run.verdict == "TICKERR":
             break
-    run = Run(verdict, statuses, [], error)
+    if observe:
+        outcomes.halts.clear()
+        try:
+            tree.halt_tree()
+        except Exception as err:  # noqa: BLE001 - an _onHalted script may throw
+            run.halted.append(ERROR)
+            run.error = run.error or str(err)
+        run.halted[:0] = list(outcomes.halts)
+        run.after_halt = btcpp_board_text(tree.root_blackboard())
+        if run.verdict == "LOADED" and not run.halted[-1:] == [ERROR]:
+            for _ in range(RESTART_TICKS):
+                try:
+                    status: object = BTCPP_STATUS[tick()]
+                except Exception:  # noqa: BLE001 - compared as a status
+                    status = ERROR
+                run.restarted.append((status, btcpp_board_text(tree.root_blackboard())))
+                if status == ERROR:
+                    break
     pending = _Pending(logger, tree, log_path, run)
     if batch is not None:
         batch.append(pending)
@@ -196,23 +363,28 @@ def stub_registry(
 ) -> bt.NodeRegistry:
     registry = bt.NodeRegistry.with_builtins()
 
+    def called(node: bt.TreeNode) -> bt.Status:
+        if outcomes.calls is not None:
+            outcomes.calls.append((node.name, tuple(coral_board_text(node.board).items())))
+        return bt.Status(outcomes.next(node.name))
+
     class Leaf(StatefulAction):
         def on_start(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
         def on_running(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
         def on_halted(self) -> None:
             outcomes.halts.append(self.name)
 
     class Cond(ConditionNode):
         def tick(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
     class Sync(SyncAction):
         def tick(self) -> bt.Status:
-            return bt.Status(outcomes.next(self.name))
+            return called(self)
 
     class PassThrough(DecoratorNode):
         def tick(self) -> int:
@@ -238,9 +410,12 @@ def run_coral(
     file: str | None = None,
     main_tree: str | None = None,
     registry: bt.NodeRegistry | None = None,
-    int_vars: dict[str, int] | None = None,
+    host_vars: dict[str, object] | None = None,
     prepare: Callable[[bt.Tree], None] | None = None,
+    observe: bool = False,
 ) -> Run:
+    if observe:
+        outcomes.calls = []
     registry = registry or stub_registry(outcomes)
     transitions: list[tuple[int, int]] = []
     try:
@@ -248,20 +423,42 @@ def run_coral(
             doc = bt.load_tree_file(file, registry, main_tree=main_tree)
         else:
             doc = bt.load_tree_text(xml_text or "", registry, main_tree=main_tree)
-        tree = doc.build(registry, blackboard=dict(int_vars or {}))
+        tree = doc.build(registry, blackboard=dict(host_vars or {}))
     except bt.BTLoadError as err:
         return Run("REJECT", [], [], str(err))
     tree.add_transition_listener(lambda t: transitions.append((t.uid, int(t.status))))
     if prepare is not None:
         prepare(tree)
     tick = tree.tick_exactly_once if mode == "exactly_once" else tree.tick_once
-    statuses: list[object] = []
-    verdict, error = "LOADED", ""
+    run = Run("LOADED", [], transitions)
     for _ in range(ticks):
         try:
-            statuses.append(int(tick()))
+            run.statuses.append(int(tick()))
         except bt.BTRuntimeError as err:
-            statuses.append(ERROR)
-            verdict, error = "TICKERR", str(err)
+            run.statuses.append(ERROR)
+            run.verdict, run.error = "TICKERR", str(err)
+        if observe:
+            run.calls.append(list(outcomes.calls or []))
+            (outcomes.calls or []).clear()
+            run.boards.append(coral_board_text(tree.root_blackboard))
+        if run.verdict == "TICKERR":
             break
-    return Run(verdict, statuses, transitions, error)
+    if observe:
+        outcomes.halts.clear()
+        try:
+            tree.halt()
+        except bt.BTRuntimeError as err:
+            run.halted.append(ERROR)
+            run.error = run.error or str(err)
+        run.halted[:0] = list(outcomes.halts)
+        run.after_halt = coral_board_text(tree.root_blackboard)
+        if run.verdict == "LOADED" and not run.halted[-1:] == [ERROR]:
+            for _ in range(RESTART_TICKS):
+                try:
+                    status: object = int(tick())
+                except bt.BTRuntimeError:
+                    status = ERROR
+                run.restarted.append((status, coral_board_text(tree.root_blackboard)))
+                if status == ERROR:
+                    break
+    return run

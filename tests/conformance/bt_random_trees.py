@@ -1,5 +1,11 @@
-"""Seeded generator of random BT.CPP XML trees over the built-in controls, decorators, scripted leaves,
-ports (Script, SetBlackboard, Switch, Precondition, SubTree remaps) and pre/post-condition attributes.
+"""Seeded generator of random BT.CPP XML trees for the differential test against real BT.CPP.
+
+It covers the built-in controls and decorators, scripted leaves, and what missions do with the
+blackboard: host entries of several types, scripts with every operator on mixed types (written
+with parentheses so BT.CPP 4.8's grammar and 4.10's parse them alike), all pre/post-condition
+attributes, SetBlackboard/UnsetBlackboard, WasEntryUpdated/SkipUnlessUpdated/WaitValueUpdate,
+Switch and Loop* on blackboard values, and nested SubTrees remapped with `{key}`, `{=}`,
+`_autoremap`, literals, `_private` and `@root` keys. A share of the trees is broken on purpose.
 
 Every node gets a unique name, leaves get outcome scripts (with RUNNING). Wall-clock nodes (Sleep,
 Delay, Timeout) and nodes newer than the oracle's BT.CPP (TryCatch) are left out.
@@ -46,7 +52,8 @@ DECORATORS = [
     "LoopDouble",
     "LoopBool",
 ]
-VARS = {"v": 0, "w": 0, "h": 0, "sw": 1}  # host-set int entries; `sws` is the Switch's string entry
+# Host-set entries: ints, a double and a string (the string entry is untyped, as in BT.CPP).
+VARS: dict[str, object] = {"v": 0, "w": 0, "h": 0, "sw": 1, "f": 0.5, "s": "a"}
 SCRIPTS = [
     "v := v + 1",
     "w := w + 1",
@@ -55,10 +62,74 @@ SCRIPTS = [
     "h := h + 2; w := w + v",
     "sws := 'b'",
     "sws := '2'",
+    "sws := 2",
+    "f := f * 2",
+    "f /= 2",
+    "v -= 1",
+    "w *= 2",
+    "h += 1",
+    "s := s .. 'x'",
+    "s := s + 'y'",
+    "s += 'z'",
+    "t := 'n' .. v",
+    "t := 'n' .. (f / 2)",
+    "u := v / 0",
+    "u := (v & 3) | 4",
+    "u := w ^ 5",
+    "u := ~h",
+    "u := -v",
+    "u := !v",
+    "v = '7'",
+    "v = 'q'",
+    "s := 3",
+    "f := 2",
+    "w := 2.5",
+    "v = 4.0",
+    "q := v > 1 ? 'big' : 'small'",
+    "@g := v",
+    "@g := @g + 1",
+    "_p := 1",
+    "_p := _p + 1",
+    "lv := 3",
+    "ld := 'x'",
+    "k := k + 1",
+    "nk := s",
+    "entry := v",
+    "t := v .. w",
+    "lq := '1;2;3'",
+    "lq := '4'",
+    "lsq := 'b;2;a'",
 ]
-CONDITIONS = ["v > 2", "w < 3", "v == w", "sw != 2", "v >= 1 && w <= 4", "h > 1 || v < 1"]
+CONDITIONS = [
+    "v > 2",
+    "w < 3",
+    "v == w",
+    "sw != 2",
+    "v >= 1 && w <= 4",
+    "h > 1 || v < 1",
+    "1 < v <= 3",
+    "5 < 1 <= zz",
+    "s == 'a'",
+    "sws == 'b'",
+    "f >= 0.5",
+    "(v & 1) == 1",
+    "!(v == 1)",
+    "q != 'big'",
+    "@g > 1",
+    "t == 'n1'",
+    "sws == 2",
+]
 PRE = ["_skipIf", "_successIf", "_failureIf", "_while"]
 POST = ["_onSuccess", "_onFailure", "_post", "_onHalted"]
+KEYS = ["v", "w", "h", "s", "f", "sws", "lv", "q", "_p", "lq"]
+BROKEN = [
+    "unused tree with a childless decorator",
+    "unknown node",
+    "script syntax",
+    "port type clash",
+    "undefined subtree",
+    "bad literal",
+]
 
 
 @dataclass
@@ -68,6 +139,7 @@ class Generated:
     mode: str
     node_count: int
     used: set[str] = field(default_factory=set)
+    broken: str = ""
 
 
 class _Gen:
@@ -91,7 +163,10 @@ class _Gen:
         if rng.random() < 0.12:
             attrs[rng.choice(PRE)] = rng.choice(CONDITIONS)
         if rng.random() < 0.12:
-            attrs[rng.choice(POST)] = rng.choice(SCRIPTS)
+            post = rng.choice(POST)
+            # BT.CPP's Tree destructor runs haltTree() too, and an _onHalted script that throws
+            # there terminates the process: _onHalted only records which node was halted last.
+            attrs[post] = f"ho := '{attrs['name']}'" if post == "_onHalted" else rng.choice(SCRIPTS)
 
     def leaf(self) -> str:
         rng = self.rng
@@ -107,7 +182,7 @@ class _Gen:
                 "WasEntryUpdated",
                 "UnsetBlackboard",
             ],
-            [30, 15, 6, 6, 3, 3, 3, 2, 1],
+            [30, 15, 9, 6, 3, 3, 4, 2, 2],
         )[0]
         self.used.add(kind)
         name = self.name("n")
@@ -121,12 +196,16 @@ class _Gen:
         elif kind == "ScriptCondition":
             attrs["code"] = rng.choice(CONDITIONS)
         elif kind == "SetBlackboard":
-            attrs["output_key"] = rng.choice(["v", "w"])
-            attrs["value"] = rng.choice(["1", "3", "{w}", "{v}"])
+            attrs["output_key"] = key = rng.choice(["v", "w", "s", "sws", "f", "nk", "@g"])
+            values = ["1", "3", "x", "2.5", "{w}", "{v}", "{s}", "{f}", "{src}"]
+            if key == "sws":
+                # Switch reads "2.5" as the int 2 in BT.CPP 4.8 but not in 4.10: not generated.
+                values.remove("2.5")
+            attrs["value"] = rng.choice(values)
         elif kind == "UnsetBlackboard":
-            attrs["key"] = "sws"
+            attrs["key"] = rng.choice(["sws", "v", "s", "_p", "nk", "lv"])
         elif kind == "WasEntryUpdated":
-            attrs["entry"] = rng.choice(["{v}", "{w}"])
+            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{f}", "{=}"])
         self.conditions(attrs)
         return f"<{kind}{self.attrs(attrs)}/>"
 
@@ -148,9 +227,9 @@ class _Gen:
         elif kind.startswith("Switch"):
             cases = int(kind[-1])
             n = cases + 1
-            attrs["variable"] = "{sws}"
+            attrs["variable"] = rng.choice(["{sws}", "{sws}", "{s}", "{t}"])
             for i in range(1, cases + 1):
-                attrs[f"case_{i}"] = rng.choice(["1", "2", "b", "3"])
+                attrs[f"case_{i}"] = rng.choice(["1", "2", "b", "3", "a", "n1"])
         else:
             n = rng.randint(1, 4)
         if kind == "Parallel":
@@ -164,7 +243,8 @@ class _Gen:
 
     def decorator(self, depth: int) -> str:
         rng = self.rng
-        kind = rng.choice(DECORATORS)
+        # SubTrees get a larger share: their scoping rules are where engines drift apart.
+        kind = "SubTree" if rng.random() < 0.3 else rng.choice(DECORATORS)
         self.used.add(kind)
         attrs = {"name": self.name("d")}
         if kind == "Repeat":
@@ -178,20 +258,21 @@ class _Gen:
             attrs["if"] = rng.choice(CONDITIONS)
             attrs["else"] = rng.choice(["FAILURE", "SUCCESS", "RUNNING"])
         elif kind in ("SkipUnlessUpdated", "WaitValueUpdate"):
-            attrs["entry"] = rng.choice(["{v}", "{w}"])
+            attrs["entry"] = rng.choice(["{v}", "{w}", "{s}", "{sws}", "{k}", "{@g}", "{=}"])
         elif kind == "LoopInt":
-            attrs["queue"] = rng.choice(["1;2;3", "4", "2;2"])
-            attrs["value"] = "{lv}"
+            # {lq} is a shared queue that scripts fill and the loop consumes in place.
+            attrs["queue"] = rng.choice(["1;2;3", "4", "2;2", "{lq}"])
+            attrs["value"] = rng.choice(["{lv}", "{v}", "{k}"])
             attrs["if_empty"] = rng.choice(["SUCCESS", "FAILURE", "SKIPPED"])
         elif kind == "LoopDouble":
-            attrs["queue"] = rng.choice(["1.5;2", "0.25"])
-            attrs["value"] = "{ld}"
+            attrs["queue"] = rng.choice(["1.5;2", "0.25", "3.0"])
+            attrs["value"] = rng.choice(["{ld}", "{f}", "{k}"])
         elif kind == "LoopBool":
             attrs["queue"] = rng.choice(["true;false", "0;1;1"])
             attrs["value"] = "{lb}"
         elif kind == "LoopString":
-            attrs["queue"] = rng.choice(["b;2", "1;b;3", "2"])
-            attrs["value"] = "{sws}"
+            attrs["queue"] = rng.choice(["b;2", "1;b;3", "2", "{lsq}"])
+            attrs["value"] = rng.choice(["{sws}", "{s}"])
         elif kind == "SubTree":
             return self.subtree(depth, attrs)
         self.conditions(attrs)
@@ -205,18 +286,50 @@ class _Gen:
         body = self.node(depth - 1)
         self.subtrees[slot] = f'<BehaviorTree ID="{tree_id}">{body}</BehaviorTree>'
         attrs["ID"] = tree_id
-        if rng.random() < 0.5:
+        if rng.random() < 0.4:
             attrs["_autoremap"] = "true"
-        else:
-            for key in VARS:
-                attrs[key] = rng.choice(["{" + key + "}", "{=}"])
+        for key in KEYS:
+            choice = rng.random()
+            if choice < 0.35:
+                attrs[key] = "{" + key + "}"
+            elif choice < 0.5:
+                attrs[key] = "{=}"
+            elif choice < 0.6:
+                attrs[key] = "{" + rng.choice(KEYS) + "}"
+            elif choice < 0.68 and key != "lq":
+                # Non-numeric: BT.CPP 4.10 stores numeric SubTree literals as numbers, 4.8 as text.
+                # No text for a queue: 4.10 reads a text entry as a queue, 4.8 refuses it.
+                attrs[key] = rng.choice(["lit", "b", "n1"])
         return f"<SubTree{self.attrs(attrs)}/>"
 
+    def break_tree(self, body: str, trees: list[str]) -> tuple[str, str]:
+        """Makes the tree invalid in one of BROKEN's ways; BT.CPP and the engine must both refuse it."""
+        rng = self.rng
+        how = rng.choice(BROKEN)
+        if how == "unused tree with a childless decorator":
+            trees.append('<BehaviorTree ID="Unused"><Inverter/></BehaviorTree>')
+        elif how == "unknown node":
+            trees.append('<BehaviorTree ID="Unused"><Sequence><NoSuchNode/></Sequence></BehaviorTree>')
+        elif how == "script syntax":
+            body = f'<Sequence>{body}<Script code="v := (1"/></Sequence>'
+        elif how == "port type clash":
+            clash = '<Precondition if="1" else="{v}"><AlwaysSuccess/></Precondition>'
+            body = f"<Sequence>{body}{clash}</Sequence>"
+        elif how == "undefined subtree":
+            body = f'<Sequence>{body}<SubTree ID="Nowhere"/></Sequence>'
+        else:
+            body = f'<Sequence>{body}<Repeat num_cycles="many"><AlwaysSuccess/></Repeat></Sequence>'
+        return body, how
 
-def generate(seed: int, depth: int = 4) -> Generated:
+
+def generate(seed: int, depth: int = 4, broken_share: float = 0.0) -> Generated:
     mode = "exactly_once" if seed % 3 else "once"
     gen = _Gen(seed, forever=mode == "exactly_once")
     body = gen.node(depth)
-    trees = "".join([f'<BehaviorTree ID="MainTree">{body}</BehaviorTree>'] + gen.subtrees)
+    extra: list[str] = []
+    how = ""
+    if broken_share and gen.rng.random() < broken_share:
+        body, how = gen.break_tree(body, extra)
+    trees = "".join([f'<BehaviorTree ID="MainTree">{body}</BehaviorTree>'] + gen.subtrees + extra)
     xml = f'<root BTCPP_format="4" main_tree_to_execute="MainTree">{trees}</root>'
-    return Generated(xml, gen.outcomes, mode, gen.count, gen.used)
+    return Generated(xml, gen.outcomes, mode, gen.count, gen.used, how)

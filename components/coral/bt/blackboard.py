@@ -1,7 +1,10 @@
-"""Per-SubTree-instance blackboards with remapping, `_autoremap`, private keys, `@root` and sequence ids.
+"""Per-SubTree-instance blackboards with BT.CPP's typed entries, remapping, `_autoremap`, private keys,
+`@root` and sequence ids.
 
-Built by the builder (one per SubTree instance, the main tree uses the root board); read by nodes'
-ports and by scripts; `Tree.root_blackboard` exposes the root one to the executor.
+An entry has a declared type (from the port that created it, `any` for untyped ports and scripts,
+`Any` for `BT::Any` ports) and a value with a type of its own; writes convert or refuse by BT.CPP's
+rules (`Blackboard::set`, `Any::copyInto`, `ExprAssignment`). Built by the builder (one board per
+SubTree instance); read by ports and scripts; `Tree.root_blackboard` exposes the root one.
 """
 
 from __future__ import annotations
@@ -10,10 +13,16 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from coral.bt.anyvalue import EMPTY, UNTYPED, casting_is_safe, copy_into, is_number, kind_of, to_int64
 from coral.bt.errors import ScriptError
-from coral.bt.ports import coerce_value, is_typed
+from coral.bt.ports import convert_string
+from coral.bt.scripting.values import string_to_number
 
-EMPTY: Any = type("Empty", (), {"__repr__": lambda self: "<empty>"})()
+__all__ = ["EMPTY", "Blackboard", "Entry", "strongly_typed"]
+
+
+def strongly_typed(type_name: str) -> bool:
+    return type_name not in UNTYPED
 
 
 class Entry:
@@ -24,6 +33,10 @@ class Entry:
         self.type = type_name
         self.seq = 0
         self.stamp = 0.0
+
+    def touch(self) -> None:
+        self.seq += 1
+        self.stamp = time.monotonic()
 
 
 class Blackboard:
@@ -63,38 +76,75 @@ class Blackboard:
         return None
 
     def create_entry(self, key: str, type_name: str = "any") -> Entry:
+        """`createEntry`: the existing entry (refusing a second strong type) or a new empty one,
+        created where remapping or `_autoremap` points."""
         if key[:1] == "@":
-            return self.root().create_entry(key[1:], type_name)
+            return self.root()._create(key[1:], type_name)
+        return self._create(key, type_name)
+
+    def _create(self, key: str, type_name: str) -> Entry:
         entry = self.storage.get(key)
         if entry is not None:
+            if entry.type != type_name and strongly_typed(entry.type) and strongly_typed(type_name):
+                raise ScriptError(
+                    f"Blackboard entry [{key}]: once declared, the type of a port shall not change. "
+                    f"Previously declared type [{entry.type}], current type [{type_name}]"
+                )
             return entry
         parent = self.parent
         if parent is not None:
             target = self.remap.get(key)
             if target is not None:
-                return parent.create_entry(target, type_name)
+                return parent._create(target, type_name)
             if self.autoremap and key[:1] != "_":
-                return parent.create_entry(key, type_name)
+                return parent._create(key, type_name)
         entry = Entry(type_name)
         self.storage[key] = entry
         return entry
 
-    def set(self, key: str, value: Any) -> None:
-        entry = self.get_entry(key)
+    def set(self, key: str, value: Any, port_type: str | None = None) -> None:
+        """`Blackboard::set<T>` with T = `port_type` (default: the value's own type)."""
+        if key[:1] == "@":
+            self.root().set(key[1:], value, port_type)
+            return
+        t = port_type if port_type is not None else kind_of(value)
+        entry = self.storage.get(key)
         if entry is None:
-            entry = self.create_entry(key)
-        self._write(key, entry, value)
-
-    def _write(self, key: str, entry: Entry, value: Any) -> Any:
-        if is_typed(entry.type) or entry.type == "string":
+            # A new (or remapped) entry is declared with the value's own type; a std::string
+            # write declares an untyped one. The value is stored as it is.
+            new_type = "any" if t == "string" else kind_of(value) if t == "Any" else t
+            entry = self._create(key, new_type)
+            entry.value = value
+            entry.touch()
+            return
+        if not strongly_typed(entry.type):
+            entry.type = t
+            entry.value = value
+            entry.touch()
+            return
+        declared = entry.type
+        if declared != t and declared != kind_of(value):
+            converted = EMPTY
+            if isinstance(value, str):
+                try:
+                    converted = convert_string(value, declared, self.enums)
+                except ValueError:
+                    converted = EMPTY
+            if converted is not EMPTY:
+                value = converted
+            elif not (t != "Any" and is_number(value) and casting_is_safe(declared, value)):
+                raise ScriptError(
+                    f"Blackboard::set({key}): once declared, the type of a port shall not change. "
+                    f"Previously declared type [{declared}], current type [{t}]"
+                )
+        if t == "Any":
+            entry.value = value
+        else:
             try:
-                value = coerce_value(value, entry.type, self.enums)
+                entry.value = copy_into(entry.value, value)
             except ValueError as err:
-                raise ScriptError(f"blackboard entry [{key}] has type {entry.type}: {err}") from None
-        entry.value = value
-        entry.seq += 1
-        entry.stamp = time.monotonic()
-        return value
+                raise ScriptError(f"Blackboard::set({key}): {err}") from None  # BT.CPP: unwrapped
+        entry.touch()
 
     def get(self, key: str, default: Any = None) -> Any:
         entry = self.get_entry(key)
@@ -107,18 +157,8 @@ class Blackboard:
         return entry is not None and entry.value is not EMPTY
 
     def unset(self, key: str) -> None:
-        if key[:1] == "@":
-            self.root().unset(key[1:])
-            return
-        if key in self.storage:
-            del self.storage[key]
-            return
-        if self.parent is not None:
-            target = self.remap.get(key)
-            if target is not None:
-                self.parent.unset(target)
-            elif self.autoremap and key[:1] != "_":
-                self.parent.unset(key)
+        """Removes a local entry only: BT.CPP follows neither remapping nor `@` here."""
+        self.storage.pop(key, None)
 
     def keys(self) -> list[str]:
         return list(self.storage)
@@ -129,22 +169,72 @@ class Blackboard:
     def as_dict(self) -> dict[str, Any]:
         return {k: e.value for k, e in self.storage.items() if e.value is not EMPTY}
 
-    # scripting interface
+    # scripting interface ------------------------------------------------------------------
     def script_read(self, key: str) -> Any:
+        """The value (EMPTY when the entry was declared but never written); a missing key throws."""
         entry = self.get_entry(key)
         if entry is None:
             raise ScriptError(f"Variable not found: {key}")
-        if entry.value is EMPTY:
-            raise ScriptError(f"Variable [{key}] is not initialized")
         value = entry.value
         if isinstance(value, bool):
             return 1.0 if value else 0.0
         return value
 
-    def script_write(self, key: str, value: Any, create: bool) -> Any:
+    def script_entry(self, key: str, create: bool) -> Entry:
+        """The entry an assignment writes; `:=` creates it before the right side is evaluated."""
         entry = self.get_entry(key)
         if entry is None:
             if not create:
-                raise ScriptError(f"The blackboard entry [{key}] doesn't exist yet; use ':=' to create it")
-            entry = self.create_entry(key)
-        return self._write(key, entry, value)
+                raise ScriptError(
+                    f"The blackboard entry [{key}] doesn't exist, yet. If you want to create a new "
+                    "one, use the operator [:=] instead of [=]"
+                )
+            entry = self.create_entry(key, "any")
+        return entry
+
+    def script_assign(self, key: str, entry: Entry, value: Any) -> Any:
+        """`:=`/`=`: the first write to an untyped entry takes any value; a string converts through
+        the declared type; otherwise `Any::copyInto` decides."""
+        if value is EMPTY:
+            raise ScriptError("The right operand of the operator [=] is not initialized")
+        dst = entry.value
+        if dst is EMPTY and entry.type == "any":
+            entry.value = value
+        elif isinstance(value, str) and not isinstance(dst, str):
+            if strongly_typed(entry.type):
+                try:
+                    entry.value = convert_string(value, entry.type, self.enums)
+                except ValueError as err:
+                    raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
+            elif entry.type == "Any":
+                raise ScriptError("BT.CPP has no convertFromString for BT::Any: a string can't be stored")
+            elif is_number(dst):
+                entry.value = string_to_number(value, self.enums)
+            else:
+                raise ScriptError(
+                    f"Error assigning a value to entry [{key}] with type [{entry.type}]. The right "
+                    "operand is a string, can't convert to it"
+                )
+        else:
+            try:
+                entry.value = copy_into(dst, value)
+            except ValueError:
+                raise ScriptError(
+                    f"Error assigning a value to entry [{key}]: the right operand has type "
+                    f"[{kind_of(value)}] and can't be converted to [{kind_of(dst)}]"
+                ) from None
+        entry.touch()
+        return entry.value
+
+    def script_store(self, key: str, entry: Entry, value: Any) -> Any:
+        """Result of a compound assignment (`+=` ...): converted into the entry's current kind."""
+        try:
+            dst = entry.value
+            if isinstance(dst, int) and not isinstance(dst, bool) and isinstance(value, float):
+                entry.value = to_int64(value)
+            else:
+                entry.value = copy_into(dst, value)
+        except ValueError as err:
+            raise ScriptError(f"Error assigning a value to entry [{key}]: {err}") from None
+        entry.touch()
+        return entry.value

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral.bt.blackboard import Blackboard
+from coral.bt.anyvalue import kind_of
+from coral.bt.blackboard import Blackboard, Entry, strongly_typed
 from coral.bt.errors import BTError, BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, RESERVED_ATTRS, NodeElement, TreeDocument
 from coral.bt.nodes.base import NodeConfig, TreeNode
@@ -17,6 +18,7 @@ from coral.bt.runtime import Runtime
 from coral.bt.scripting import compile_script
 from coral.bt.status import NodeKind, PortDirection
 from coral.bt.tree import Tree
+from coral.bt.validation import verify_structure
 
 
 def literal_value(text: str) -> Any:
@@ -30,19 +32,6 @@ def literal_value(text: str) -> Any:
         return float(s)
     except ValueError:
         return text
-
-
-def python_type_name(value: Any) -> str:
-    """The entry type a host-provided value gets (BT.CPP types entries the first time they are set)."""
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, int):
-        return "int"
-    if isinstance(value, float):
-        return "double"
-    if isinstance(value, str):
-        return "string"
-    return "any"
 
 
 def _async_children(el: NodeElement) -> int:
@@ -151,18 +140,25 @@ class _Builder:
                 continue
             existing = board.get_entry(key)
             if existing is None:
-                # BT.CPP creates every remapped entry (empty, typed by the port) at construction.
-                board.create_entry(key, type_name)
-            elif type_name != "any":
-                if is_typed(existing.type) and existing.type != type_name:
-                    raise self.fail(
-                        el,
-                        f"port [{key}] was initially created with type {existing.type} and "
-                        f"later type {type_name}",
-                        path,
-                    )
-                if existing.type == "any":
-                    existing.type = type_name
+                # BT.CPP creates every remapped entry (empty, declared with the port's type) at
+                # construction; an entry a first port left untyped is never typed later on.
+                try:
+                    board.create_entry(key, type_name)
+                except ScriptError as err:
+                    raise self.fail(el, err.message, path) from None
+            elif (
+                strongly_typed(existing.type)
+                and strongly_typed(type_name)
+                and existing.type != type_name
+                and existing.type != "string"
+            ):
+                raise self.fail(
+                    el,
+                    f"The creation of the tree failed because the port [{key}] was initially "
+                    f"created with type [{existing.type}] and, later type [{type_name}] was used "
+                    "somewhere else.",
+                    path,
+                )
 
     def _conditions(self, node: TreeNode, el: NodeElement, path: str) -> None:
         pre: list[tuple[int, Any]] = []
@@ -175,6 +171,7 @@ class _Builder:
                 post[attr] = self._script(el, attr, path)
         node._pre = pre or None
         node._post = post or None
+        node._script_sources = {a: el.attrs[a] for a in PRE_CONDITIONS + POST_CONDITIONS if a in el.attrs}
 
     def _script(self, el: NodeElement, attr: str, path: str) -> Any:
         try:
@@ -214,11 +211,15 @@ class _Builder:
             if target_key == "=":
                 target_key = key
             if target_key is not None:
+                # Only an alias: the caller's entry appears when something writes through it.
                 child_board.remap[key] = target_key
-                if board.get_entry(target_key) is None:
-                    board.create_entry(target_key)
             else:
-                child_board.set(key, literal_value(value))
+                # A literal stays in the subtree's own board, even with _autoremap; 4.10 declares
+                # a numeric one with its number type, text stays untyped.
+                literal = literal_value(value)
+                entry = Entry("any" if isinstance(literal, str) else kind_of(literal), literal)
+                entry.touch()
+                child_board.storage[key] = entry
         return self.create(target.root, child_board, path + "/", stack + [tree_id])
 
 
@@ -236,8 +237,8 @@ def build_tree(
     runtime = Runtime(dict(registry.enums), context=context, clock=clock)
     root_board = Blackboard(enums=runtime.enums)
     for key, value in (blackboard or {}).items():
-        root_board.create_entry(key, python_type_name(value))
         root_board.set(key, value)
+    verify_structure(doc, registry)
     builder = _Builder(doc, registry, runtime)
     root = builder.create(main.root, root_board, "", [main.tree_id])
     return Tree(root, runtime, root_board, builder.nodes, doc.warnings)

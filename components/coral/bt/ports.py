@@ -7,10 +7,13 @@ get_input and the blackboard (converting strings written to typed entries).
 from __future__ import annotations
 
 import json
+import re
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from coral.bt.anyvalue import std_to_string
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -50,11 +53,14 @@ _STATUS = {"nodestatus", "bt::nodestatus", "status"}
 
 
 def normalize_type(type_name: str) -> str:
-    """Maps C++/Python spellings onto: any, string, int, double, bool, NodeStatus, list:<elem>, or itself."""
+    """Maps C++/Python spellings onto: any, Any, string, int, double, bool, NodeStatus, list:<elem>
+    (vectors), queue:<elem> (deques and SharedQueues, which Loop nodes consume in place), or itself."""
     t = (type_name or "any").strip()
     low = t.lower()
-    if low in ("", "any", "bt::any", "anytypeallowed", "object"):
+    if low in ("", "any", "anytypeallowed", "object"):
         return "any"
+    if low == "bt::any":
+        return "Any"
     if low in _STRING:
         return "string"
     if low in _INT:
@@ -65,15 +71,18 @@ def normalize_type(type_name: str) -> str:
         return "bool"
     if low in _STATUS:
         return "NodeStatus"
-    for prefix in ("std::vector<", "vector<", "std::deque<", "bt::sharedqueue<", "sharedqueue<", "list["):
+    for prefix in ("std::vector<", "vector<", "list["):
         if low.startswith(prefix):
-            inner = t[len(prefix) :].rstrip(">]")
-            return "list:" + normalize_type(inner)
+            return "list:" + normalize_type(t[len(prefix) :].rstrip(">]"))
+    for prefix in ("std::deque<", "deque<", "bt::sharedqueue<", "sharedqueue<"):
+        if low.startswith(prefix):
+            return "queue:" + normalize_type(t[len(prefix) :].rstrip(">]"))
     return t
 
 
 def is_typed(norm: str) -> bool:
-    return norm not in ("any", "string")
+    """Does a literal for this type need converting (and checking at load time)?"""
+    return norm not in ("any", "Any", "string")
 
 
 def convert_bool(text: str) -> bool:
@@ -85,26 +94,44 @@ def convert_bool(text: str) -> bool:
     raise ValueError(f"invalid bool conversion of '{text}'")
 
 
+# BT.CPP converts with std::from_chars (ints) and std::stod (doubles): both read the longest numeric
+# prefix and ignore what follows, so "2.5" is the int 2 and "3 m" the double 3.0.
+_INT_PREFIX = re.compile(r"-?[0-9]+")
+_DOUBLE_PREFIX = re.compile(
+    r"\s*[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?|nan)", re.IGNORECASE
+)
+
+
 def convert_int(text: str, enums: Mapping[str, int] | None = None) -> int:
-    s = text.strip()
-    if enums and s in enums:
-        return int(enums[s])
-    try:
-        return int(s, 0) if s.lower().startswith(("0x", "-0x")) else int(s)
-    except ValueError:
-        raise ValueError(f"cannot convert '{text}' to int") from None
+    if enums:
+        s = text.strip()
+        if s in enums:
+            return int(enums[s])
+    m = _INT_PREFIX.match(text)
+    if m is None:
+        raise ValueError(f"Can't convert string [{text}] to integer")
+    return int(m.group(0))
 
 
 def convert_double(text: str) -> float:
-    try:
-        return float(text.strip())
-    except ValueError:
-        raise ValueError(f"cannot convert '{text}' to double") from None
+    m = _DOUBLE_PREFIX.match(text)
+    if m is None:
+        raise ValueError(f"Can't convert string [{text}] to double (stod)")
+    return float(m.group(0))
+
+
+def has_trailing_text(text: str, type_name: str) -> bool:
+    """Would BT.CPP ignore part of this literal (a numeric prefix followed by more text)?"""
+    pattern = _INT_PREFIX if type_name == "int" else _DOUBLE_PREFIX if type_name == "double" else None
+    if pattern is None:
+        return False
+    m = pattern.match(text)
+    return m is not None and text[m.end() :].strip() != ""
 
 
 def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
     """Converts a literal string to `type_name` (already normalized); raises ValueError."""
-    if type_name == "any" or type_name == "string":
+    if type_name == "any" or type_name == "string" or type_name == "Any":
         return text
     if type_name == "int":
         return convert_int(text, enums)
@@ -116,6 +143,8 @@ def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = 
         return convert_bool(text)
     if type_name == "NodeStatus":
         return parse_status(text)
+    if type_name.startswith("queue:"):
+        return deque(convert_string(text, "list:" + type_name[6:], enums))
     if type_name.startswith("list:"):
         elem = type_name[5:]
         if text.startswith("json:"):
@@ -145,7 +174,7 @@ def _auto_number(part: str) -> Any:
 
 def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = None) -> Any:
     """Makes a stored value fit a typed port (strings are parsed, integral doubles become ints)."""
-    if type_name == "any":
+    if type_name == "any" or type_name == "Any":
         return value
     if isinstance(value, str):
         return convert_string(value, type_name, enums)
@@ -162,7 +191,7 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
     if type_name == "bool" and isinstance(value, (int, float)):
         return value != 0
     if type_name == "string" and isinstance(value, (int, float)):
-        return repr(value) if isinstance(value, float) else str(value)
+        return std_to_string(value)
     return value
 
 

@@ -104,9 +104,13 @@ class Tree:
         return self._tick_root(_WHILE_RUNNING, sleep_s)
 
     def halt(self) -> None:
+        """BT.CPP's `haltTree()`: halt the root, then every node in document order (so each
+        `_onHalted` runs, for idle nodes too, and a running node its parent no longer ticks is
+        halted), then reset the root."""
         with self.runtime.lock:
-            if self.root._status == RUNNING:
-                self.root.halt_node()
+            self.root.halt_node()
+            for node in self.nodes:
+                node.halt_node()
             self.root.reset_status()
 
     def wake_up(self) -> None:

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from coral.bt.errors import BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, NodeElement
-from coral.bt.ports import blackboard_key, convert_string, is_typed, normalize_type
+from coral.bt.ports import blackboard_key, convert_string, has_trailing_text, is_typed, normalize_type
 from coral.bt.scripting import compile_script
 from coral.bt.status import NodeKind, PortDirection
 
@@ -26,13 +26,33 @@ _FIXED_CHILDREN = {
 }
 
 
+def verify_structure(doc: TreeDocument, registry: NodeRegistry) -> None:
+    """BT.CPP's load-time check of every `<BehaviorTree>` in the document, instantiated or not:
+    known node types and child counts. Raises the first problem as a BTLoadError."""
+    for tree in doc.trees.values():
+        if tree.root is None:
+            raise BTLoadError(
+                f'The node <BehaviorTree ID="{tree.tree_id}"> must have exactly 1 child',
+                file=tree.file,
+                line=tree.line,
+            )
+        for el in tree.root.walk():
+            spec = registry.get(el.node_id)
+            if spec is None:
+                raise _err(el, f"Node not recognized: {el.node_id}")
+            n = len(el.children)
+            if spec.kind == NodeKind.DECORATOR and n != 1:
+                raise _err(el, f"decorator <{el.node_id}> needs exactly 1 child, has {n}")
+            if spec.kind == NodeKind.CONTROL and n == 0:
+                raise _err(el, f"control node <{el.node_id}> needs at least 1 child(ren), has 0")
+            if spec.kind in (NodeKind.ACTION, NodeKind.CONDITION, NodeKind.SUBTREE) and n:
+                raise _err(el, f"<{el.node_id}> may not have children, has {n}")
+
+
 def validate_document(doc: TreeDocument, registry: NodeRegistry) -> list[BTLoadError]:
+    """Every problem in every `<BehaviorTree>` of the document (not only the main tree's)."""
     errors: list[BTLoadError] = []
-    try:
-        trees = doc.reachable_trees()
-    except BTLoadError as err:
-        return [err]
-    for tree in trees:
+    for tree in doc.trees.values():
         if tree.root is not None:
             for el in tree.root.walk():
                 errors.extend(_check_element(el, doc, registry))
@@ -101,6 +121,10 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
                 convert_string(value, type_name, registry.enums)
             except ValueError as err:
                 out.append(_err(el, f"port [{key}] expects {port.type}: {err}"))
+            else:
+                # BT.CPP would silently use the numeric prefix; the static check points it out.
+                if value.strip() not in registry.enums and has_trailing_text(value, type_name):
+                    out.append(_err(el, f"port [{key}] expects {port.type}: '{value}' has trailing text"))
         if blackboard_key(value) is None and port.direction == PortDirection.OUTPUT:
             out.append(_err(el, f"output port [{key}] must name a blackboard entry like {{{key}}}"))
     return out

@@ -29,7 +29,7 @@ def wrap(body: str, extra: str = "") -> str:
         (wrap('<AlwaysSuccess colour="red"/>'), r"t.xml:3: .*port with name \[colour\]"),
         (
             wrap('<Repeat num_cycles="many"><AlwaysSuccess/></Repeat>'),
-            r"t.xml:3: .*cannot convert 'many' to int",
+            r"t.xml:3: .*Can't convert string \[many\] to integer",
         ),
         (wrap('<Script code="x := := 1"/>'), r"t.xml:3: .*invalid script"),
         (wrap('<AlwaysSuccess _skipIf="1 +"/>'), r"t.xml:3: .*invalid script in _skipIf"),
@@ -194,6 +194,22 @@ def test_a_format_3_file_loads_with_its_v3_constructs_converted() -> None:
     warnings = "\n".join(doc.warnings)
     for expected in ("wrapped in {}", "__shared_blackboard", "success_threshold", "BlackboardCheckInt"):
         assert expected in warnings
-    tree = doc.build(registry)
+    # A host-typed entry: BT.CPP gives a SetBlackboard string nothing to convert it with otherwise.
+    tree = doc.build(registry, blackboard={"goal": 0})
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("shared") == "yes"
+
+
+def test_validation_reports_problems_in_trees_no_subtree_reaches() -> None:
+    xml = wrap(
+        "<AlwaysSuccess/>",
+        '<BehaviorTree ID="Unused">\n<Sequence><AlwaysSuccess typo="1"/><Inverter/></Sequence>'
+        "</BehaviorTree>",
+    )
+    registry = bt.NodeRegistry.with_builtins()
+    doc = bt.load_tree_text(xml, registry, filename="t.xml")
+    messages = [str(e) for e in doc.validate(registry)]
+    assert any("t.xml:5" in m and "[typo]" in m for m in messages)
+    assert any("t.xml:5" in m and "<Inverter> needs exactly 1 child" in m for m in messages)
+    with pytest.raises(bt.BTLoadError, match=r"t.xml:5: .*<Inverter> needs exactly 1 child"):
+        doc.build(registry)

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral.bt.blackboard import EMPTY
+from coral.bt.blackboard import EMPTY, strongly_typed
 from coral.bt.errors import BTLoadError, BTRuntimeError, ScriptError
 from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
 from coral.bt.nodes.base import NodeConfig
 from coral.bt.nodes.board_decorators import entry_key
-from coral.bt.ports import PortSpec, blackboard_key, coerce_value
+from coral.bt.ports import PortSpec, blackboard_key, convert_string
 from coral.bt.runtime import Timer
 from coral.bt.scripting import compile_script
 from coral.bt.scripting.values import truthy
@@ -106,33 +106,44 @@ class SetBlackboard(SyncAction):
     ]
 
     def tick(self) -> int:  # type: ignore[override]
-        key = self.require_input("output_key")
+        key = str(self.require_input("output_key"))
         raw = self.ports.get("value")
         if raw is None:
             raise BTRuntimeError("missing port [value]", node_path=self.path)
         board = self.board
-        dst = board.get_entry(str(key))
+        dst = board.get_entry(key)
         src_key = blackboard_key(raw)
         if src_key is not None:
             src = board.get_entry(src_key)
             if src is None:
-                return FAILURE
+                raise BTRuntimeError("Can't find the port referred by [value]", node_path=self.path)
             if dst is None:
-                dst = board.create_entry(str(key), src.type)
+                dst = board.create_entry(key, src.type)
             value = src.value
         else:
             value = raw
         if value is EMPTY:
             return FAILURE
-        if dst is not None and dst.type not in ("any", "string") and isinstance(value, str):
-            try:
-                value = coerce_value(value, dst.type, self.rt.enums)
-            except ValueError as err:
+        if dst is not None and dst.type != "string" and isinstance(value, str):
+            # BT.CPP parses the string with the entry's converter; an entry without one
+            # (untyped, or a script's) receives an empty value.
+            if dst.type == "Any":
                 raise BTRuntimeError(
-                    f"cannot write '{value}' into [{key}]: {err}", node_path=self.path
-                ) from None
+                    f"Can't convert string [{value}] to type [BT::Any]: BT.CPP has no "
+                    "convertFromString for BT::Any",
+                    node_path=self.path,
+                )
+            if strongly_typed(dst.type):
+                try:
+                    value = convert_string(value, dst.type, self.rt.enums)
+                except ValueError as err:
+                    raise BTRuntimeError(
+                        f"Can't convert string [{value}] to type [{dst.type}]: {err}", node_path=self.path
+                    ) from None
+            else:
+                value = EMPTY
         try:
-            board.set(str(key), value)
+            board.set(key, value, "Any")
         except ScriptError as err:
             raise BTRuntimeError(err.message, node_path=self.path) from None
         return SUCCESS
@@ -147,7 +158,7 @@ class UnsetBlackboard(SyncAction):
 
 
 class WasEntryUpdated(SyncAction):
-    PORTS = [PortSpec("entry", type="any", description="Entry to check")]
+    PORTS = [PortSpec("entry", type="BT::Any", description="Entry to check")]
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

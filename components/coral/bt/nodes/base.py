@@ -94,6 +94,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         self.last_result: int = IDLE
         self._pre: list[tuple[int, Script]] | None = None
         self._post: dict[str, Script] | None = None
+        self._script_sources: dict[str, str] = {}
         self._env = ScriptEnv(config.board, config.runtime.enums)
         self._port_cache: dict[str, tuple[str | None, Any, str]] = {}
 
@@ -207,7 +208,10 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         try:
             return script(self._env)
         except ScriptError as err:
-            raise BTRuntimeError(f"error in script {attr}: {err.message}", node_path=self.path) from None
+            source = self._script_sources.get(attr, "")
+            raise BTRuntimeError(
+                f"Error in script [{source}] ({attr}): {err.message}", node_path=self.path
+            ) from None
 
     def _check_pre(self) -> int | None:
         status = self._status

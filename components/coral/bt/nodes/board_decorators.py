@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
+from coral.bt.anyvalue import EMPTY
 from coral.bt.errors import BTRuntimeError
 from coral.bt.nodes.base import DecoratorNode, NodeConfig
 from coral.bt.ports import PortSpec, blackboard_key, convert_string, normalize_type
@@ -54,18 +55,29 @@ class LoopBase(DecoratorNode):
         if not key:
             return None
         entry = self.board.get_entry(key)
-        if entry is None or not isinstance(entry.value, (list, deque, str)):
-            return None
+        if entry is None:
+            return self.current
         value = entry.value
+        if value is EMPTY:
+            raise BTRuntimeError("Any::cast failed because it is empty: [queue]", node_path=self.path)
+        if isinstance(value, deque):
+            return value  # a shared queue is consumed in place
         if isinstance(value, str):
-            value = convert_string(value, "list:" + self.ELEMENT, self.rt.enums)
-            entry.value = deque(value)
-        elif isinstance(value, list):
-            # A vector entry is copied when the loop starts; a deque is consumed in place.
+            # BT.CPP 4.10 also reads a queue written as text ("1;2;3").
+            try:
+                converted = deque(convert_string(value, "list:" + self.ELEMENT, self.rt.enums))
+            except ValueError as err:
+                raise BTRuntimeError(f"[queue]: {err}", node_path=self.path) from None
+            entry.value = converted
+            return converted
+        if isinstance(value, list):
+            # A vector entry is copied when the loop starts (4.10).
             if self.current is None or self._status == IDLE:
                 return deque(value)
             return self.current
-        return entry.value
+        raise BTRuntimeError(
+            f"[queue] holds a {type(value).__name__}, not a queue of {self.ELEMENT}", node_path=self.path
+        )
 
 
 def _loop(node_id: str, elem: str) -> type[LoopBase]:
@@ -94,7 +106,7 @@ def entry_key(node: DecoratorNode | Any) -> str:
 
 
 class EntryUpdatedDecorator(DecoratorNode):
-    PORTS = [PortSpec("entry", type="any", description="Entry to check")]
+    PORTS = [PortSpec("entry", type="BT::Any", description="Entry to check")]
     IF_NOT_UPDATED: int = SKIPPED
 
     def __init__(self, name: str, config: NodeConfig) -> None:

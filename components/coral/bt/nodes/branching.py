@@ -5,8 +5,9 @@ from __future__ import annotations
 from coral.bt.errors import BTRuntimeError
 from coral.bt.nodes.base import ControlNode, NodeConfig
 from coral.bt.ports import PortSpec
-from coral.bt.scripting.values import EPSILON
 from coral.bt.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS
+
+EPSILON = 1.1920928955078125e-07  # Switch compares reals within float epsilon, as BT.CPP does
 
 
 class IfThenElse(ControlNode):

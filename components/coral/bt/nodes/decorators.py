@@ -212,7 +212,7 @@ class Precondition(DecoratorNode):
                 self.child_running = truthy(self._script(self._env))
             except ScriptError as err:
                 raise BTRuntimeError(
-                    f"error in script [{text}]: {err.message}", node_path=self.path
+                    f"Error in script [{text}]: {err.message}", node_path=self.path
                 ) from None
         if not self.child_running:
             return int(otherwise)

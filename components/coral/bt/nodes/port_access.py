@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from coral.bt.anyvalue import kind_of
 from coral.bt.blackboard import EMPTY
 from coral.bt.errors import BTRuntimeError, ScriptError
 from coral.bt.ports import blackboard_key, coerce_value, convert_string, normalize_type
@@ -48,7 +49,7 @@ class PortAccess:
                 try:
                     value = convert_string(raw, type_name, self.rt.enums)
                 except ValueError as err:
-                    raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+                    raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
                 result = (None, value, type_name)
         self._port_cache[name] = result
         return result
@@ -69,7 +70,7 @@ class PortAccess:
         try:
             return coerce_value(entry.value, type_name, self.rt.enums)
         except ValueError as err:
-            raise BTRuntimeError(f"port [{name}]: {err}", node_path=self.path) from None
+            raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
 
     def require_input(self, name: str) -> Any:
         value = self.get_input(name, MISSING)
@@ -97,8 +98,14 @@ class PortAccess:
             key = name
         if key is None:
             return False
+        port_type = normalize_type(spec.type) if spec is not None else kind_of(value)
         try:
-            self.board.set(key, value)
+            # BT.CPP's setOutput<T> takes a T: a Python value is first made one.
+            value = coerce_value(value, port_type, self.rt.enums)
+        except ValueError as err:
+            raise BTRuntimeError(f"output port [{name}]: {err}", node_path=self.path) from None
+        try:
+            self.board.set(key, value, port_type)
         except ScriptError as err:
             raise BTRuntimeError(err.message, node_path=self.path) from None
         return True

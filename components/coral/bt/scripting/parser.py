@@ -9,16 +9,25 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
+from coral.bt.anyvalue import EMPTY, is_number, kind_of, std_to_string
 from coral.bt.errors import ScriptError
 from coral.bt.scripting.tokenizer import Token, tokenize
-from coral.bt.scripting.values import compare, num, to_int, to_text, truthy
+from coral.bt.scripting.values import (
+    compare,
+    condition_holds,
+    ieee_divide,
+    not_initialized,
+    to_int,
+)
 
 Fn = Callable[["ScriptEnv"], Any]
 
 
 class ScriptBoard(Protocol):
     def script_read(self, key: str) -> Any: ...
-    def script_write(self, key: str, value: Any, create: bool) -> Any: ...
+    def script_entry(self, key: str, create: bool) -> Any: ...
+    def script_assign(self, key: str, entry: Any, value: Any) -> Any: ...
+    def script_store(self, key: str, entry: Any, value: Any) -> Any: ...
 
 
 class ScriptEnv:
@@ -145,92 +154,129 @@ def _assignment(name: str, op: str, rhs: Fn) -> Fn:
         create = op == ":="
 
         def assign(env: ScriptEnv) -> Any:
-            value = rhs(env)
             if name in env.enums:
                 raise ScriptError(f"cannot assign to the enum '{name}'")
-            return env.board.script_write(name, value, create)
+            # BT.CPP creates the entry before it evaluates the right side.
+            entry = env.board.script_entry(name, create)
+            value = rhs(env)
+            if value is EMPTY:
+                raise ScriptError(not_initialized("right", op))
+            return env.board.script_assign(name, entry, value)
 
         return assign
     arith = op[0]
 
     def compound(env: ScriptEnv) -> Any:
+        entry = env.board.script_entry(name, False)
         value = rhs(env)
-        current = env.board.script_read(name)
-        if arith == "+" and isinstance(current, str) and isinstance(value, str):
-            result: Any = current + value
+        if value is EMPTY:
+            raise ScriptError(not_initialized("right", op))
+        current = entry.value
+        if current is EMPTY:
+            raise ScriptError(not_initialized("left", op))
+        if isinstance(current, bool):
+            current = float(current)
+        if is_number(value):
+            if not is_number(current):
+                raise ScriptError("This Assignment operator can't be used with a non-numeric type")
+            result: Any = _numeric(arith, float(current), float(value))
+        elif isinstance(value, str):
+            if arith != "+":
+                raise ScriptError("Operator not supported for strings")
+            result = std_to_string(current) + value
         else:
-            result = _arith(arith, current, value)
-        return env.board.script_write(name, result, False)
+            result = current
+        return env.board.script_store(name, entry, result)
 
     return compound
 
 
-def _arith(op: str, a: Any, b: Any) -> Any:
+def _numeric(op: str, a: float, b: float) -> float:
     if op == "+":
-        if isinstance(a, str) and isinstance(b, str):
-            return a + b
-        return num(a, op) + num(b, op)
+        return a + b
     if op == "-":
-        return num(a, op) - num(b, op)
+        return a - b
     if op == "*":
-        return num(a, op) * num(b, op)
-    if op == "/":
-        d = num(b, op)
-        if d == 0:
-            raise ScriptError("division by zero")
-        return num(a, op) / d
-    if op == "..":
-        return to_text(a) + to_text(b)
-    if op == "&":
-        return float(to_int(a, op) & to_int(b, op))
-    if op == "|":
-        return float(to_int(a, op) | to_int(b, op))
-    if op == "^":
-        return float(to_int(a, op) ^ to_int(b, op))
-    raise ScriptError(f"unknown operator '{op}'")
+        return a * b
+    return ieee_divide(a, b)
+
+
+_NUMBER = (int, float)
+
+
+def _arith(op: str, a: Any, b: Any) -> Any:
+    if a is EMPTY:
+        raise ScriptError(not_initialized("left", op))
+    if b is EMPTY:
+        raise ScriptError(not_initialized("right", op))
+    if isinstance(a, _NUMBER) and isinstance(b, _NUMBER):
+        if op in ("+", "-", "*", "/"):
+            return _numeric(op, float(a), float(b))
+        if op in ("&", "|", "^"):
+            x, y = to_int(a, op), to_int(b, op)
+            return float(x & y if op == "&" else x | y if op == "|" else x ^ y)
+        if op == "&&":
+            return 1.0 if (a != 0 and b != 0) else 0.0
+        if op == "||":
+            return 1.0 if (a != 0 or b != 0) else 0.0
+        # `..` between two numbers falls through BT.CPP's operator to an empty result.
+        return EMPTY
+    elif isinstance(a, str) and isinstance(b, str) and op == "+":
+        return a + b
+    elif (
+        op == ".."
+        and (isinstance(a, str) or isinstance(b, str))
+        and (isinstance(a, str) or is_number(a))
+        and (isinstance(b, str) or is_number(b))
+    ):
+        return std_to_string(a) + std_to_string(b)
+    raise ScriptError(f"Operation not permitted: [{op}] between {kind_of(a)} and {kind_of(b)}")
 
 
 def _binary(op: str, left: Fn, right: Fn) -> Fn:
-    if op == "&&":
-        # Both sides are evaluated on purpose: BT.CPP's && and || do not short-circuit.
-        def land(env: ScriptEnv) -> Any:
-            a = truthy(left(env))
-            b = truthy(right(env))
-            return 1.0 if (a and b) else 0.0
-
-        return land
-    if op == "||":
-
-        def lor(env: ScriptEnv) -> Any:
-            a = truthy(left(env))
-            b = truthy(right(env))
-            return 1.0 if (a or b) else 0.0
-
-        return lor
+    # Both sides are always evaluated: BT.CPP's && and || do not short-circuit.
     return lambda env: _arith(op, left(env), right(env))
 
 
 def _chain(ops: list[str], operands: list[Fn]) -> Fn:
     def run(env: ScriptEnv) -> Any:
-        values = [f(env) for f in operands]
+        # Pairwise, and the first false pair ends the chain before later operands are evaluated.
+        lhs = operands[0](env)
         for k, op in enumerate(ops):
-            if not compare(op, values[k], values[k + 1], env.enums):
+            rhs = operands[k + 1](env)
+            if lhs is EMPTY:
+                raise ScriptError(not_initialized("left", op))
+            if rhs is EMPTY:
+                raise ScriptError(not_initialized("right", op))
+            if not compare(op, lhs, rhs, env.enums):
                 return 0.0
+            lhs = rhs
         return 1.0
 
     return run
 
 
 def _ternary(cond: Fn, then: Fn, other: Fn) -> Fn:
-    return lambda env: then(env) if truthy(cond(env)) else other(env)
+    return lambda env: then(env) if condition_holds(cond(env)) else other(env)
 
 
 def _unary(op: str, operand: Fn) -> Fn:
-    if op == "-":
-        return lambda env: -num(operand(env), "-")
-    if op == "!":
-        return lambda env: 0.0 if truthy(operand(env)) else 1.0
-    return lambda env: float(~to_int(operand(env), "~"))
+    def run(env: ScriptEnv) -> Any:
+        value = operand(env)
+        if is_number(value):
+            v = float(value)
+            if op == "-":
+                return -v
+            if op == "!":
+                return 0.0 if v != 0 else 1.0
+            if not -(2.0**63) <= v < 2.0**63:
+                raise ScriptError("Number out of range for bitwise operation")
+            return float(~int(v))
+        if isinstance(value, str):
+            raise ScriptError(f"Invalid operator [{op}] for std::string")
+        raise ScriptError(f"ExprUnaryArithmetic: undefined (the operand of [{op}] is not initialized)")
+
+    return run
 
 
 def compile_script(text: str) -> Callable[[ScriptEnv], Any]:

@@ -1,32 +1,43 @@
-"""Value semantics of the scripting language: doubles, strings, comparisons, truthiness."""
+"""Value semantics of the scripting language (BT.CPP's operators): numbers, strings, comparisons,
+IEEE division and truthiness. Used by the parser and by nodes that turn a script result into a status."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
+from coral.bt.anyvalue import EMPTY, is_number, kind_of
 from coral.bt.errors import ScriptError
 
-EPSILON = 2.220446049250313e-16
+# BT.CPP compares doubles within float (not double) epsilon.
+EPSILON = 1.1920928955078125e-07
 
 
-def is_number(v: object) -> bool:
-    return isinstance(v, (int, float))
+def not_initialized(side: str, op: str) -> str:
+    return f"The {side} operand of the operator [{op}] is not initialized"
 
 
-def num(v: object, op: str) -> float:
-    if isinstance(v, (int, float)):
-        return float(v)
-    raise ScriptError(f"operator '{op}' needs numbers, got {v!r}")
+def ieee_divide(a: float, b: float) -> float:
+    """C++ double division: x/0 is +-inf and 0/0 is NaN (negative on x86, as std::to_string shows)."""
+    if b != 0:
+        return a / b
+    if a == 0 or math.isnan(a):
+        return -math.nan
+    negative = (a < 0) != (math.copysign(1.0, b) < 0)
+    return -math.inf if negative else math.inf
 
 
 def to_int(v: object, op: str) -> int:
-    f = num(v, op)
-    if f != int(f):
-        raise ScriptError(f"operator '{op}' needs integer values, got {v!r}")
+    if not is_number(v):
+        raise ScriptError(f"operator '{op}' needs numbers, got {v!r}")
+    f = float(v)  # type: ignore[arg-type]
+    if not math.isfinite(f) or f != int(f):
+        raise ScriptError("Binary operators are not allowed if one of the operands is not an integer")
     return int(f)
 
 
 def truthy(v: object) -> bool:
+    """A script result read as a condition (ScriptCondition, Precondition, pre-condition attributes)."""
     if isinstance(v, str):
         low = v.strip().lower()
         if low in ("true", "1"):
@@ -34,41 +45,57 @@ def truthy(v: object) -> bool:
         if low in ("false", "0", ""):
             return False
         return True
+    if v is EMPTY:
+        raise ScriptError("Any::cast failed because it is empty (the script's result)")
     if isinstance(v, (int, float)):
         return v != 0
     return bool(v)
 
 
+def condition_holds(v: object) -> bool:
+    """Ternary `c ? a : b`: a non-empty string, or a number other than zero."""
+    if isinstance(v, str):
+        if v:
+            return True
+        raise ScriptError("Any failed string to number conversion")
+    if is_number(v):
+        return float(v) != 0.0  # type: ignore[arg-type]
+    raise ScriptError("Any::cast failed because it is empty")
+
+
 def string_to_number(s: str, enums: Mapping[str, int]) -> float:
-    low = s.strip()
-    if low in ("true", "TRUE", "True"):
+    if s == "true":
         return 1.0
-    if low in ("false", "FALSE", "False"):
+    if s == "false":
         return 0.0
-    if low in enums:
-        return float(enums[low])
+    if s in enums:
+        return float(enums[s])
     try:
-        return float(low)
+        return float(s)
     except ValueError:
-        raise ScriptError(f"cannot compare string '{s}' with a number") from None
+        raise ScriptError("Any failed string to number conversion") from None
 
 
 def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
     if isinstance(a, str) and isinstance(b, str):
         x: object = a
         y: object = b
-    elif is_number(a) and is_number(b):
-        x, y = float(a), float(b)  # type: ignore[arg-type]
+    else:
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+            x, y = float(a), float(b)
+        elif isinstance(a, str) and is_number(b):
+            x, y = string_to_number(a, enums), float(b)  # type: ignore[arg-type]
+        elif is_number(a) and isinstance(b, str):
+            x, y = float(a), string_to_number(b, enums)  # type: ignore[arg-type]
+        else:
+            raise ScriptError(
+                "Can't mix different types in Comparison. "
+                f"Left operand [{kind_of(a)}] right operand [{kind_of(b)}]"
+            )
         if op == "==":
             return abs(x - y) <= EPSILON  # type: ignore[operator]
         if op == "!=":
-            return abs(x - y) > EPSILON  # type: ignore[operator]
-    elif isinstance(a, str) and is_number(b):
-        x, y = string_to_number(a, enums), float(b)  # type: ignore[arg-type]
-    elif is_number(a) and isinstance(b, str):
-        x, y = float(a), string_to_number(b, enums)  # type: ignore[arg-type]
-    else:
-        raise ScriptError(f"cannot compare {a!r} and {b!r}")
+            return not abs(x - y) <= EPSILON  # type: ignore[operator]
     if op == "==":
         return x == y
     if op == "!=":
@@ -80,9 +107,3 @@ def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
     if op == "<=":
         return x <= y  # type: ignore[operator]
     return x >= y  # type: ignore[operator]
-
-
-def to_text(v: object) -> str:
-    if isinstance(v, float):
-        return repr(int(v)) if v == int(v) and abs(v) < 1e15 else repr(v)
-    return str(v)

@@ -1,0 +1,97 @@
+"""BT.CPP's `BT::Any` rules for blackboard values: which kind a value has, how `copyInto` converts
+between kinds, and how `std::to_string` prints numbers.
+
+Python values stand for BT.CPP's: `int` (and `bool`) for int64, `float` for double, `str` for
+strings, anything else for a user type. Used by the blackboard, port access and the scripting values.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+EMPTY: Any = type("Empty", (), {"__repr__": lambda self: "<empty>", "__bool__": lambda self: False})()
+
+# Declared entry types that are not "strongly typed" in BT.CPP: `any` is AnyTypeAllowed (untyped
+# ports and script-created entries), `Any` is a `BT::Any` port (SkipUnlessUpdated's `entry`, ...).
+UNTYPED = frozenset({"any", "Any"})
+
+
+def kind_of(value: Any) -> str:
+    """The entry type a value has of its own (what BT.CPP's `Any::type()` would report)."""
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "int"
+    if isinstance(value, float):
+        return "double"
+    if isinstance(value, str):
+        return "string"
+    return type(value).__name__
+
+
+def is_number(value: Any) -> bool:
+    return isinstance(value, (int, float))
+
+
+def std_to_string(value: Any) -> str:
+    """`std::to_string` for numbers (six decimals for doubles), the text itself for strings."""
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "-nan" if math.copysign(1.0, value) < 0 else "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return f"{value:f}"
+    return str(value)
+
+
+def to_int64(value: float) -> int:
+    """BT.CPP's checked double -> int64 conversion: only integral values convert."""
+    if math.isnan(value) or math.isinf(value) or value != int(value):
+        raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+    return int(value)
+
+
+def copy_into(dst: Any, value: Any) -> Any:
+    """`Any::copyInto`: an empty destination takes the value as it is; numbers convert to the
+    destination's kind (int64 refuses a non-integral double); strings only replace strings."""
+    dst_type = type(dst)
+    if dst_type is type(value) or dst is EMPTY:
+        return value
+    # The common script case first: an arithmetic result (double) into an int64 entry.
+    if dst_type is int and type(value) is float:
+        if value.is_integer():
+            return int(value)
+        raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+    if not _builtin_kind(dst) and not _builtin_kind(value):
+        # Two user types: a Python behavior's output of one declared type may take several Python
+        # types (None, dict, a message); BT.CPP's C++ port always writes the same T.
+        return value
+    if kind_of(dst) == kind_of(value) or (isinstance(dst, str) and isinstance(value, str)):
+        return value
+    if is_number(dst) and is_number(value):
+        if isinstance(dst, float):
+            return float(value)
+        if isinstance(value, float):
+            if math.isfinite(value) and value == int(value):
+                return int(value)
+            raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+        return int(value)
+    raise ValueError(f"Any::copyInto fails: [{kind_of(value)}] into [{kind_of(dst)}]")
+
+
+def _builtin_kind(value: Any) -> bool:
+    return isinstance(value, (int, float, str))
+
+
+def casting_is_safe(declared: str, value: Any) -> bool:
+    """`isCastingSafe`: may a number be stored in an entry declared with another numeric type?"""
+    if not is_number(value):
+        return False
+    if declared == "int" or declared == "bool":
+        return not isinstance(value, float) or (math.isfinite(value) and value == int(value))
+    return declared == "double"

@@ -1,0 +1,95 @@
+"""Runs seeded random trees in real BT.CPP (behaviortreepy) and in coral.bt and compares their whole
+traces: per tick the root status (a runtime error counts as a status), the leaf calls with the
+blackboard each leaf sees, the root blackboard's values as `std::to_string` prints them, the node
+transitions as BT.CPP's FileLogger records them; then haltTree() with its halts and final board,
+and a few ticks after it.
+
+Used by test_bt_random_differential.py; `python tests/conformance/bt_differential.py N` runs N trees.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+from bt_harness import TRACE_FIELDS, Outcomes, finish_batch, run_btcpp, run_coral
+from bt_random_trees import VARS, generate
+
+TICKS = 15
+BATCH = 100
+BROKEN_SHARE = 0.08
+
+
+@dataclass
+class Report:
+    trees: int = 0
+    agreeing: int = 0
+    rejected: int = 0
+    tick_errors: int = 0
+    used: set[str] = field(default_factory=set)
+    broken_kinds: set[str] = field(default_factory=set)
+    mismatches: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def compare_random_trees(seeds: range, ticks: int = TICKS, broken_share: float = BROKEN_SHARE) -> Report:
+    report = Report()
+    start = time.monotonic()
+    pending: list = []
+    pairs: list = []
+
+    def settle() -> None:
+        finish_batch(pending)
+        for seed, gen, theirs, ours in pairs:
+            report.trees += 1
+            if ours.trace() == theirs.trace():
+                report.agreeing += 1
+                report.rejected += theirs.verdict == "REJECT"
+                report.tick_errors += theirs.verdict == "TICKERR"
+            else:
+                report.mismatches.append(describe(seed, gen, theirs, ours))
+        pairs.clear()
+
+    for seed in seeds:
+        gen = generate(seed, broken_share=broken_share)
+        report.used |= gen.used
+        if gen.broken:
+            report.broken_kinds.add(gen.broken)
+        theirs = run_btcpp(
+            gen.xml, Outcomes(gen.outcomes), ticks, mode=gen.mode, host_vars=VARS, batch=pending, observe=True
+        )
+        ours = run_coral(gen.xml, Outcomes(gen.outcomes), ticks, mode=gen.mode, host_vars=VARS, observe=True)
+        pairs.append((seed, gen, theirs, ours))
+        if len(pending) >= BATCH:
+            settle()
+    settle()
+    report.seconds = time.monotonic() - start
+    return report
+
+
+def describe(seed: int, gen: object, theirs: object, ours: object) -> str:
+    a, b = theirs.trace(), ours.trace()  # type: ignore[attr-defined]
+    first = next(n for n, x, y in zip(TRACE_FIELDS, a, b, strict=True) if x != y)
+    return (
+        f"seed {seed} ({gen.mode}) differs in {first}: BT.CPP {theirs.verdict} "  # type: ignore[attr-defined]
+        f"{theirs.statuses} {theirs.error[:100]!r} vs coral {ours.verdict} {ours.statuses} "  # type: ignore[attr-defined]
+        f"{ours.error[:100]!r}"  # type: ignore[attr-defined]
+    )
+
+
+def main() -> None:
+    count = int(sys.argv[1]) if len(sys.argv) > 1 else 5000
+    first = int(sys.argv[2]) if len(sys.argv) > 2 else 0
+    report = compare_random_trees(range(first, first + count))
+    for line in report.mismatches[:20]:
+        print(line)
+    print(
+        f"{report.agreeing} of {report.trees} random trees agree with BT.CPP "
+        f"({report.rejected} refused by both, {report.tick_errors} ending in the same runtime error) "
+        f"in {report.seconds:.0f} s"
+    )
+
+
+if __name__ == "__main__":
+    main()

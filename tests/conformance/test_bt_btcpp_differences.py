@@ -1,0 +1,275 @@
+"""One small tree per blackboard/script/SubTree/halt rule where the engine once differed from BT.CPP.
+
+Each tree runs in real BT.CPP (behaviortreepy) and in coral.bt with the same scripted leaves; the
+whole trace must agree (per tick: root status, leaf calls with the blackboard each leaf sees, the root
+blackboard as `std::to_string` prints it; then haltTree()), and each test also pins what BT.CPP did,
+so a change in either engine shows up.
+"""
+
+from __future__ import annotations
+
+import pytest
+from bt_harness import EMPTY_TEXT, ERROR, Outcomes, Run, run_btcpp, run_coral
+
+
+def both(
+    body: str,
+    subtrees: str = "",
+    *,
+    ticks: int = 1,
+    host: dict[str, int] | None = None,
+    leaves: dict[str, list[int]] | None = None,
+) -> Run:
+    xml = (
+        f'<root BTCPP_format="4" main_tree_to_execute="M"><BehaviorTree ID="M">{body}</BehaviorTree>'
+        f"{subtrees}</root>"
+    )
+    # Node transitions are left to the random differential test (it batches BT.CPP's file logger).
+    theirs = run_btcpp(
+        xml, Outcomes(dict(leaves or {})), ticks, host_vars=host, observe=True, log_transitions=False
+    )
+    ours = run_coral(xml, Outcomes(dict(leaves or {})), ticks, host_vars=host, observe=True)
+    assert ours.trace(False) == theirs.trace(False), f"BT.CPP: {theirs.error}\ncoral: {ours.error}"
+    return theirs
+
+
+def sub(tree_id: str, body: str) -> str:
+    return f'<BehaviorTree ID="{tree_id}">{body}</BehaviorTree>'
+
+
+# 1. typed entries ---------------------------------------------------------------------------
+def test_a_script_value_in_a_port_declared_entry_keeps_its_own_type() -> None:
+    run = both(
+        '<Sequence><Script code="sw := 2"/><Script code="r := sw + 1"/>'
+        '<Switch2 variable="{sw}" case_1="2" case_2="3"><AlwaysSuccess/><AlwaysFailure/>'
+        "<AlwaysFailure/></Switch2></Sequence>"
+    )
+    assert run.statuses == [2] and run.boards[-1] == {"r": "3.000000", "sw": "2"}
+
+
+def test_a_port_of_another_type_writing_a_typed_entry_throws() -> None:
+    # LoopInt's first write types the entry int; LoopDouble's 1.5 may not change that.
+    run = both(
+        '<Sequence><SkipUnlessUpdated entry="{k}"><AlwaysSuccess/></SkipUnlessUpdated>'
+        '<LoopInt queue="1" value="{k}"><AlwaysSuccess/></LoopInt>'
+        '<LoopDouble queue="1.5" value="{k}"><AlwaysSuccess/></LoopDouble></Sequence>',
+        ticks=3,
+    )
+    assert run.statuses[-1] == ERROR and "once declared" in run.error and run.boards[-1] == {"k": "1"}
+
+
+def test_a_loop_consumes_a_shared_queue_that_a_script_filled() -> None:
+    run = both(
+        "<Sequence><Script code=\"lq := '1;2;3'\"/>"
+        '<LoopInt queue="{lq}" value="{v}"><Leaf name="L"/></LoopInt></Sequence>',
+        ticks=4,
+        host={"v": 0},
+        leaves={"L": [2]},
+    )
+    assert [b["v"] for b in run.boards] == ["1", "2", "3", "3"] and run.boards[0]["lq"] == "<object>"
+
+
+def test_a_loop_over_a_declared_but_empty_queue_throws() -> None:
+    run = both('<LoopInt queue="{lq}" value="{v}"><AlwaysSuccess/></LoopInt>', host={"v": 0})
+    assert run.statuses == [ERROR]
+
+
+# 2. script assignment keeps a variable's type -------------------------------------------------
+def test_assigning_a_numeric_string_to_a_number_converts_it() -> None:
+    run = both("<Script code=\"a := 1; a = '5'\"/>")
+    assert run.boards[-1] == {"a": "5.000000"}
+
+
+def test_assigning_a_non_numeric_string_to_a_number_throws() -> None:
+    run = both('<Sequence><Script code="a := 1"/><Script code="a = \'zz\'"/></Sequence>')
+    assert run.statuses == [ERROR] and run.boards[-1] == {"a": "1"}
+
+
+def test_an_integer_variable_refuses_a_fractional_double() -> None:
+    run = both('<Script code="a := 1; b := a; b = 2.5"/>')
+    assert run.statuses == [ERROR] and run.boards[-1] == {"a": "1", "b": "1"}
+
+
+def test_an_integer_variable_takes_an_integral_double_as_an_integer() -> None:
+    run = both('<Script code="a := 1; a = 4.0; a += 1"/>')
+    assert run.boards[-1] == {"a": "5"}
+
+
+# 3. script operators -------------------------------------------------------------------------
+def test_concatenation_prints_doubles_like_std_to_string() -> None:
+    run = both("<Script code=\"s := 'ab' .. 1.0; t := 'ab' .. 1; u := 'x' .. (1/3)\"/>")
+    assert run.boards[-1] == {"s": "ab1.000000", "t": "ab1", "u": "x0.333333"}
+
+
+def test_concatenating_two_numbers_gives_an_empty_value() -> None:
+    run = both('<Sequence><Script code="x := 1 .. 2"/></Sequence>')
+    assert run.statuses == [ERROR] and "not initialized" in run.error
+
+
+def test_a_chained_comparison_stops_at_the_first_false_pair() -> None:
+    run = both('<ScriptCondition code="5 &lt; 1 &lt;= zz"/>')
+    assert run.statuses == [3]
+
+
+def test_division_by_zero_is_ieee() -> None:
+    run = both('<Script code="u := 1/0; v := -1/0; w := 0/0"/>')
+    assert run.boards[-1] == {"u": "inf", "v": "-inf", "w": "-nan"}
+
+
+@pytest.mark.parametrize("code", ["s := 'ab'; t := -s", "s := 'ab'; t := !s", "e := 1; UnsetE"])
+def test_unary_operators_refuse_strings_and_empty_entries(code: str) -> None:
+    if code.endswith("UnsetE"):
+        # `k` is declared (empty) by the SkipUnlessUpdated port but never written.
+        run = both(
+            '<Sequence><SkipUnlessUpdated entry="{k}"><AlwaysSuccess/></SkipUnlessUpdated>'
+            '<Script code="t := -k"/></Sequence>'
+        )
+    else:
+        run = both(f'<Script code="{code}"/>')
+    assert run.statuses == [ERROR] and run.boards[-1]["t"] == EMPTY_TEXT
+
+
+# 4. ports with no type (BT::Any) ---------------------------------------------------------------
+def test_an_entry_declared_by_an_any_port_stays_untyped_for_later_typed_ports() -> None:
+    # int and double ports share `k` (no load error); the integral 2.0 is stored into the int.
+    run = both(
+        '<Sequence><SkipUnlessUpdated entry="{k}"><AlwaysSuccess/></SkipUnlessUpdated>'
+        '<LoopInt queue="1" value="{k}"><AlwaysSuccess/></LoopInt>'
+        '<LoopDouble queue="2.0" value="{k}"><AlwaysSuccess/></LoopDouble></Sequence>',
+        ticks=3,
+    )
+    assert run.verdict == "LOADED" and run.boards[-1] == {"k": "2"}
+
+
+def test_an_any_port_entry_refuses_a_string_from_a_script() -> None:
+    run = both(
+        '<Sequence><SkipUnlessUpdated entry="{k}"><AlwaysSuccess/></SkipUnlessUpdated>'
+        "<Script code=\"k := 'a'\"/></Sequence>"
+    )
+    assert run.statuses == [ERROR]
+
+
+# 5. SetBlackboard / UnsetBlackboard --------------------------------------------------------------
+def test_set_blackboard_from_a_removed_key_throws() -> None:
+    run = both(
+        '<Sequence><UnsetBlackboard key="src"/><SetBlackboard value="{src}" output_key="x"/></Sequence>'
+    )
+    assert run.statuses == [ERROR] and "Can't find the port" in run.error
+
+
+def test_set_blackboard_from_an_empty_key_fails() -> None:
+    run = both('<SetBlackboard value="{src}" output_key="x"/>')
+    assert run.statuses == [3]
+
+
+def test_set_blackboard_string_into_an_entry_without_converter_stores_empty() -> None:
+    run = both('<Sequence><Script code="x := 5"/><SetBlackboard value="7" output_key="x"/></Sequence>')
+    assert run.boards[-1] == {"x": EMPTY_TEXT}
+
+
+def test_set_blackboard_string_into_a_host_int_entry_converts() -> None:
+    run = both('<SetBlackboard value="7" output_key="v"/>', host={"v": 1})
+    assert run.boards[-1] == {"v": "7"}
+
+
+def test_set_blackboard_declares_a_new_entry_as_a_string() -> None:
+    run = both('<Sequence><SetBlackboard value="7" output_key="n"/><Script code="n = 3"/></Sequence>')
+    assert run.statuses == [ERROR] and run.boards[-1] == {"n": "'7'"}  # quoted: text
+
+
+def test_unset_blackboard_in_a_subtree_removes_only_local_entries() -> None:
+    run = both(
+        '<Sequence><SubTree ID="S" v="{v}"/><SubTree ID="A" _autoremap="true"/></Sequence>',
+        sub(
+            "S",
+            '<Sequence><UnsetBlackboard key="v"/><Script code="l := 1"/>'
+            '<UnsetBlackboard key="l"/></Sequence>',
+        )
+        + sub("A", '<UnsetBlackboard key="v"/>'),
+        host={"v": 1},
+    )
+    assert run.boards[-1] == {"v": "1"}
+
+
+# 6. SubTree remapping ---------------------------------------------------------------------------
+def test_a_literal_subtree_port_stays_local_with_autoremap() -> None:
+    run = both(
+        '<Sequence><SubTree ID="S" _autoremap="true" p="five"/><Script code="q := p"/></Sequence>',
+        sub("S", '<Leaf name="L"/>'),
+        leaves={"L": [2]},
+    )
+    assert run.calls[0] == [("L", (("p", "five"),))] and run.statuses == [ERROR]
+
+
+def test_a_remapped_subtree_port_does_not_create_the_callers_entry() -> None:
+    run = both(
+        '<Sequence><SubTree ID="S" p="{q}"/><Script code="q = 1"/></Sequence>',
+        sub("S", "<AlwaysSuccess/>"),
+    )
+    assert run.statuses == [ERROR] and "doesn't exist" in run.error
+
+
+def test_private_and_root_keys_through_nested_subtrees() -> None:
+    run = both(
+        '<SubTree ID="A" _autoremap="true"/>',
+        sub("A", '<Sequence><Script code="_p := 1; a := 2"/><SubTree ID="B" _autoremap="true"/></Sequence>')
+        + sub("B", '<Sequence><Script code="@g := 7; a += 1"/><Leaf name="L"/></Sequence>'),
+        leaves={"L": [2]},
+    )
+    assert run.boards[-1] == {"a": "3", "g": "7"}
+    assert run.calls[0] == [("L", ())]
+
+
+# 7. haltTree -----------------------------------------------------------------------------------
+def test_halt_tree_runs_every_on_halted_and_halts_orphaned_running_nodes() -> None:
+    run = both(
+        '<Sequence _onHalted="h0 := 1"><Script code="k := 0"/>'
+        '<SkipUnlessUpdated entry="{e}" _onHalted="h1 := 1">'
+        '<Leaf name="A" _onHalted="k := k + 1"/></SkipUnlessUpdated>'
+        '<Leaf name="B" _onHalted="hb := 1"/></Sequence>',
+        host={"e": 1},
+        leaves={"A": [1]},
+    )
+    # A is RUNNING under SkipUnlessUpdated, whose halt leaves it alone: only the final visit of
+    # every node halts it, so its _onHalted runs once (k == 1); the root's runs twice.
+    assert run.after_halt == {"e": "1", "h0": "1", "h1": "1", "hb": "1", "k": "1"}
+    assert run.halted == ["A"]
+
+
+def test_halt_tree_on_an_idle_tree_still_runs_on_halted() -> None:
+    run = both('<Sequence _onHalted="k := 0"><Leaf name="A" _onHalted="k := k + 1"/></Sequence>', ticks=0)
+    assert run.after_halt == {"k": "1"}
+
+
+# 8. load-time checks ------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "bad", ["<Inverter/>", "<Nope/>", "<Sequence/>", "<AlwaysSuccess><AlwaysSuccess/></AlwaysSuccess>"]
+)
+def test_a_tree_that_is_never_instantiated_is_still_verified(bad: str) -> None:
+    run = both("<AlwaysSuccess/>", sub("Unused", bad))
+    assert run.verdict == "REJECT"
+
+
+def test_ports_of_a_tree_that_is_never_instantiated_are_not_checked() -> None:
+    run = both("<AlwaysSuccess/>", sub("Unused", '<AlwaysSuccess bad="1"/>'))
+    assert run.verdict == "LOADED"
+
+
+def test_a_remap_joining_two_port_types_is_a_load_error() -> None:
+    run = both(
+        '<Sequence><Repeat num_cycles="{n}"><AlwaysSuccess/></Repeat><SubTree ID="S" n="{n}"/></Sequence>',
+        sub("S", '<Precondition if="1" else="{n}"><AlwaysSuccess/></Precondition>'),
+    )
+    assert run.verdict == "REJECT" and "initially created" in run.error
+
+
+def test_a_subtree_literal_under_autoremap_loads_and_fails_only_where_it_is_read() -> None:
+    # The engine once wrote the literal into the caller's int entry while building and raised a
+    # script error from build(); BT.CPP keeps it local and fails when the Repeat inside reads it.
+    run = both(
+        '<Sequence><Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat>'
+        '<SubTree ID="S" _autoremap="true" x="abc"/></Sequence>',
+        sub("S", '<Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat>'),
+        host={"x": 1},
+    )
+    assert run.verdict == "TICKERR" and run.statuses == [ERROR] and run.boards[-1] == {"x": "1"}
