@@ -123,9 +123,19 @@ def _tree_verdict(view: InstanceView) -> Verdict:
     return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {view.tree.get('rootStatus', 'IDLE')}.")
 
 
+def _tree_not_failed(view: InstanceView) -> Verdict:
+    """The tree link of the Ready chain: only a FAILURE root breaks it (no report yet does not)."""
+    verdict = _tree_verdict(view)
+    return verdict if verdict.status is False else Verdict(C.TREE_HEALTHY, True, R.TREE_OK)
+
+
 # Ready = the first failing link of this chain; reachability comes first because nothing else
 # observed about an unreachable robot is current.
-_READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [_robot_verdict, _components_verdict]
+_READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [
+    _robot_verdict,
+    _components_verdict,
+    _tree_not_failed,
+]
 
 
 def evaluate_ready(view: InstanceView) -> Verdict:
@@ -161,36 +171,53 @@ def build_components(view: InstanceView) -> list[dict[str, Any]]:
     return entries
 
 
+def _stalled_by(view: InstanceView, robot: Verdict, components: Verdict, tree: Verdict) -> Verdict | None:
+    """Why the instance cannot get further without a change to the spec or the robot, if it cannot.
+
+    An unreachable robot, a failed component, a blocking startup timeout and a tree whose root
+    returned FAILURE all leave the instance where it is until someone acts; kstatus reads that as
+    Failed, not as work still under way.
+    """
+    if robot.status is not True:
+        return robot
+    if components.reason == R.COMPONENT_FAILED or (
+        components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
+    ):
+        return components
+    if tree.status is False:
+        return tree
+    return None
+
+
 def build_instance_status(
     view: InstanceView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
 ) -> dict[str, Any]:
     """The operator-owned status fields of the instance (wire format)."""
     robot = _robot_verdict(view)
     components = _components_verdict(view)
+    tree = _tree_verdict(view)
     ready = evaluate_ready(view)
-    stalled = components.reason in (R.COMPONENT_FAILED,) or (
-        components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
-    )
-    reconciling = not ready.status and not stalled and robot.status is True
+    stalled = _stalled_by(view, robot, components, tree)
+    reconciling = not ready.status and stalled is None
     verdicts = [
         ready,
         Verdict(
             C.RECONCILING,
             reconciling,
-            R.PROGRESSING if reconciling else R.READY,
+            R.PROGRESSING if reconciling else (stalled.reason if stalled else R.READY),
             components.message if reconciling else "",
         ),
         Verdict(
             C.STALLED,
-            stalled,
-            components.reason if stalled else R.READY,
-            components.message if stalled else "",
+            stalled is not None,
+            stalled.reason if stalled else R.READY,
+            stalled.message if stalled else "",
         ),
         robot,
         components,
         _plugins_verdict(view),
         _library_verdict(view),
-        _tree_verdict(view),
+        tree,
     ]
     revisions = {p.revision for p in view.pods if not p.deleting}
     node = view.node
