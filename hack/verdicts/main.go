@@ -19,6 +19,7 @@ import (
 	"github.com/google/cel-go/ext"
 	lua "github.com/yuin/gopher-lua"
 	"k8s.io/apimachinery/pkg/apis/meta/v1/unstructured"
+	utiljson "k8s.io/apimachinery/pkg/util/json"
 	"sigs.k8s.io/cli-utils/pkg/kstatus/status"
 )
 
@@ -29,9 +30,9 @@ type exprs struct {
 }
 
 type input struct {
-	Objects []map[string]any `json:"objects"`
-	Lua     string           `json:"lua"`
-	CEL     map[string]exprs `json:"cel"`
+	Objects []json.RawMessage `json:"objects"`
+	Lua     string            `json:"lua"`
+	CEL     map[string]exprs  `json:"cel"`
 }
 
 type judgement struct {
@@ -73,6 +74,8 @@ func toLua(l *lua.LState, value any) lua.LValue {
 	case bool:
 		return lua.LBool(v)
 	case float64:
+		return lua.LNumber(v)
+	case int64:
 		return lua.LNumber(v)
 	case json.Number:
 		f, _ := v.Float64()
@@ -195,7 +198,13 @@ func main() {
 		os.Exit(2)
 	}
 	out := make([]verdict, 0, len(in.Objects))
-	for _, obj := range in.Objects {
+	for _, raw := range in.Objects {
+		// Decoded as the apiserver's clients decode, integers as int64, which kstatus expects.
+		obj := map[string]any{}
+		if err := utiljson.Unmarshal(raw, &obj); err != nil {
+			fmt.Fprintln(os.Stderr, "coral-verdicts: cannot read an object:", err)
+			os.Exit(2)
+		}
 		out = append(out, verdict{Kstatus: kstatusOf(obj), Argo: argoOf(in.Lua, obj), Flux: fluxOf(in.CEL, obj)})
 	}
 	if err := json.NewEncoder(os.Stdout).Encode(out); err != nil {

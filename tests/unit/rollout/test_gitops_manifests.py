@@ -27,10 +27,14 @@ def test_flux_applies_the_fleet_kustomization_from_its_git_repository_and_waits_
     assert kustomization["spec"]["sourceRef"] == {"kind": "GitRepository", "name": repo["metadata"]["name"]}
     path = kustomization["spec"]["path"].removeprefix("./")
     assert (GITOPS.parents[1] / path / "kustomization.yaml").is_file()
-    checks = kustomization["spec"]["healthChecks"]
-    assert checks == [
-        {"apiVersion": "coral.dev/v1alpha1", "kind": "CoralSystem", "name": "patrol", "namespace": "fleet"}
-    ]
+    # Flux ignores `healthChecks` when `wait: true`; our kinds need `healthCheckExprs` (kstatus
+    # alone calls a CoralSystem without conditions Current).
+    assert kustomization["spec"]["wait"] is True and "healthChecks" not in kustomization["spec"]
+    exprs = {e["kind"]: e for e in kustomization["spec"]["healthCheckExprs"]}
+    assert set(exprs) == {"CoralSystem", "CoralInstance"}
+    assert all(
+        e["apiVersion"] == "coral.dev/v1alpha1" and e["current"] and e["failed"] for e in exprs.values()
+    )
 
 
 def test_the_kustomization_generates_the_tree_and_parameters_the_system_references() -> None:
