@@ -12,6 +12,7 @@ of kopf's, so no finalizer.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from datetime import UTC, datetime
@@ -23,7 +24,7 @@ from pydantic import ValidationError
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
-from coral_operator.kube import applying
+from coral_operator.kube import applying, leases
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, pods, rbac, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
@@ -281,6 +282,9 @@ def _reconcile(record: InstanceRecord) -> None:
         _write_status(record, status, _invalid(error, record, status))
         return
     node = next(iter(_read("nodes", ("node", parsed.node_name))), None)
+    if node is not None and not node.reachable:
+        # The Lease says when the robot was last heard from; it no longer changes while it is away.
+        node = dataclasses.replace(node, last_seen=leases.read_renew_time(node.node_name) or node.last_seen)
     observed: list[ObservedPod] = _read("pods", (record.namespace, record.name))
     if parsed.retiring:
         _retire(record, observed, node is not None and node.ready)

@@ -39,16 +39,29 @@ def _robot_verdict(view: InstanceView) -> Verdict:
         return Verdict(
             C.ROBOT_REACHABLE, False, R.NODE_MISSING, f"Node {view.spec.node_name} does not exist."
         )
-    if not view.node.ready:
+    if not view.node.reachable:
         seen = rfc3339(view.node.last_seen) if view.node.last_seen else "never"
         return Verdict(
             C.ROBOT_REACHABLE,
             False,
-            R.NODE_NOT_READY,
-            f"Robot {view.spec.robot} is unreachable (Node {view.node.node_name} not Ready, "
+            R.NODE_UNREACHABLE,
+            f"Robot {view.spec.robot} is unreachable (Node {view.node.node_name} stopped reporting, "
             f"last seen {seen}); its pods are kept.",
         )
-    return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} is Ready.")
+    return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} reports in.")
+
+
+def _node_ready(view: InstanceView) -> Verdict:
+    """The Node link of the Ready chain: a reachable robot whose kubelet says it is not Ready."""
+    if view.node is not None and not view.node.ready:
+        detail = f": {view.node.ready_message}" if view.node.ready_message else ""
+        return Verdict(
+            C.READY,
+            False,
+            R.NODE_NOT_READY,
+            f"Robot {view.spec.robot} is reachable but its Node {view.node.node_name} is not Ready{detail}",
+        )
+    return Verdict(C.READY, True, R.NODE_READY)
 
 
 def _components_verdict(view: InstanceView) -> Verdict:
@@ -133,6 +146,7 @@ def _tree_not_failed(view: InstanceView) -> Verdict:
 # observed about an unreachable robot is current.
 _READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [
     _robot_verdict,
+    _node_ready,
     _components_verdict,
     _tree_not_failed,
 ]
@@ -229,8 +243,15 @@ def build_instance_status(
         else None,
         "robot": {
             "nodeName": view.spec.node_name,
-            "reachable": bool(node and node.ready),
-            **({"lastSeen": rfc3339(node.last_seen)} if node and node.last_seen else {}),
+            "reachable": bool(node and node.reachable),
+            "nodeReady": bool(node and node.ready),
+            # Written while the robot is away (from its Node Lease, then fixed); a reachable
+            # robot was seen just now, and a moving timestamp would cost a write per heartbeat.
+            **(
+                {"lastSeen": rfc3339(node.last_seen)}
+                if node and node.last_seen and not node.reachable
+                else {}
+            ),
         },
         "components": build_components(view),
     }

@@ -70,11 +70,16 @@ def count_trees(view: SystemView) -> dict[str, int]:
     return counts
 
 
+def _online(instance: ObservedInstance) -> bool:
+    return instance.reachable is not False and instance.node_ready is not False
+
+
 def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
     """Ready: nothing stalled, robots matched, all on the newest revision, all reachable ones Ready.
 
-    Unreachable robots do not hold `Ready` back (they are told by `RobotsReachable`), so one robot
-    off the network does not make a whole fleet look broken.
+    Offline robots (unreachable, or with a Node that is not Ready) do not hold `Ready` back (they
+    are told by `RobotsReachable` and their instances), so one robot off the network does not make
+    a whole fleet look broken.
     """
     if view.problem is not None:
         return Verdict(C.READY, False, view.problem.reason, view.problem.message)
@@ -82,8 +87,10 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
         return Verdict(C.READY, False, R.ROLLED_BACK, view.rolled_back)
     if view.matched == 0:
         return Verdict(C.READY, False, R.NO_MATCHING_ROBOTS, "No robot Node matches spec.robots.")
-    # Offline robots update when they come back; they do not hold the rest of the fleet's Ready.
-    behind = [i for i in view.instances if i.revision != view.revision and i.reachable is not False]
+    # Offline robots (unreachable, or reachable with a Node that is not Ready) update when they
+    # come back; they do not hold the rest of the fleet's Ready.
+    online = [i for i in view.instances if _online(i)]
+    behind = [i for i in online if i.revision != view.revision]
     if len(view.instances) != view.matched or behind:
         return Verdict(
             C.READY,
@@ -91,8 +98,7 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
             R.UPDATING,
             f"{robots['updated']} of {view.matched} robots run revision {view.revision}.",
         )
-    reachable = [i for i in view.instances if i.reachable is not False]
-    not_ready = sorted(i.robot for i in reachable if not i.ready)
+    not_ready = sorted(i.robot for i in online if not i.ready)
     if not_ready:
         shown = ", ".join(not_ready[:10]) + (" ..." if len(not_ready) > 10 else "")
         return Verdict(C.READY, False, R.INSTANCES_NOT_READY, f"{len(not_ready)} robots not ready: {shown}.")

@@ -50,7 +50,7 @@ def test_an_unreachable_robot_keeps_its_pods(
             },
         },
     )
-    cluster.set_robot_ready(lost, False)
+    cluster.set_robot_reachable(lost, False)
 
     instance_name = f"fleet-{lost}"
     reachable = wait(
@@ -76,7 +76,7 @@ def test_an_unreachable_robot_keeps_its_pods(
         assert pods[name].metadata.uid == uid and pods[name].metadata.deletion_timestamp is None, name
     assert is_current_and_true(coral.instances()[f"fleet-{kept}"], "Ready")
 
-    cluster.set_robot_ready(lost, True)
+    cluster.set_robot_reachable(lost, True)
     wait(
         lambda: condition(coral.instances().get(instance_name), "RobotReachable").get("status") == "True",
         "the robot to be reachable again",

@@ -94,7 +94,7 @@ def test_an_unreachable_robot_says_when_it_was_last_seen(spec_dict: Callable[...
     conditions = _conditions(_view(spec_dict(), node_ready=False))
     assert conditions["RobotReachable"]["status"] == "False"
     assert "last seen 2026-01-01T12:00:00Z" in conditions["RobotReachable"]["message"]
-    assert conditions["Ready"]["reason"] == "NodeNotReady"
+    assert conditions["Ready"]["reason"] == "NodeUnreachable"
 
 
 def test_pods_not_ready_make_the_instance_reconciling(spec_dict: Callable[..., dict[str, Any]]) -> None:
