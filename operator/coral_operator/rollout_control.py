@@ -101,6 +101,25 @@ def _generations(body: dict[str, Any]) -> tuple[int | None, int | None]:
     return generation, observed
 
 
+# Stalled for a robot that failed after the rollout is not the rollout's failure: the rollout of
+# this revision completed, as `kubectl rollout status` says of a Deployment whose pods crash later.
+_NOT_THE_ROLLOUTS_FAILURE = {"InstancesFailed", "Ready"}
+
+
+def _refusal(body: dict[str, Any]) -> str | None:
+    """The Stalled message when the operator cannot deploy the current spec (bad spec, policy)."""
+    generation, _ = _generations(body)
+    for condition in (body.get("status") or {}).get("conditions") or []:
+        if (
+            condition.get("type") == "Stalled"
+            and condition.get("status") == "True"
+            and condition.get("observedGeneration") == generation
+            and condition.get("reason") not in _NOT_THE_ROLLOUTS_FAILURE
+        ):
+            return str(condition.get("message") or condition.get("reason"))
+    return None
+
+
 def evaluate_progress(body: dict[str, Any]) -> Progress:
     """The rollout's progress; a status written for an older spec never counts as done."""
     generation, observed = _generations(body)
@@ -108,6 +127,9 @@ def evaluate_progress(body: dict[str, Any]) -> Progress:
         return Progress(False, None, f"the operator to observe generation {generation}")
     rollout = (body.get("status") or {}).get("rollout") or {}
     if not rollout:
+        refused = _refusal(body)
+        if refused:
+            return Progress(False, f"the operator refuses this spec: {refused}", "")
         return Progress(False, None, "the operator's first rollout report")
     if rollout.get("failure"):
         return Progress(False, f"health gate failed: {rollout['failure'].get('message', '')}", "")
@@ -119,6 +141,9 @@ def evaluate_progress(body: dict[str, Any]) -> Progress:
             f"({back.get('reason', 'Undo')}); the spec's revision does not run until the spec changes",
             "",
         )
+    refused = _refusal(body)
+    if refused:
+        return Progress(False, f"the operator refuses this spec: {refused}", "")
     if rollout.get("complete"):
         return Progress(True, None, "")
     if rollout.get("paused"):

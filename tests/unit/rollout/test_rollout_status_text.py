@@ -170,3 +170,18 @@ def test_rollout_status_exit_codes(
     )
     result = CliRunner().invoke(rollout, ["status", "patrol", *args])
     assert result.exit_code == exit_code, result.output
+
+
+def test_a_refused_spec_fails_rollout_status_even_with_an_old_complete_rollout() -> None:
+    system = _system(3, 3, RolloutStatus(complete=True))
+    system["status"]["conditions"] = [
+        {
+            "type": "Stalled",
+            "status": "True",
+            "reason": "InvalidTree",
+            "message": "t.xml:3: bad",
+            "observedGeneration": 3,
+        }
+    ]
+    progress = evaluate_progress(system)
+    assert not progress.done and progress.failure and "t.xml:3: bad" in progress.failure
