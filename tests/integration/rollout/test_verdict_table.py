@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 import verdict_clients
+import yaml
 from coral_operator import rollout_control
 from coral_operator.kube.observing import parse_time
 from coral_testbed.waiting import wait_for
@@ -316,3 +317,12 @@ def test_the_table_covers_every_state_of_the_issue() -> None:
     }  # fmt: skip
     assert set(STATES) == wanted
     assert all(any(r.state == s and r.kind == "CoralSystem" for r in ROWS) for s in STATES)
+
+
+def test_argo_cds_lua_runtime_agrees_with_the_health_check_fixtures() -> None:
+    """The fixtures of health_test.yaml, run in gopher-lua with Argo CD's sandbox (no cluster)."""
+    argocd = verdict_clients.HEALTH_LUA.parent
+    cases = yaml.safe_load((argocd / "health_test.yaml").read_text())["tests"]
+    objects = [yaml.safe_load((argocd / case["inputPath"]).read_text()) for case in cases]
+    for case, found in zip(cases, verdict_clients.judge_all(objects), strict=True):
+        assert found["argo"] == case["healthStatus"], case["inputPath"]
