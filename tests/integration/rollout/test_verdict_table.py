@@ -26,6 +26,10 @@ from kubernetes import client as k8s
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 ROWS = verdict_clients.read_table()
+CANARY_POLICY = {
+    "maxUnavailable": 1,
+    "canary": {"robots": {"matchLabels": {"canary": "yes"}}, "holdSeconds": 3600},
+}
 STATES = list(dict.fromkeys(row.state for row in ROWS))
 
 
@@ -53,6 +57,10 @@ def _stalled(body: dict[str, Any], reason: str | None = None) -> bool:
         and (reason is None or c["reason"] == reason)
         for c in (body.get("status") or {}).get("conditions") or []
     )
+
+
+def _rollout(body: dict[str, Any]) -> dict[str, Any]:
+    return (body.get("status") or {}).get("rollout") or {}
 
 
 def _observed(body: dict[str, Any]) -> bool:
@@ -140,42 +148,19 @@ class Builder:
             _content_type="application/merge-patch+json",
         )
         self.fleet.change("2")
-        system = self.until(
-            lambda: (
-                (s := self.fleet.system())
-                and _observed(s)
-                and (s["status"].get("rollout") or {}).get("paused")
-                and s
-            ),
-            "the paused rollout reported",
-        )
+        system = self.system_when(lambda s: _rollout(s).get("paused"), "the paused rollout reported")
         return self.scene(system=system)
 
     def canary_held(self) -> Scene:
-        policy = {
-            "maxUnavailable": 1,
-            "canary": {"robots": {"matchLabels": {"canary": "yes"}}, "holdSeconds": 3600},
-        }
-        self.deployed(1, policy, canary=True)
+        self.deployed(1, CANARY_POLICY, canary=True)
         self.fleet.change("2")
-        system = self.until(
-            lambda: (
-                (s := self.fleet.system())
-                and _observed(s)
-                and ((s["status"].get("rollout") or {}).get("canary") or {}).get("healthySince")
-                and s
-            ),
-            "the canary hold to start",
+        system = self.system_when(
+            lambda s: (_rollout(s).get("canary") or {}).get("healthySince"), "the canary hold to start"
         )
         return self.scene(system=system)
 
     def gate_failed(self) -> Scene:
-        policy = {
-            "maxUnavailable": 1,
-            "canary": {"robots": {"matchLabels": {"canary": "yes"}}, "holdSeconds": 3600},
-            "onFailure": "Pause",
-        }
-        names = self.deployed(1, policy, canary=True)
+        names = self.deployed(1, {**CANARY_POLICY, "onFailure": "Pause"}, canary=True)
         canary = names[-1]
         first = self.fleet.revisions()[canary]
         self.fleet.change("2")
