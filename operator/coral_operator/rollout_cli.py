@@ -48,8 +48,9 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
     """Show where the rollout stands: target and current revision, counts, what it waits for.
 
     Exits 1 when the health gate failed, when the fleet was rolled back (robots do not run the
-    spec's revision), or when --watch gives up after --timeout; a status written for an older
-    generation of the spec never counts as complete.
+    spec's revision), when the system is Stalled (a refused spec, a robot whose component or tree
+    failed), or when --watch gives up after --timeout; a status written for an older generation
+    of the spec never counts as complete.
     """
     control = rollout_control.RolloutControl.from_kubeconfig(namespace)
     deadline = time.monotonic() + timeout

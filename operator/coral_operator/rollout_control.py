@@ -101,22 +101,19 @@ def _generations(body: dict[str, Any]) -> tuple[int | None, int | None]:
     return generation, observed
 
 
-# Stalled for a robot that failed after the rollout is not the rollout's failure: the rollout of
-# this revision completed, as `kubectl rollout status` says of a Deployment whose pods crash later.
-_NOT_THE_ROLLOUTS_FAILURE = {"InstancesFailed", "Ready"}
+def _stalled(body: dict[str, Any]) -> str | None:
+    """Why the system is Stalled at the spec's generation (a refused spec, failed robots), if it is.
 
-
-def _refusal(body: dict[str, Any]) -> str | None:
-    """The Stalled message when the operator cannot deploy the current spec (bad spec, policy)."""
+    A Stalled system cannot complete its rollout without a change, so waiting longer cannot help.
+    """
     generation, _ = _generations(body)
     for condition in (body.get("status") or {}).get("conditions") or []:
         if (
             condition.get("type") == "Stalled"
             and condition.get("status") == "True"
             and condition.get("observedGeneration") == generation
-            and condition.get("reason") not in _NOT_THE_ROLLOUTS_FAILURE
         ):
-            return str(condition.get("message") or condition.get("reason"))
+            return f"{condition.get('reason')}: {condition.get('message') or 'Stalled'}"
     return None
 
 
@@ -127,9 +124,9 @@ def evaluate_progress(body: dict[str, Any]) -> Progress:
         return Progress(False, None, f"the operator to observe generation {generation}")
     rollout = (body.get("status") or {}).get("rollout") or {}
     if not rollout:
-        refused = _refusal(body)
-        if refused:
-            return Progress(False, f"the operator refuses this spec: {refused}", "")
+        stalled = _stalled(body)
+        if stalled:
+            return Progress(False, f"the system is Stalled ({stalled})", "")
         return Progress(False, None, "the operator's first rollout report")
     if rollout.get("failure"):
         return Progress(False, f"health gate failed: {rollout['failure'].get('message', '')}", "")
@@ -141,9 +138,9 @@ def evaluate_progress(body: dict[str, Any]) -> Progress:
             f"({back.get('reason', 'Undo')}); the spec's revision does not run until the spec changes",
             "",
         )
-    refused = _refusal(body)
-    if refused:
-        return Progress(False, f"the operator refuses this spec: {refused}", "")
+    stalled = _stalled(body)
+    if stalled:
+        return Progress(False, f"the system is Stalled ({stalled})", "")
     if rollout.get("complete"):
         return Progress(True, None, "")
     if rollout.get("paused"):

@@ -86,6 +86,10 @@ class Builder:
             message=lambda: f"{message}; rollout={self.fleet.rollout()}",
         )
 
+    def system_when(self, check: Callable[[dict[str, Any]], Any], message: str) -> dict[str, Any]:
+        """The system once its status, written for the current generation, passes `check`."""
+        return self.until(lambda: (s := self.fleet.system()) and _observed(s) and check(s) and s, message)
+
     def deployed(
         self, count: int = 1, policy: dict[str, Any] | None = None, canary: bool = False
     ) -> list[str]:
