@@ -56,7 +56,7 @@ _written: dict[str, dict[str, Any]] = {}
 _inputs: dict[str, tuple[Any, ...]] = {}
 # Executor identities created by this process, so each robot's is created once, not per pass.
 _accounts: set[str] = set()
-_node_ready: dict[str, bool] = {}
+_node_ready: dict[str, tuple[bool, bool] | None] = {}
 # The pods an instance's spec asks for, per uid, with the generation they were built for: a spec
 # changes only with its generation, and hashing every pod on every pass is the pass's main cost.
 _desired: dict[str, tuple[int | None, list[dict[str, Any]]]] = {}
@@ -153,11 +153,12 @@ async def robot_node_changed(
     """Queue the robot's instances when it comes or goes; heartbeats alone change nothing here."""
     _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
     robot: RobotNode | None = next(iter(robot_nodes.get(("node", name), [])), None)
-    ready = type != "DELETED" and robot is not None and robot.ready
+    # Readiness and reachability move separately (the unreachable taint goes a moment after Ready).
+    state = (robot.ready, robot.reachable) if type != "DELETED" and robot is not None else None
     with _lock:
-        if _node_ready.get(name) == ready:
+        if _node_ready.get(name) == state:
             return
-        _node_ready[name] = ready
+        _node_ready[name] = state
     for namespace, instance in list(instances_by_node.get(name, [])):
         QUEUE.add((namespace, instance))
 

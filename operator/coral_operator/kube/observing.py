@@ -101,10 +101,13 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
         node_ready=robot.get("nodeReady"),
         tree_root=(status.get("tree") or {}).get("rootStatus"),
         labels=dict(metadata.get("labels") or {}),
+        # An instance Stalled only because its robot is away is not a failed robot: `reachable`
+        # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
             stalled
             and stalled.get("status") == "True"
             and stalled.get("observedGeneration") == metadata.get("generation")
+            and stalled.get("reason") != "NodeUnreachable"
         ),
     )
 

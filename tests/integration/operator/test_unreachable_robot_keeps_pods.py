@@ -66,8 +66,11 @@ def test_an_unreachable_robot_keeps_its_pods(
     wait(lambda: coral.system("fleet")["status"]["robots"]["unreachable"] == 1, "the system to count it")
     assert condition(coral.system("fleet"), "RobotsReachable")["status"] == "False"
 
+    # Evicted means marked for deletion: an unreachable robot's kubelet cannot confirm it.
     wait(
-        lambda: "ordinary" not in coral.pods(),
+        lambda: (
+            "ordinary" not in coral.pods() or coral.pods()["ordinary"].metadata.deletion_timestamp is not None
+        ),
         "the ordinary pod to be evicted from the unreachable robot",
         timeout=120,
     )
