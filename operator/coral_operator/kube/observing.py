@@ -7,17 +7,13 @@ it lives beside the client.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from datetime import datetime
 from typing import Any
 
 from coral_operator.planning import naming
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
+from coral_operator.status import transitions
 
-
-def parse_time(text: str | None) -> datetime | None:
-    if not text:
-        return None
-    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+parse_time = transitions.parse_rfc3339
 
 
 def _condition(conditions: list[Mapping[str, Any]] | None, ctype: str) -> Mapping[str, Any] | None:

@@ -17,7 +17,7 @@ from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, counts_as_ready, current_pod
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
-from coral_operator.status.transitions import Verdict, merge_conditions, rfc3339
+from coral_operator.status.transitions import Verdict, merge_conditions, parse_rfc3339, rfc3339
 
 
 @dataclass(frozen=True)
@@ -126,9 +126,26 @@ def _library_verdict(view: InstanceView) -> Verdict:
     return Verdict(C.LIBRARY_DEGRADED, False, R.LIBRARIES_HEALTHY, "Every loaded plugin's skillset is alive.")
 
 
+def _tree_is_stale(view: InstanceView) -> bool:
+    """The report was written before the running executor started (a replaced pod has not reported).
+
+    Without this, a FAILURE from the previous revision would fail the robot on the new one.
+    """
+    written = parse_rfc3339((view.tree or {}).get("updatedAt"))
+    if written is None:
+        return False
+    live = [p for p in view.pods if not p.deleting and p.created is not None]
+    executors = [p for p in live if p.role == "executor"] or live
+    return any(p.created is not None and p.created > written for p in executors)
+
+
 def _tree_verdict(view: InstanceView) -> Verdict:
     if not view.tree:
         return Verdict(C.TREE_HEALTHY, None, R.NO_REPORT, "The executor has not reported tree status yet.")
+    if _tree_is_stale(view):
+        return Verdict(
+            C.TREE_HEALTHY, None, R.NO_REPORT, "The restarted executor has not reported tree status yet."
+        )
     if view.tree.get("rootStatus") == "FAILURE":
         failure = view.tree.get("lastFailure") or {}
         detail = f" at {failure.get('path')}: {failure.get('message')}" if failure else ""

@@ -123,11 +123,7 @@ def evaluate_stalled(view: SystemView) -> Verdict:
         return Verdict(C.STALLED, True, view.problem.reason, view.problem.message)
     if view.rolled_back is not None:
         return Verdict(C.STALLED, True, R.ROLLED_BACK, view.rolled_back)
-    failed = sorted(
-        i.robot
-        for i in view.instances
-        if i.reachable is not False and (i.stalled or i.tree_root == "FAILURE")
-    )
+    failed = sorted(i.robot for i in view.instances if i.reachable is not False and i.stalled)
     if failed:
         shown = ", ".join(failed[:10]) + (" ..." if len(failed) > 10 else "")
         return Verdict(

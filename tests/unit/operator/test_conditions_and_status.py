@@ -196,7 +196,9 @@ SYSTEM_CASES = [
     ),
     (
         "a robot whose tree returned FAILURE stalls the system",
-        dict(matched=2, instances=[_instance("a"), _instance("b", tree="FAILURE")]),
+        dict(
+            matched=2, instances=[_instance("a"), _instance("b", tree="FAILURE", ready=False, stalled=True)]
+        ),
         ("False", "InstancesFailed", "False", "True"),
     ),
     (
@@ -262,3 +264,14 @@ def test_the_system_counts_robots_and_trees_without_listing_them() -> None:
     assert status["robots"] == {"matched": 3, "ready": 3, "updated": 2, "unreachable": 1}
     assert status["trees"] == {"running": 1, "success": 0, "failure": 1, "idle": 1}
     assert find(status["conditions"], ConditionType.ROBOTS_REACHABLE)["message"] == "Unreachable robots: b."
+
+
+def test_a_tree_failure_written_before_the_executor_restarted_is_not_current(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """A FAILURE of the previous revision must not fail the robot on the next one (issue 14)."""
+    tree = {"rootStatus": "FAILURE", "updatedAt": "2026-01-01T12:30:00Z"}
+    fresh = _conditions(_view(spec_dict(), tree=tree))
+    assert (fresh["TreeHealthy"]["status"], fresh["Stalled"]["reason"]) == ("False", "TreeFailed")
+    restarted = _conditions(_view(spec_dict(), tree=tree | {"updatedAt": "2026-01-01T11:00:00Z"}))
+    assert restarted["TreeHealthy"]["status"] == "Unknown" and restarted["Stalled"]["status"] == "False"
