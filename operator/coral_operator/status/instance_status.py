@@ -136,7 +136,8 @@ def _tree_is_stale(view: InstanceView) -> bool:
         return False
     live = [p for p in view.pods if not p.deleting and p.created is not None]
     executors = [p for p in live if p.role == "executor"] or live
-    return any(p.created is not None and p.created > written for p in executors)
+    # Second precision on both sides: a pod created in the second of the report came after it.
+    return any(p.created is not None and p.created >= written for p in executors)
 
 
 def _tree_verdict(view: InstanceView) -> Verdict:
