@@ -86,6 +86,18 @@ class Builder:
             message=lambda: f"{message}; rollout={self.fleet.rollout()}",
         )
 
+    def patch_system(self, patch: dict[str, Any]) -> None:
+        """A merge patch of the system, as `kubectl patch --type merge` sends it."""
+        self.fleet.custom.patch_namespaced_custom_object(
+            GROUP,
+            VERSION,
+            self.namespace,
+            "coralsystems",
+            "patrol",
+            patch,
+            _content_type="application/merge-patch+json",
+        )
+
     def system_when(self, check: Callable[[dict[str, Any]], Any], message: str) -> dict[str, Any]:
         """The system once its status, written for the current generation, passes `check`."""
         return self.until(lambda: (s := self.fleet.system()) and _observed(s) and check(s) and s, message)
@@ -142,15 +154,7 @@ class Builder:
 
     def paused(self) -> Scene:
         self.deployed(1)
-        self.fleet.custom.patch_namespaced_custom_object(
-            GROUP,
-            VERSION,
-            self.namespace,
-            "coralsystems",
-            "patrol",
-            {"spec": {"rollout": {"paused": True}}},
-            _content_type="application/merge-patch+json",
-        )
+        self.patch_system({"spec": {"rollout": {"paused": True}}})
         self.fleet.change("2")
         system = self.system_when(lambda s: _rollout(s).get("paused"), "the paused rollout reported")
         return self.scene(system=system)
@@ -251,14 +255,8 @@ class Builder:
 
     def bad_spec(self) -> Scene:
         names = self.deployed(1)
-        self.fleet.custom.patch_namespaced_custom_object(
-            GROUP,
-            VERSION,
-            self.namespace,
-            "coralsystems",
-            "patrol",
-            {"spec": {"tree": {"inline": "<root BTCPP_format='4'><BehaviorTree ID='Patrol'><Sequence>"}}},
-            _content_type="application/merge-patch+json",
+        self.patch_system(
+            {"spec": {"tree": {"inline": "<root BTCPP_format='4'><BehaviorTree ID='Patrol'><Sequence>"}}}
         )
         system = self.until(
             lambda: (s := self.fleet.system()) and _stalled(s, "InvalidTree") and s, "the bad tree reported"
