@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test venv control-plane image-builder images lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test venv control-plane image-builder images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -30,6 +30,11 @@ image-builder:
 images: venv image-builder
 	@$(VENV)/bin/coral images build
 
+# coral-verdicts: kstatus, Argo CD's Lua runtime and Flux's CEL for the verdict tests (docs/verdicts.md);
+# the tests build it on first use too. Cached under ~/.cache/coral-on-kubernetes by version.
+verdict-tools:
+	@bash hack/build-verdict-tools.sh >/dev/null
+
 # The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
 demo: venv control-plane
 	@$(VENV)/bin/coral demo
@@ -42,7 +47,7 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane image-builder
+test: venv control-plane image-builder verdict-tools
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

@@ -17,6 +17,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CHART = ROOT / "charts" / "coral-operator"
 OUTPUT = ROOT / "deploy" / "coral-operator.yaml"
 NAMESPACE = "coral-system"
+MANAGED_BY_HELM = "app.kubernetes.io/managed-by: Helm"
 
 HEADER = f"""# Coral operator, single-file install: kubectl apply --server-side -f deploy/coral-operator.yaml
 # Rendered from charts/coral-operator by hack/render-manifest.py; do not edit.
@@ -50,7 +51,10 @@ def render(helm: str) -> str:
         capture_output=True,
         text=True,
     )
-    return HEADER + result.stdout
+    # `helm template` stamps every object `managed-by: Helm`, but this file is applied with kubectl:
+    # Helm would refuse to adopt those objects later, and tools reading the label would be misled.
+    lines = [line for line in result.stdout.splitlines(keepends=True) if line.strip() != MANAGED_BY_HELM]
+    return HEADER + "".join(lines)
 
 
 def main() -> int:

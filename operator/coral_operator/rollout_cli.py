@@ -39,11 +39,19 @@ def rollout() -> None:
 
 @rollout.command("status")
 @_target
-@click.option("-w", "--watch", is_flag=True, help="Print again on every change until the rollout completes.")
+@click.option(
+    "-w", "--watch", is_flag=True, help="Print again on every change until the rollout completes or fails."
+)
 @click.option("--timeout", default=600.0, show_default=True, help="Seconds to watch at most.")
 @click.option("-o", "--output", type=click.Choice(["text", "json"]), default="text", show_default=True)
 def status_command(system: str, namespace: str, watch: bool, timeout: float, output: str) -> None:
-    """Show where the rollout stands (revision, counts, canaries, failure, what it waits for)."""
+    """Show where the rollout stands: target and current revision, counts, what it waits for.
+
+    Exits 1 when the health gate failed, when the fleet was rolled back (robots do not run the
+    spec's revision), when the system is Stalled (a refused spec, a robot whose component or tree
+    failed), or when --watch gives up after --timeout; a status written for an older generation
+    of the spec never counts as complete.
+    """
     control = rollout_control.RolloutControl.from_kubeconfig(namespace)
     deadline = time.monotonic() + timeout
     last = None
@@ -57,11 +65,16 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
         if text != last:
             click.echo(text)
             last = text
-        done = rollout_control.finished(body)
-        if not watch or done:
+        progress = rollout_control.evaluate_progress(body)
+        if progress.failure is not None:
+            raise click.ClickException(f"the rollout of {system} failed: {progress.failure}")
+        if progress.done or not watch:
             return
         if time.monotonic() > deadline:
-            raise click.ClickException(f"the rollout of {system} did not complete within {timeout:g} s")
+            raise click.ClickException(
+                f"the rollout of {system} did not complete within {timeout:g} s "
+                f"(waiting for {progress.waiting_for})"
+            )
         time.sleep(1.0)
 
 

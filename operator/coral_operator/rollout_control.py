@@ -10,6 +10,7 @@ the revision before it until the spec makes a newer one. `describe` renders `sta
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from typing import Any
 
 from kubernetes import client as k8s
@@ -82,23 +83,104 @@ class RolloutControl:
         return str(newest)
 
 
-def finished(body: dict[str, Any]) -> bool:
-    """The rollout completed, or stopped for a human (paused or failed)."""
+@dataclass(frozen=True)
+class Progress:
+    """Where a rollout stands for someone waiting on it, like `kubectl rollout status`."""
+
+    done: bool
+    """The spec was observed and every robot taking part runs it and passes the health gate."""
+    failure: str | None
+    """Why waiting longer will not help (a failed health gate, a rollback); None otherwise."""
+    waiting_for: str
+    """What the rollout waits for, as a phrase (empty when done or failed)."""
+
+
+def _generations(body: dict[str, Any]) -> tuple[int | None, int | None]:
+    generation = (body.get("metadata") or {}).get("generation")
+    observed = (body.get("status") or {}).get("observedGeneration")
+    return generation, observed
+
+
+def _stalled(body: dict[str, Any]) -> str | None:
+    """Why the system is Stalled at the spec's generation (a refused spec, failed robots), if it is.
+
+    A Stalled system cannot complete its rollout without a change, so waiting longer cannot help.
+    """
+    generation, _ = _generations(body)
+    for condition in (body.get("status") or {}).get("conditions") or []:
+        if (
+            condition.get("type") == "Stalled"
+            and condition.get("status") == "True"
+            and condition.get("observedGeneration") == generation
+        ):
+            return f"{condition.get('reason')}: {condition.get('message') or 'Stalled'}"
+    return None
+
+
+def evaluate_progress(body: dict[str, Any]) -> Progress:
+    """The rollout's progress; a status written for an older spec never counts as done."""
+    generation, observed = _generations(body)
+    if generation is not None and (observed is None or observed < generation):
+        return Progress(False, None, f"the operator to observe generation {generation}")
     rollout = (body.get("status") or {}).get("rollout") or {}
-    return bool(rollout.get("complete") or rollout.get("paused"))
+    if not rollout:
+        stalled = _stalled(body)
+        if stalled:
+            return Progress(False, f"the system is Stalled ({stalled})", "")
+        return Progress(False, None, "the operator's first rollout report")
+    if rollout.get("failure"):
+        return Progress(False, f"health gate failed: {rollout['failure'].get('message', '')}", "")
+    back = rollout.get("rolledBack")
+    if back:
+        return Progress(
+            False,
+            f"rolled back from revision {back.get('fromRevision')} to {back.get('toRevision')} "
+            f"({back.get('reason', 'Undo')}); the spec's revision does not run until the spec changes",
+            "",
+        )
+    stalled = _stalled(body)
+    if stalled:
+        return Progress(False, f"the system is Stalled ({stalled})", "")
+    if rollout.get("complete"):
+        return Progress(True, None, "")
+    if rollout.get("paused"):
+        return Progress(False, None, "the rollout to be resumed (coral rollout resume)")
+    counts = rollout.get("counts") or {}
+    waiting = (
+        f"{counts.get('total', 0) - counts.get('healthy', 0)} of {counts.get('total', 0)} robots "
+        f"to run revision {rollout.get('revision')} and pass the health gate"
+    )
+    if rollout.get("waitingFor"):
+        waiting += f" ({', '.join(rollout['waitingFor'])})"
+    return Progress(False, None, waiting)
+
+
+def finished(body: dict[str, Any]) -> bool:
+    """Nothing more will happen without a human: the rollout completed or failed."""
+    progress = evaluate_progress(body)
+    return progress.done or progress.failure is not None
 
 
 def describe(body: dict[str, Any]) -> str:
-    """`status.rollout` as a few lines of text."""
+    """`status.rollout` as a few lines of text: target and current revision, counts, what it waits for."""
     name = body["metadata"]["name"]
     status = body.get("status") or {}
     rollout = status.get("rollout")
+    generation, observed = _generations(body)
+    progress = evaluate_progress(body)
     if not rollout:
-        return f"coralsystem/{name}: no rollout reported yet (revision {status.get('revision', 'unknown')})"
+        return (
+            f"coralsystem/{name}: no rollout reported yet (revision {status.get('revision', 'unknown')})\n"
+            f"  waiting for {progress.waiting_for}"
+        )
     counts = rollout.get("counts") or {}
+    history = rollout.get("history") or []
+    target = rollout.get("revision")
+    spec_revision = history[-1] if history else target
     lines = [
-        f"coralsystem/{name} revision {rollout.get('revision')} "
-        f"(previous {rollout.get('previousRevision') or 'none'})",
+        f"coralsystem/{name} revision {target} (previous {rollout.get('previousRevision') or 'none'})",
+        f"  spec revision {spec_revision}, generation {generation} (observed {observed}); "
+        f"target revision {target}; {counts.get('updated', 0)} of {counts.get('total', 0)} robots run it",
         f"  robots: {counts.get('healthy', 0)} healthy, {counts.get('updated', 0)} updated of "
         f"{counts.get('total', 0)}; {counts.get('unavailable', 0)} unavailable "
         f"(max {counts.get('maxUnavailable', 0)}), {counts.get('locked', 0)} locked by running trees, "
@@ -121,6 +203,10 @@ def describe(body: dict[str, Any]) -> str:
         lines.append(f"  failure: {rollout['failure'].get('message', '')}")
     if rollout.get("waitingFor"):
         lines.append(f"  waiting for: {', '.join(rollout['waitingFor'])}")
-    state = "complete" if rollout.get("complete") else ("paused" if rollout.get("paused") else "in progress")
-    lines.append(f"  {state}: {rollout.get('message', '')}")
+    if progress.done:
+        lines.append(f"  complete: {rollout.get('message', '')}")
+    elif progress.failure:
+        lines.append(f"  failed: {progress.failure}")
+    else:
+        lines.append(f"  in progress, waiting for {progress.waiting_for}: {rollout.get('message', '')}")
     return "\n".join(lines)

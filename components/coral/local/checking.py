@@ -113,11 +113,13 @@ def project_manifests(project: Project) -> tuple[dict[str, object], list[str]]:
 
 
 def registry_for(manifests: dict[str, object]) -> object:
-    """The engine's built-ins plus placeholder node types for every manifest behavior."""
-    from coral import bt
+    """The executor's built-ins (the engine's and the coordination behaviors) plus placeholder
+    node types for every manifest behavior."""
+    from coral import bt, coordination
     from coral.bt import leaves
 
     registry = bt.NodeRegistry.with_builtins()
+    coordination.register(registry)
     bases = {"action": leaves.SyncAction, "condition": leaves.ConditionNode}
     for component, manifest in sorted(manifests.items()):
         for entry in manifest.behaviors:  # type: ignore[attr-defined]

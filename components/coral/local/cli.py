@@ -208,12 +208,21 @@ def logs_command(handle: str, services: tuple[str, ...], follow: bool) -> None:
 
 
 @click.command("validate")
-@TARGET
+@click.argument("target", type=click.Path(exists=True, allow_dash=True, path_type=Path))
 def validate_command(target: Path) -> None:
-    """Check a project's tree against its components' manifests, its parameters and compose file."""
-    from coral.local import checking
+    """Check a project's tree against its components' manifests, its parameters and compose file.
 
-    report = checking.validate(target)
+    TARGET is a project (folder or compose file), or Kubernetes manifests holding CoralSystems (a
+    mission file, or `-` to read them from stdin, e.g. `kubectl kustomize DIR | coral validate -`).
+    """
+    from coral.local import checking, manifest_checking
+
+    if str(target) == "-":
+        report = manifest_checking.validate_manifests(sys.stdin.read(), "<stdin>")
+    elif target.is_file() and manifest_checking.looks_like_manifests(target.read_text(errors="replace")):
+        report = manifest_checking.validate_manifests(target.read_text(), str(target))
+    else:
+        report = checking.validate(target)
     for warning in report.warnings:
         click.echo(f"warning: {warning}", err=True)
     for problem in report.problems:

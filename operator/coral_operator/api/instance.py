@@ -68,14 +68,17 @@ class CoralInstanceSpec(CamelModel):
 
 
 class RobotState(CamelModel):
-    """Whether the robot's Node is reachable."""
+    """Whether the robot's Node is reachable and Ready."""
 
     node_name: str | None = None
     """The robot's Node."""
     reachable: bool | None = None
-    """The Node is Ready (its kubelet reports in)."""
+    """The robot's kubelet reports in: the Node's Ready condition is True or False, not Unknown, and
+    the Node carries no `node.kubernetes.io/unreachable` taint."""
+    node_ready: bool | None = None
+    """The Node's Ready condition is True (a reachable robot can be not Ready; its kubelet says why)."""
     last_seen: str | None = None
-    """Last heartbeat of the Node (RFC 3339)."""
+    """While the robot is unreachable: when its kubelet last renewed its Node Lease (RFC 3339)."""
 
 
 class ComponentState(CamelModel):

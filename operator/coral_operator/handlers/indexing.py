@@ -31,8 +31,10 @@ def read_index(index: kopf.Index | None, key: Any) -> list[Any]:
 
 
 @kopf.index("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
-def robot_nodes(name: str, labels: kopf.Labels, status: kopf.Status, **_: Any) -> dict[Any, Any]:
-    robot = observing.robot_node(name, labels, status)
+def robot_nodes(
+    name: str, labels: kopf.Labels, spec: kopf.Spec, status: kopf.Status, **_: Any
+) -> dict[Any, Any]:
+    robot = observing.robot_node(name, labels, status, spec)
     if robot is None:
         return {}
     return {ALL_ROBOTS: robot, ("node", name): robot}

@@ -14,6 +14,7 @@ of kopf's, so no finalizer.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from datetime import UTC, datetime
@@ -25,7 +26,7 @@ from pydantic import ValidationError
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
-from coral_operator.kube import applying
+from coral_operator.kube import applying, leases
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, pods, rbac, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
@@ -60,7 +61,7 @@ _inputs: dict[str, tuple[Any, ...]] = {}
 REFUSED_RETRY_S = 30.0
 # Executor identities created by this process, so each robot's is created once, not per pass.
 _accounts: set[str] = set()
-_node_ready: dict[str, bool] = {}
+_node_ready: dict[str, tuple[bool, bool] | None] = {}
 # The pods an instance's spec asks for, per uid, with the generation they were built for: a spec
 # changes only with its generation, and hashing every pod on every pass is the pass's main cost.
 _desired: dict[str, tuple[int | None, list[dict[str, Any]]]] = {}
@@ -169,11 +170,12 @@ async def robot_node_changed(
     """Queue the robot's instances when it comes or goes; heartbeats alone change nothing here."""
     _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
     robot: RobotNode | None = next(iter(robot_nodes.get(("node", name), [])), None)
-    ready = type != "DELETED" and robot is not None and robot.ready
+    # Readiness and reachability move separately (the unreachable taint goes a moment after Ready).
+    state = (robot.ready, robot.reachable) if type != "DELETED" and robot is not None else None
     with _lock:
-        if _node_ready.get(name) == ready:
+        if _node_ready.get(name) == state:
             return
-        _node_ready[name] = ready
+        _node_ready[name] = state
     for namespace, instance in list(instances_by_node.get(name, [])):
         QUEUE.add((namespace, instance))
 
@@ -339,6 +341,9 @@ def _reconcile(record: InstanceRecord) -> None:
         _write_status(record, status, _invalid(error, record, status))
         return
     node = next(iter(_read("nodes", ("node", parsed.node_name))), None)
+    if node is not None and not node.reachable:
+        # The Lease says when the robot was last heard from; it no longer changes while it is away.
+        node = dataclasses.replace(node, last_seen=leases.read_renew_time(node.node_name) or node.last_seen)
     # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
     observed: list[ObservedPod] = [
         pod for records in _read("pods", (record.namespace, record.name)) for pod in records

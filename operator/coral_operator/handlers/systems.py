@@ -214,6 +214,7 @@ def _reconcile_system(
         revision=revision,
         problem=problem,
         rollout=fleet.verdict if fleet is not None else None,
+        rolled_back=system_status.describe_rollback(fleet.status if fleet is not None else None),
     )
     new = system_status.build_system_status(
         view, old_conditions=list(status.get("conditions") or []), generation=meta.get("generation"), now=now

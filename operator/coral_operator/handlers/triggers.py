@@ -104,7 +104,16 @@ def poke_on_robot_change(
 def _instances_digest(instances: list[ObservedInstance]) -> str:
     return naming.content_hash(
         sorted(
-            (i.name, i.revision, i.ready, i.reachable, i.tree_root, i.stalled, bool(i.spec.get("retiring")))
+            (
+                i.name,
+                i.revision,
+                i.ready,
+                i.reachable,
+                i.node_ready,
+                i.tree_root,
+                i.stalled,
+                bool(i.spec.get("retiring")),
+            )
             for i in instances
         )
     )

@@ -7,17 +7,13 @@ it lives beside the client.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from datetime import datetime
 from typing import Any
 
 from coral_operator.planning import naming
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
+from coral_operator.status import transitions
 
-
-def parse_time(text: str | None) -> datetime | None:
-    if not text:
-        return None
-    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+parse_time = transitions.parse_rfc3339
 
 
 def _condition(conditions: list[Mapping[str, Any]] | None, ctype: str) -> Mapping[str, Any] | None:
@@ -27,18 +23,32 @@ def _condition(conditions: list[Mapping[str, Any]] | None, ctype: str) -> Mappin
     return None
 
 
-def robot_node(name: str, labels: Mapping[str, str], status: Mapping[str, Any]) -> RobotNode | None:
-    """A robot record for a Node labelled `coral.dev/robot`, else None."""
+UNREACHABLE_TAINT = "node.kubernetes.io/unreachable"
+"""Set by the node-lifecycle controller when a Node's heartbeats (its Lease) stop."""
+
+
+def robot_node(
+    name: str, labels: Mapping[str, str], status: Mapping[str, Any], spec: Mapping[str, Any] | None = None
+) -> RobotNode | None:
+    """A robot record for a Node labelled `coral.dev/robot`, else None.
+
+    Reachable: the kubelet reports in, so Ready is True or False; the node-lifecycle controller
+    turns it Unknown and taints the Node `unreachable` once the kubelet's Lease lapses.
+    """
     robot = labels.get(naming.LABEL_ROBOT)
     if not robot:
         return None
     ready = _condition(status.get("conditions"), "Ready")
+    taints = {t.get("key") for t in (spec or {}).get("taints") or []}
     return RobotNode(
         node_name=name,
         robot=robot,
         labels=dict(labels),
         ready=bool(ready and ready.get("status") == "True"),
         last_seen=parse_time((ready or {}).get("lastHeartbeatTime")),
+        reachable=bool(ready and ready.get("status") in ("True", "False"))
+        and UNREACHABLE_TAINT not in taints,
+        ready_message=str((ready or {}).get("message") or ""),
     )
 
 
@@ -198,12 +208,16 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
             and ready.get("observedGeneration") == metadata.get("generation")
         ),
         reachable=robot.get("reachable"),
+        node_ready=robot.get("nodeReady"),
         tree_root=(status.get("tree") or {}).get("rootStatus"),
         labels=dict(metadata.get("labels") or {}),
+        # An instance Stalled only because its robot is away is not a failed robot: `reachable`
+        # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
             stalled
             and stalled.get("status") == "True"
             and stalled.get("observedGeneration") == metadata.get("generation")
+            and stalled.get("reason") != "NodeUnreachable"
         ),
     )
 

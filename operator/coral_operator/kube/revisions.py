@@ -46,11 +46,64 @@ def create_revision(manifest: dict[str, Any]) -> None:
 
 
 def renumber_revision(namespace: str, name: str, number: int) -> None:
-    try:
-        _apps().patch_namespaced_controller_revision(name, namespace, {"revision": number})
-    except ApiException as error:
-        if error.status != 404:
+    """Give a stored revision a new number, leaving its `data` byte for byte as stored.
+
+    `data` is immutable, and the apiserver compares it byte for byte: a patch makes the server
+    re-encode it (compactly) and is refused with 422, which wedged every revert. So the object is
+    read and put back whole with only `revision` changed, as client-go's UpdateControllerRevision
+    does; this client re-encodes `data` exactly as it wrote it. A revision stored in another
+    encoding (written by another client) is recreated instead: same name, same template.
+    """
+    apps = _apps()
+    for _ in range(5):
+        try:
+            current = apps.read_namespaced_controller_revision(name, namespace)
+        except ApiException as error:
+            if error.status == 404:
+                return
             raise
+        if current.revision == number:
+            return
+        current.revision = number
+        try:
+            apps.replace_namespaced_controller_revision(name, namespace, current)
+            return
+        except ApiException as error:
+            if error.status == 409:
+                continue
+            if error.status == 404:
+                return
+            if error.status != 422:
+                raise
+        _recreate(apps, current)
+        return
+    raise RuntimeError(f"ControllerRevision {namespace}/{name} kept changing while being renumbered")
+
+
+def _recreate(apps: k8s.AppsV1Api, current: k8s.V1ControllerRevision) -> None:
+    metadata = current.metadata
+    apps.delete_namespaced_controller_revision(
+        metadata.name,
+        metadata.namespace,
+        body=k8s.V1DeleteOptions(preconditions=k8s.V1Preconditions(uid=metadata.uid)),
+    )
+    create_revision(
+        {
+            "apiVersion": "apps/v1",
+            "kind": "ControllerRevision",
+            "metadata": {
+                "name": metadata.name,
+                "namespace": metadata.namespace,
+                "labels": metadata.labels,
+                "ownerReferences": [
+                    client.api_client().sanitize_for_serialization(ref)
+                    for ref in metadata.owner_references or []
+                ],
+            },
+            "data": current.data,
+            "revision": current.revision,
+        }
+    )
 
 
 def delete_revision(namespace: str, name: str) -> None:

@@ -18,7 +18,14 @@ class RobotNode:
     robot: str
     labels: dict[str, str]
     ready: bool
+    """The Node's Ready condition is True: its kubelet can run pods."""
     last_seen: datetime | None = None
+    """The robot's last heartbeat: its Node Lease's renewTime when read, else the Ready heartbeat."""
+    reachable: bool = True
+    """The kubelet reports in: Ready is True or False (not Unknown) and no `unreachable` taint.
+    A robot can be reachable and not Ready (its kubelet says why)."""
+    ready_message: str = ""
+    """The Ready condition's message, which says why a reachable robot is not Ready."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,8 @@ class ObservedInstance:
     revision: str
     ready: bool = False
     reachable: bool | None = None
+    node_ready: bool | None = None
+    """The robot's Node is Ready (None before the instance's first status)."""
     tree_root: str | None = None
     labels: dict[str, str] = field(default_factory=dict)
     stalled: bool = False

@@ -16,7 +16,7 @@ from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
-from coral_operator.status.transitions import Verdict, merge_conditions, rfc3339
+from coral_operator.status.transitions import Verdict, merge_conditions, parse_rfc3339, rfc3339
 
 
 @dataclass(frozen=True)
@@ -40,16 +40,29 @@ def _robot_verdict(view: InstanceView) -> Verdict:
         return Verdict(
             C.ROBOT_REACHABLE, False, R.NODE_MISSING, f"Node {view.spec.node_name} does not exist."
         )
-    if not view.node.ready:
+    if not view.node.reachable:
         seen = rfc3339(view.node.last_seen) if view.node.last_seen else "never"
         return Verdict(
             C.ROBOT_REACHABLE,
             False,
-            R.NODE_NOT_READY,
-            f"Robot {view.spec.robot} is unreachable (Node {view.node.node_name} not Ready, "
+            R.NODE_UNREACHABLE,
+            f"Robot {view.spec.robot} is unreachable (Node {view.node.node_name} stopped reporting, "
             f"last seen {seen}); its pods are kept.",
         )
-    return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} is Ready.")
+    return Verdict(C.ROBOT_REACHABLE, True, R.NODE_READY, f"Node {view.node.node_name} reports in.")
+
+
+def _node_ready(view: InstanceView) -> Verdict:
+    """The Node link of the Ready chain: a reachable robot whose kubelet says it is not Ready."""
+    if view.node is not None and not view.node.ready:
+        detail = f": {view.node.ready_message}" if view.node.ready_message else ""
+        return Verdict(
+            C.READY,
+            False,
+            R.NODE_NOT_READY,
+            f"Robot {view.spec.robot} is reachable but its Node {view.node.node_name} is not Ready{detail}",
+        )
+    return Verdict(C.READY, True, R.NODE_READY)
 
 
 def _delivery_verdict(view: InstanceView) -> Verdict | None:
@@ -150,9 +163,27 @@ def _library_verdict(view: InstanceView) -> Verdict:
     return Verdict(C.LIBRARY_DEGRADED, False, R.LIBRARIES_HEALTHY, "Every loaded plugin's skillset is alive.")
 
 
+def _tree_is_stale(view: InstanceView) -> bool:
+    """The report was written before the running executor started (a replaced pod has not reported).
+
+    Without this, a FAILURE from the previous revision would fail the robot on the new one.
+    """
+    written = parse_rfc3339((view.tree or {}).get("updatedAt"))
+    if written is None:
+        return False
+    live = [p for p in view.pods if not p.deleting and p.created is not None]
+    executors = [p for p in live if p.role == "executor"] or live
+    # Second precision on both sides: a pod created in the second of the report came after it.
+    return any(p.created is not None and p.created >= written for p in executors)
+
+
 def _tree_verdict(view: InstanceView) -> Verdict:
     if not view.tree:
         return Verdict(C.TREE_HEALTHY, None, R.NO_REPORT, "The executor has not reported tree status yet.")
+    if _tree_is_stale(view):
+        return Verdict(
+            C.TREE_HEALTHY, None, R.NO_REPORT, "The restarted executor has not reported tree status yet."
+        )
     if view.tree.get("rootStatus") == "FAILURE":
         failure = view.tree.get("lastFailure") or {}
         detail = f" at {failure.get('path')}: {failure.get('message')}" if failure else ""
@@ -160,9 +191,20 @@ def _tree_verdict(view: InstanceView) -> Verdict:
     return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {view.tree.get('rootStatus', 'IDLE')}.")
 
 
+def _tree_not_failed(view: InstanceView) -> Verdict:
+    """The tree link of the Ready chain: only a FAILURE root breaks it (no report yet does not)."""
+    verdict = _tree_verdict(view)
+    return verdict if verdict.status is False else Verdict(C.TREE_HEALTHY, True, R.TREE_OK)
+
+
 # Ready = the first failing link of this chain; reachability comes first because nothing else
 # observed about an unreachable robot is current.
-_READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [_robot_verdict, _components_verdict]
+_READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [
+    _robot_verdict,
+    _node_ready,
+    _components_verdict,
+    _tree_not_failed,
+]
 
 
 def evaluate_ready(view: InstanceView) -> Verdict:
@@ -197,36 +239,54 @@ def build_components(view: InstanceView) -> list[dict[str, Any]]:
     return entries
 
 
+def _stalled_by(view: InstanceView, robot: Verdict, components: Verdict, tree: Verdict) -> Verdict | None:
+    """Why the instance cannot get further without a change to the spec or the robot, if it cannot.
+
+    An unreachable robot, a failed component, a pod the API server refused, a blocking startup
+    timeout and a tree whose root
+    returned FAILURE all leave the instance where it is until someone acts; kstatus reads that as
+    Failed, not as work still under way.
+    """
+    if robot.status is not True:
+        return robot
+    if components.reason in (R.COMPONENT_FAILED, R.POD_REFUSED) or (
+        components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
+    ):
+        return components
+    if tree.status is False:
+        return tree
+    return None
+
+
 def build_instance_status(
     view: InstanceView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
 ) -> dict[str, Any]:
     """The operator-owned status fields of the instance (wire format)."""
     robot = _robot_verdict(view)
     components = _components_verdict(view)
+    tree = _tree_verdict(view)
     ready = evaluate_ready(view)
-    stalled = components.reason in (R.COMPONENT_FAILED, R.POD_REFUSED) or (
-        components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
-    )
-    reconciling = not ready.status and not stalled and robot.status is True
+    stalled = _stalled_by(view, robot, components, tree)
+    reconciling = not ready.status and stalled is None
     verdicts = [
         ready,
         Verdict(
             C.RECONCILING,
             reconciling,
-            R.PROGRESSING if reconciling else R.READY,
+            R.PROGRESSING if reconciling else (stalled.reason if stalled else R.READY),
             components.message if reconciling else "",
         ),
         Verdict(
             C.STALLED,
-            stalled,
-            components.reason if stalled else R.READY,
-            components.message if stalled else "",
+            stalled is not None,
+            stalled.reason if stalled else R.READY,
+            stalled.message if stalled else "",
         ),
         robot,
         components,
         _plugins_verdict(view),
         _library_verdict(view),
-        _tree_verdict(view),
+        tree,
     ]
     revisions = {p.revision for p in view.pods if not p.deleting}
     node = view.node
@@ -238,8 +298,15 @@ def build_instance_status(
         else None,
         "robot": {
             "nodeName": view.spec.node_name,
-            "reachable": bool(node and node.ready),
-            **({"lastSeen": rfc3339(node.last_seen)} if node and node.last_seen else {}),
+            "reachable": bool(node and node.reachable),
+            "nodeReady": bool(node and node.ready),
+            # Written while the robot is away (from its Node Lease, then fixed); a reachable
+            # robot was seen just now, and a moving timestamp would cost a write per heartbeat.
+            **(
+                {"lastSeen": rfc3339(node.last_seen)}
+                if node and node.last_seen and not node.reachable
+                else {}
+            ),
         },
         "components": build_components(view),
     }

@@ -36,6 +36,20 @@ class SystemView:
     problem: Problem | None = None
     rollout: Verdict | None = None
     """The `RolloutComplete` condition from `status.rollout`, when the system deploys."""
+    rolled_back: str | None = None
+    """When the fleet is rolled back: a sentence naming the revision left and the one returned to."""
+
+
+def describe_rollback(rollout: dict[str, Any] | None) -> str | None:
+    """A sentence for a rolled-back fleet, from `status.rollout` (wire format); None if not rolled back."""
+    back = (rollout or {}).get("rolledBack")
+    if not back:
+        return None
+    return (
+        f"Rolled back from revision {back.get('fromRevision')} to {back.get('toRevision')} "
+        f"({back.get('reason', 'Undo')}); robots do not run the spec's revision "
+        f"{back.get('fromRevision')} until the spec changes."
+    )
 
 
 def count_robots(view: SystemView) -> dict[str, int]:
@@ -56,18 +70,27 @@ def count_trees(view: SystemView) -> dict[str, int]:
     return counts
 
 
+def _online(instance: ObservedInstance) -> bool:
+    return instance.reachable is not False and instance.node_ready is not False
+
+
 def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
     """Ready: nothing stalled, robots matched, all on the newest revision, all reachable ones Ready.
 
-    Unreachable robots do not hold `Ready` back (they are told by `RobotsReachable`), so one robot
-    off the network does not make a whole fleet look broken.
+    Offline robots (unreachable, or with a Node that is not Ready) do not hold `Ready` back (they
+    are told by `RobotsReachable` and their instances), so one robot off the network does not make
+    a whole fleet look broken.
     """
     if view.problem is not None:
         return Verdict(C.READY, False, view.problem.reason, view.problem.message)
+    if view.rolled_back is not None:
+        return Verdict(C.READY, False, R.ROLLED_BACK, view.rolled_back)
     if view.matched == 0:
         return Verdict(C.READY, False, R.NO_MATCHING_ROBOTS, "No robot Node matches spec.robots.")
-    # Offline robots update when they come back; they do not hold the rest of the fleet's Ready.
-    behind = [i for i in view.instances if i.revision != view.revision and i.reachable is not False]
+    # Offline robots (unreachable, or reachable with a Node that is not Ready) update when they
+    # come back; they do not hold the rest of the fleet's Ready.
+    online = [i for i in view.instances if _online(i)]
+    behind = [i for i in online if i.revision != view.revision]
     if len(view.instances) != view.matched or behind:
         return Verdict(
             C.READY,
@@ -75,8 +98,7 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
             R.UPDATING,
             f"{robots['updated']} of {view.matched} robots run revision {view.revision}.",
         )
-    reachable = [i for i in view.instances if i.reachable is not False]
-    not_ready = sorted(i.robot for i in reachable if not i.ready)
+    not_ready = sorted(i.robot for i in online if not i.ready)
     if not_ready:
         shown = ", ".join(not_ready[:10]) + (" ..." if len(not_ready) > 10 else "")
         return Verdict(C.READY, False, R.INSTANCES_NOT_READY, f"{len(not_ready)} robots not ready: {shown}.")
@@ -89,14 +111,41 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
     )
 
 
+def evaluate_stalled(view: SystemView) -> Verdict:
+    """Stalled: nothing more happens without a change to the spec or the robots.
+
+    In order: a spec the operator refuses (or a failed health gate), a rollback (robots do not run
+    the spec's revision until the spec changes), and reachable robots whose instance is Stalled
+    (a component failed, a blocking startup timeout, a tree that returned FAILURE). Unreachable
+    robots never make the system Stalled: they are told by `RobotsReachable`.
+    """
+    if view.problem is not None:
+        return Verdict(C.STALLED, True, view.problem.reason, view.problem.message)
+    if view.rolled_back is not None:
+        return Verdict(C.STALLED, True, R.ROLLED_BACK, view.rolled_back)
+    failed = sorted(i.robot for i in view.instances if i.reachable is not False and i.stalled)
+    if failed:
+        shown = ", ".join(failed[:10]) + (" ..." if len(failed) > 10 else "")
+        return Verdict(
+            C.STALLED,
+            True,
+            R.INSTANCES_FAILED,
+            f"{len(failed)} robots failed: {shown} (see their CoralInstances).",
+        )
+    return Verdict(C.STALLED, False, R.READY, "")
+
+
 def build_system_status(
     view: SystemView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
 ) -> dict[str, Any]:
     """The system's status (wire format)."""
     robots = count_robots(view)
+    stalled = evaluate_stalled(view)
     ready = evaluate_ready(view, robots)
-    stalled = view.problem is not None
-    reconciling = not stalled and not ready.status and ready.reason != R.NO_MATCHING_ROBOTS
+    if stalled.status:
+        ready = Verdict(C.READY, False, stalled.reason, stalled.message)
+    reconciling = not stalled.status and not ready.status and ready.reason != R.NO_MATCHING_ROBOTS
+    paused = view.rollout is not None and view.rollout.reason == "Paused"
     unreachable = sorted(i.robot for i in view.instances if i.reachable is False)
     reach = (
         Verdict(
@@ -108,20 +157,20 @@ def build_system_status(
         if unreachable
         else Verdict(C.ROBOTS_REACHABLE, True, R.ALL_REACHABLE, "Every matched robot is reachable.")
     )
+    if reconciling:
+        progress = Verdict(
+            C.RECONCILING,
+            True,
+            R.ROLLOUT_PAUSED if paused else ready.reason,
+            view.rollout.message if paused and view.rollout is not None else ready.message,
+        )
+    else:
+        # Not working on it: either done (Ready) or stuck, and then the reason says which.
+        progress = Verdict(C.RECONCILING, False, stalled.reason if stalled.status else ready.reason, "")
     verdicts = [
         ready,
-        Verdict(
-            C.RECONCILING,
-            reconciling,
-            ready.reason if reconciling else R.READY,
-            ready.message if reconciling else "",
-        ),
-        Verdict(
-            C.STALLED,
-            stalled,
-            view.problem.reason if view.problem else R.READY,
-            view.problem.message if view.problem else "",
-        ),
+        progress,
+        stalled,
         reach,
         *([view.rollout] if view.rollout is not None else []),
     ]

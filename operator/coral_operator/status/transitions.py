@@ -39,6 +39,13 @@ def _bounded(message: str) -> str:
     return message[: MAX_MESSAGE - 30] + f" ... ({len(message)} characters)"
 
 
+def parse_rfc3339(text: str | None) -> datetime | None:
+    """A Kubernetes timestamp (`...Z`) as an aware datetime; None for an empty value."""
+    if not text:
+        return None
+    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+
+
 def rfc3339(moment: datetime) -> str:
     """Kubernetes' timestamp format, second precision, UTC."""
     return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")

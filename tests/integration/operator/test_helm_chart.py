@@ -3,8 +3,10 @@ needs."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
+import tarfile
 import uuid
 from collections.abc import Callable
 from pathlib import Path
@@ -51,6 +53,60 @@ def test_the_single_file_manifest_is_the_rendered_chart() -> None:
     assert deployment["spec"]["strategy"] == {"type": "Recreate"}
 
 
+@pytest.mark.parametrize(
+    ("setting", "named"),
+    [
+        ("livenessPort=abc", "livenessPort"),
+        ("livenessPort=70000", "livenessPort"),
+        ("image.pullPolicy=Sometimes", "pullPolicy"),
+        ("watchNamespaces={Not_A_Namespace}", "watchNamespaces"),
+        ("livenesPort=8080", "livenesPort"),
+    ],
+)
+def test_a_bad_value_is_refused_by_the_schema_naming_it(setting: str, named: str) -> None:
+    for verb in (["lint", "--strict"], ["template", "c"]):
+        result = subprocess.run(
+            [_helm(), *verb, str(CHART), "--set", setting], capture_output=True, text=True
+        )
+        assert result.returncode != 0, f"helm {verb[0]} accepted {setting}"
+        assert named in result.stdout + result.stderr
+
+
+def test_the_schema_covers_every_value_of_the_chart() -> None:
+    schema = json.loads((CHART / "values.schema.json").read_text())
+    values = yaml.safe_load((CHART / "values.yaml").read_text())
+
+    def covered(value: Any, node: dict[str, Any], path: str) -> None:
+        if isinstance(value, dict) and node.get("properties"):
+            for key, item in value.items():
+                assert key in node["properties"], f"{path}{key} is not in values.schema.json"
+                covered(item, node["properties"][key], f"{path}{key}.")
+
+    covered(values, schema, "")
+    assert schema["additionalProperties"] is False
+
+
+def test_the_chart_package_ships_the_argo_cd_health_check(tmp_path: Path) -> None:
+    subprocess.run([_helm(), "package", str(CHART), "-d", str(tmp_path)], check=True, capture_output=True)
+    (package,) = tmp_path.glob("coral-operator-*.tgz")
+    with tarfile.open(package) as archive:
+        names = set(archive.getnames())
+    assert {
+        "coral-operator/argocd/health.lua",
+        "coral-operator/argocd/argocd-cm.yaml",
+        "coral-operator/argocd/README.md",
+        "coral-operator/values.schema.json",
+    } <= names
+    assert not any("/argocd/testdata/" in name for name in names)
+
+
+def test_the_kubectl_manifest_does_not_claim_helm_manages_it() -> None:
+    documents = [d for d in yaml.safe_load_all((ROOT / "deploy" / "coral-operator.yaml").read_text()) if d]
+    labelled = [d for d in documents if (d["metadata"].get("labels") or {}).get("app.kubernetes.io/name")]
+    assert labelled
+    assert not any("app.kubernetes.io/managed-by" in d["metadata"]["labels"] for d in labelled)
+
+
 def test_a_namespaced_install_grants_no_cluster_wide_writes() -> None:
     rendered = subprocess.run(
         [_helm(), "template", "c", str(CHART), "--set", "watchNamespaces={robots}"],
@@ -63,8 +119,13 @@ def test_a_namespaced_install_grants_no_cluster_wide_writes() -> None:
     assert len(cluster_roles) == 1
     verbs = {v for rule in cluster_roles[0]["rules"] for v in rule["verbs"]}
     assert verbs == {"get", "list", "watch"}
-    roles = [d for d in documents if d["kind"] == "Role"]
+    roles = [d for d in documents if d["kind"] == "Role" and d["metadata"]["namespace"] != "kube-node-lease"]
     assert [r["metadata"]["namespace"] for r in roles] == ["robots"]
+    # The robots' Node Leases are only read (when a robot is unreachable, for "last seen").
+    leases = [d for d in documents if d["kind"] == "Role" and d["metadata"]["namespace"] == "kube-node-lease"]
+    assert [rule for r in leases for rule in r["rules"]] == [
+        {"apiGroups": ["coordination.k8s.io"], "resources": ["leases"], "verbs": ["get"]}
+    ]
     assert all(
         "*" not in rule["verbs"] and "*" not in rule["resources"] for r in roles for rule in r["rules"]
     )

@@ -50,7 +50,7 @@ def test_an_unreachable_robot_keeps_its_pods(
             },
         },
     )
-    cluster.set_robot_ready(lost, False)
+    cluster.set_robot_reachable(lost, False)
 
     instance_name = f"fleet-{lost}"
     reachable = wait(
@@ -66,8 +66,11 @@ def test_an_unreachable_robot_keeps_its_pods(
     wait(lambda: coral.system("fleet")["status"]["robots"]["unreachable"] == 1, "the system to count it")
     assert condition(coral.system("fleet"), "RobotsReachable")["status"] == "False"
 
+    # Evicted means marked for deletion: an unreachable robot's kubelet cannot confirm it.
     wait(
-        lambda: "ordinary" not in coral.pods(),
+        lambda: (
+            "ordinary" not in coral.pods() or coral.pods()["ordinary"].metadata.deletion_timestamp is not None
+        ),
         "the ordinary pod to be evicted from the unreachable robot",
         timeout=120,
     )
@@ -76,7 +79,7 @@ def test_an_unreachable_robot_keeps_its_pods(
         assert pods[name].metadata.uid == uid and pods[name].metadata.deletion_timestamp is None, name
     assert is_current_and_true(coral.instances()[f"fleet-{kept}"], "Ready")
 
-    cluster.set_robot_ready(lost, True)
+    cluster.set_robot_reachable(lost, True)
     wait(
         lambda: condition(coral.instances().get(instance_name), "RobotReachable").get("status") == "True",
         "the robot to be reachable again",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -82,7 +83,17 @@ class Fleet:
             self.namespace,
             "coralinstances",
             instance,
-            {"status": {"tree": {"rootStatus": root, "activePath": "Patrol/patrol", "tickCount": 10}}},
+            {
+                "status": {
+                    "tree": {
+                        "rootStatus": root,
+                        "activePath": "Patrol/patrol",
+                        "tickCount": 10,
+                        # As the executor's status sink stamps every report.
+                        "updatedAt": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                    }
+                }
+            },
             _content_type="application/merge-patch+json",
         )
 
@@ -139,4 +150,18 @@ def wait_settled(fleet: Fleet, count: int, timeout: float = 120) -> None:
         timeout=timeout,
         interval=0.5,
         message=lambda: f"{count} robots ready and the rollout complete; rollout={fleet.rollout()}",
+    )
+
+
+def rolled_back_and_ready(fleet: Fleet, count: int) -> bool:
+    """After an undo: every robot Ready, the rollout complete, and the system Stalled (RolledBack)."""
+    body = fleet.system()
+    status = body.get("status") or {}
+    rollout = status.get("rollout") or {}
+    stalled = next((c for c in status.get("conditions") or [] if c["type"] == "Stalled"), {})
+    return (
+        status.get("observedGeneration") == body["metadata"]["generation"]
+        and (status.get("robots") or {}).get("ready") == count
+        and bool(rollout.get("complete") and rollout.get("rolledBack"))
+        and (stalled.get("status"), stalled.get("reason")) == ("True", "RolledBack")
     )

@@ -87,9 +87,19 @@ def test_an_unhealthy_canary_rolls_back_when_the_policy_says_so(
     fleet, names, canary, first, second, pods = _start(cluster, namespace, robots, fleet_label, "Rollback")
     fleet.set_tree(canary, "FAILURE")
     wait_for(
-        lambda: fleet.revisions()[canary] == first and instance_ready(fleet.instances()[canary]),
+        lambda: (
+            fleet.revisions()[canary] == first
+            and fleet.instances()[canary]["status"].get("revision") == first
+        ),
         timeout=120,
         message="the canary to return to the first revision",
+    )
+    # Its tree reported FAILURE, so it is not Ready until the executor reports a new run.
+    fleet.set_tree(canary, "RUNNING")
+    wait_for(
+        lambda: instance_ready(fleet.instances()[canary]),
+        timeout=60,
+        message="the canary Ready once its executor reports a running tree",
     )
     rolled = fleet.rollout()["rolledBack"]
     assert rolled == {"fromRevision": second, "toRevision": first, "reason": "HealthGateFailed"}

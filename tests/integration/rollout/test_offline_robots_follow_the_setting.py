@@ -19,8 +19,8 @@ def _deploy(cluster: Any, namespace: str, robots: Callable[..., list[str]], flee
     wait_settled(fleet, 3)
     first = fleet.revisions()[names[0]]
     offline = names[2]
-    # A Node that stops being Ready is what an offline robot looks like to the control plane.
-    cluster.set_robot_ready(offline, False)
+    # Off the network: its Lease lapses and the node-lifecycle controller marks it Ready=Unknown.
+    cluster.set_robot_reachable(offline, False)
     wait_for(
         lambda: fleet.system()["status"]["robots"]["unreachable"] == 1,
         timeout=60,
@@ -43,7 +43,7 @@ def test_an_offline_robot_is_skipped_and_updated_when_it_returns(
     conditions = {c["type"]: c for c in fleet.system()["status"]["conditions"]}
     assert conditions["Ready"]["status"] == "True"  # one robot off the network does not stall the fleet
 
-    cluster.set_robot_ready(offline, True)
+    cluster.set_robot_reachable(offline, True)
     wait_for(lambda: fleet.revisions()[offline] != first, timeout=120, message="the returning robot updated")
     wait_settled(fleet, 3)
 
@@ -59,6 +59,6 @@ def test_an_offline_robot_is_waited_for_when_the_setting_says_wait(
     )
     assert fleet.events("WaitingForOfflineRobots")
 
-    cluster.set_robot_ready(offline, True)
+    cluster.set_robot_reachable(offline, True)
     wait_settled(fleet, 3)
     assert first not in set(fleet.revisions().values())

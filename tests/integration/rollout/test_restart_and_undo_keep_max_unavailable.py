@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 from coral_operator.rollout_cli import rollout
 from coral_testbed.waiting import wait_for
-from fleet import Fleet, instance_ready, mission, wait_settled
+from fleet import Fleet, instance_ready, mission, rolled_back_and_ready, wait_settled
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -84,12 +84,18 @@ def test_a_killed_operator_resumes_within_max_unavailable_and_undo_returns_every
             timeout=180,
             message=lambda: f"every robot back on {first}: {fleet.revisions()}",
         )
-        wait_settled(fleet, ROBOTS, timeout=120)
+        # Every robot Ready on the revision returned to, and the system honest about it: it does
+        # not run its spec's revision, so it is Stalled (RolledBack) until the spec changes.
+        wait_for(
+            lambda: rolled_back_and_ready(fleet, ROBOTS),
+            timeout=120,
+            message=lambda: f"{ROBOTS} robots ready after the undo; rollout={fleet.rollout()}",
+        )
 
     assert sampler.samples > 10
     assert sampler.peak <= MAX_UNAVAILABLE, f"robots unavailable at once, by phase: {sampler.worst}"
     rolled = fleet.rollout()["rolledBack"]
     assert rolled == {"fromRevision": second, "toRevision": first, "reason": "Undo"}
     status = runner.invoke(rollout, ["status", "patrol", "-n", namespace])
-    assert status.exit_code == 0 and f"rolled back from {second} to {first}" in status.output
+    assert status.exit_code == 1 and f"rolled back from {second} to {first}" in status.output
     assert "Traceback" not in operator.logs()

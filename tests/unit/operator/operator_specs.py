@@ -35,4 +35,5 @@ def robot(name: str, ready: bool = True, **labels: str) -> RobotNode:
         labels={"coral.dev/robot": name, "fleet": "a", **labels},
         ready=ready,
         last_seen=NOW,
+        reachable=ready,
     )

@@ -25,6 +25,11 @@ def _health(obj: dict[str, Any]) -> dict[str, str]:
             return runtime.table_from([to_lua(v) for v in value])
         return value
 
+    # Argo CD's sandbox opens only base, table and a safe `os`: a script that leans on the string
+    # library works here but fails in Argo CD, so it is taken away.
+    hidden = ("string", "io", "os", "debug", "coroutine", "utf8", "math", "require", "dofile", "loadfile")
+    for library in hidden:
+        runtime.globals()[library] = None
     runtime.globals().obj = to_lua(obj)
     result = runtime.execute((ARGOCD / "health.lua").read_text())
     return {"status": result["status"], "message": result["message"]}
@@ -37,4 +42,4 @@ def test_the_health_check_on_its_fixture(case: dict[str, Any]) -> None:
 
 
 def test_every_status_argo_cd_needs_is_covered() -> None:
-    assert {c["healthStatus"]["status"] for c in CASES} >= {"Healthy", "Progressing", "Degraded"}
+    assert {c["healthStatus"]["status"] for c in CASES} >= {"Healthy", "Progressing", "Degraded", "Suspended"}

@@ -12,6 +12,7 @@ from coral_operator.planning import instances, naming, pods, startup
 from coral_operator.planning.observed import ObservedInstance, ObservedPod
 from coral_operator.status import instance_status, system_status
 from coral_operator.status.conditions import ConditionType, Reason
+from coral_operator.status.rollout import RolloutConditionType, RolloutReason
 from coral_operator.status.transitions import Verdict, find, merge_conditions
 from operator_specs import NOW, robot
 
@@ -93,7 +94,7 @@ def test_an_unreachable_robot_says_when_it_was_last_seen(spec_dict: Callable[...
     conditions = _conditions(_view(spec_dict(), node_ready=False))
     assert conditions["RobotReachable"]["status"] == "False"
     assert "last seen 2026-01-01T12:00:00Z" in conditions["RobotReachable"]["message"]
-    assert conditions["Ready"]["reason"] == "NodeNotReady"
+    assert conditions["Ready"]["reason"] == "NodeUnreachable"
 
 
 def test_pods_not_ready_make_the_instance_reconciling(spec_dict: Callable[..., dict[str, Any]]) -> None:
@@ -125,7 +126,10 @@ def test_executor_reports_drive_the_tree_and_plugin_conditions(
     )
     assert failed["PluginsReady"]["status"] == "False" and "Nav" in failed["PluginsReady"]["message"]
     assert failed["LibraryDegraded"]["status"] == "True"
-    assert failed["Ready"]["status"] == "True"
+    # A tree that returned FAILURE stops the robot until someone acts: kstatus must read Failed.
+    assert (failed["Ready"]["status"], failed["Ready"]["reason"]) == ("False", "TreeFailed")
+    assert (failed["Stalled"]["status"], failed["Stalled"]["reason"]) == ("True", "TreeFailed")
+    assert (failed["Reconciling"]["status"], failed["Reconciling"]["reason"]) == ("False", "TreeFailed")
 
 
 def _instance(
@@ -135,6 +139,7 @@ def _instance(
     revision: str = "r2",
     reachable: bool = True,
     tree: str | None = None,
+    stalled: bool = False,
 ) -> ObservedInstance:
     return ObservedInstance(
         name=f"s-{robot_name}",
@@ -144,6 +149,7 @@ def _instance(
         ready=ready,
         reachable=reachable,
         tree_root=tree,
+        stalled=stalled,
     )
 
 
@@ -183,7 +189,52 @@ SYSTEM_CASES = [
         dict(matched=2, instances=[_instance("a"), _instance("b")]),
         ("True", "Ready", "False", "False"),
     ),
+    (
+        "a robot whose component failed stalls the system instead of keeping it Reconciling",
+        dict(matched=2, instances=[_instance("a"), _instance("b", ready=False, stalled=True)]),
+        ("False", "InstancesFailed", "False", "True"),
+    ),
+    (
+        "a robot whose tree returned FAILURE stalls the system",
+        dict(
+            matched=2, instances=[_instance("a"), _instance("b", tree="FAILURE", ready=False, stalled=True)]
+        ),
+        ("False", "InstancesFailed", "False", "True"),
+    ),
+    (
+        "an unreachable robot that is Stalled for it does not stall the system",
+        dict(
+            matched=2, instances=[_instance("a"), _instance("b", ready=False, reachable=False, stalled=True)]
+        ),
+        ("True", "Ready", "False", "False"),
+    ),
+    (
+        "a rolled-back fleet is Stalled although every robot is Ready on the revision it returned to",
+        dict(matched=1, instances=[_instance("a")], rolled_back="Rolled back from revision r3 to r2."),
+        ("False", "RolledBack", "False", "True"),
+    ),
 ]
+
+
+def test_reconciling_false_names_the_stall_never_ready() -> None:
+    view = system_status.SystemView(
+        matched=1, revision="r2", instances=[_instance("a", stalled=True, ready=False)]
+    )
+    status = system_status.build_system_status(view, old_conditions=[], generation=4, now=NOW)
+    reconciling = find(status["conditions"], ConditionType.RECONCILING)
+    assert (reconciling["status"], reconciling["reason"]) == ("False", "InstancesFailed")
+
+
+def test_a_paused_rollout_is_reconciling_with_reason_rollout_paused() -> None:
+    paused = Verdict(
+        RolloutConditionType.ROLLOUT_COMPLETE, False, RolloutReason.PAUSED, "The rollout is paused."
+    )
+    view = system_status.SystemView(
+        matched=2, revision="r2", instances=[_instance("a"), _instance("b", revision="r1")], rollout=paused
+    )
+    status = system_status.build_system_status(view, old_conditions=[], generation=4, now=NOW)
+    reconciling = find(status["conditions"], ConditionType.RECONCILING)
+    assert (reconciling["status"], reconciling["reason"]) == ("True", "RolloutPaused")
 
 
 def test_the_system_ready_chain() -> None:
@@ -213,3 +264,14 @@ def test_the_system_counts_robots_and_trees_without_listing_them() -> None:
     assert status["robots"] == {"matched": 3, "ready": 3, "updated": 2, "unreachable": 1}
     assert status["trees"] == {"running": 1, "success": 0, "failure": 1, "idle": 1}
     assert find(status["conditions"], ConditionType.ROBOTS_REACHABLE)["message"] == "Unreachable robots: b."
+
+
+def test_a_tree_failure_written_before_the_executor_restarted_is_not_current(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """A FAILURE of the previous revision must not fail the robot on the next one (issue 14)."""
+    tree = {"rootStatus": "FAILURE", "updatedAt": "2026-01-01T12:30:00Z"}
+    fresh = _conditions(_view(spec_dict(), tree=tree))
+    assert (fresh["TreeHealthy"]["status"], fresh["Stalled"]["reason"]) == ("False", "TreeFailed")
+    restarted = _conditions(_view(spec_dict(), tree=tree | {"updatedAt": "2026-01-01T11:00:00Z"}))
+    assert restarted["TreeHealthy"]["status"] == "Unknown" and restarted["Stalled"]["status"] == "False"

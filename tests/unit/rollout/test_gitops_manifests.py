@@ -27,10 +27,14 @@ def test_flux_applies_the_fleet_kustomization_from_its_git_repository_and_waits_
     assert kustomization["spec"]["sourceRef"] == {"kind": "GitRepository", "name": repo["metadata"]["name"]}
     path = kustomization["spec"]["path"].removeprefix("./")
     assert (GITOPS.parents[1] / path / "kustomization.yaml").is_file()
-    checks = kustomization["spec"]["healthChecks"]
-    assert checks == [
-        {"apiVersion": "coral.dev/v1alpha1", "kind": "CoralSystem", "name": "patrol", "namespace": "fleet"}
-    ]
+    # Flux ignores `healthChecks` when `wait: true`; our kinds need `healthCheckExprs` (kstatus
+    # alone calls a CoralSystem without conditions Current).
+    assert kustomization["spec"]["wait"] is True and "healthChecks" not in kustomization["spec"]
+    exprs = {e["kind"]: e for e in kustomization["spec"]["healthCheckExprs"]}
+    assert set(exprs) == {"CoralSystem", "CoralInstance"}
+    assert all(
+        e["apiVersion"] == "coral.dev/v1alpha1" and e["current"] and e["failed"] for e in exprs.values()
+    )
 
 
 def test_the_kustomization_generates_the_tree_and_parameters_the_system_references() -> None:
@@ -43,3 +47,26 @@ def test_the_kustomization_generates_the_tree_and_parameters_the_system_referenc
     assert generated[params_ref["name"]] == [params_ref["key"]]
     for files in generated.values():
         assert all((GITOPS / "fleet" / f).is_file() for f in files)
+
+
+def test_the_docs_show_the_flux_expressions_the_example_uses() -> None:
+    docs = (GITOPS.parents[1] / "docs" / "verdicts.md").read_text()
+    block = docs.split("```yaml", 1)[1].split("```", 1)[0]
+    documented = yaml.safe_load("spec:\n" + block)["spec"]["healthCheckExprs"]
+    example = yaml.safe_load((GITOPS / "flux" / "fleet-kustomization.yaml").read_text())["spec"]
+    assert documented == example["healthCheckExprs"]
+
+
+def test_the_argocd_cm_patch_carries_the_health_script_for_both_kinds() -> None:
+    argocd = GITOPS.parents[1] / "charts" / "coral-operator" / "argocd"
+    patch = yaml.safe_load((argocd / "argocd-cm.yaml").read_text())
+    script = (argocd / "health.lua").read_text()
+    assert (patch["kind"], patch["metadata"]["name"], patch["metadata"]["namespace"]) == (
+        "ConfigMap",
+        "argocd-cm",
+        "argocd",
+    )
+    assert patch["data"] == {
+        "resource.customizations.health.coral.dev_CoralSystem": script,
+        "resource.customizations.health.coral.dev_CoralInstance": script,
+    }

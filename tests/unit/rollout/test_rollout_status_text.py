@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import pytest
+from click.testing import CliRunner
 from coral_operator.api.rollout import CanaryStatus, RolledBack, RolloutCounts, RolloutFailure, RolloutStatus
-from coral_operator.rollout_control import describe, finished
+from coral_operator.rollout_cli import rollout
+from coral_operator.rollout_control import RolloutControl, describe, evaluate_progress, finished
 from coral_operator.status.rollout import evaluate_rollout
 
 
@@ -75,3 +77,111 @@ def test_the_rollout_condition_says_why_it_is_not_complete(
     verdict = evaluate_rollout(rollout)
     assert (verdict.status_text, verdict.reason.value) == (status, reason)
     assert verdict.type.value == "RolloutComplete"
+
+
+def _system(generation: int, observed: int | None, rollout: RolloutStatus | None) -> dict:
+    status: dict = {} if observed is None else {"observedGeneration": observed}
+    if rollout is not None:
+        status["rollout"] = rollout.to_wire()
+    return {"metadata": {"name": "patrol", "generation": generation}, "status": status}
+
+
+@pytest.mark.parametrize(
+    ("story", "system", "done", "failed"),
+    [
+        (
+            "a complete report of an older spec is not complete",
+            _system(3, 2, RolloutStatus(complete=True)),
+            False,
+            False,
+        ),
+        ("a new object without status waits", _system(1, None, None), False, False),
+        ("complete at the observed generation", _system(3, 3, RolloutStatus(complete=True)), True, False),
+        (
+            "a failed health gate fails",
+            _system(3, 3, RolloutStatus(failure=RolloutFailure(revision="b", message="m"), paused=True)),
+            False,
+            True,
+        ),
+        (
+            "a finished rollback fails: the spec's revision does not run",
+            _system(
+                3,
+                3,
+                RolloutStatus(complete=True, rolled_back=RolledBack(from_revision="b", to_revision="a")),
+            ),
+            False,
+            True,
+        ),
+        ("a paused rollout waits", _system(3, 3, RolloutStatus(paused=True)), False, False),
+    ],
+)
+def test_rollout_progress_is_judged_at_the_observed_generation(
+    story: str, system: dict, done: bool, failed: bool
+) -> None:
+    progress = evaluate_progress(system)
+    assert (progress.done, progress.failure is not None) == (done, failed), story
+
+
+def test_status_after_undo_names_the_spec_and_the_target_revision() -> None:
+    rollout = RolloutStatus(
+        revision="a",
+        previous_revision=None,
+        history=["a", "b"],
+        complete=True,
+        rolled_back=RolledBack(from_revision="b", to_revision="a"),
+        counts=RolloutCounts(total=2, updated=2, healthy=2),
+    )
+    text = describe(_system(4, 4, rollout))
+    assert "spec revision b" in text and "target revision a; 2 of 2 robots run it" in text
+    assert "failed: rolled back from revision b to a" in text
+
+
+class _Control:
+    def __init__(self, bodies: list[dict]) -> None:
+        self.bodies = bodies
+
+    def read(self, name: str) -> dict:
+        return self.bodies.pop(0) if len(self.bodies) > 1 else self.bodies[0]
+
+
+@pytest.mark.parametrize(
+    ("system", "args", "exit_code"),
+    [
+        (_system(2, 2, RolloutStatus(complete=True)), [], 0),
+        (_system(2, 2, RolloutStatus(failure=RolloutFailure(revision="b", message="x"))), [], 1),
+        (
+            _system(
+                2, 2, RolloutStatus(complete=True, rolled_back=RolledBack(from_revision="b", to_revision="a"))
+            ),
+            [],
+            1,
+        ),
+        (_system(2, 1, RolloutStatus(complete=True)), ["--watch", "--timeout", "0"], 1),
+        (_system(2, 1, RolloutStatus(complete=True)), [], 0),
+    ],
+    ids=["complete", "gate-failed", "rolled-back", "timeout-on-unobserved-spec", "no-watch-shows-and-exits"],
+)
+def test_rollout_status_exit_codes(
+    monkeypatch: pytest.MonkeyPatch, system: dict, args: list[str], exit_code: int
+) -> None:
+    monkeypatch.setattr(
+        RolloutControl, "from_kubeconfig", classmethod(lambda cls, namespace: _Control([system]))
+    )
+    result = CliRunner().invoke(rollout, ["status", "patrol", *args])
+    assert result.exit_code == exit_code, result.output
+
+
+def test_a_refused_spec_fails_rollout_status_even_with_an_old_complete_rollout() -> None:
+    system = _system(3, 3, RolloutStatus(complete=True))
+    system["status"]["conditions"] = [
+        {
+            "type": "Stalled",
+            "status": "True",
+            "reason": "InvalidTree",
+            "message": "t.xml:3: bad",
+            "observedGeneration": 3,
+        }
+    ]
+    progress = evaluate_progress(system)
+    assert not progress.done and progress.failure and "t.xml:3: bad" in progress.failure
