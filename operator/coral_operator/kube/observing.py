@@ -6,6 +6,7 @@ it lives beside the client.
 
 from __future__ import annotations
 
+from datetime import datetime
 from collections.abc import Mapping
 from typing import Any
 
