@@ -6,8 +6,8 @@ it lives beside the client.
 
 from __future__ import annotations
 
-from datetime import datetime
 from collections.abc import Mapping
+from datetime import datetime
 from typing import Any
 
 from coral_operator.planning import naming
