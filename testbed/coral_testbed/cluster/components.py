@@ -111,6 +111,12 @@ def build_apiserver(layout: Layout) -> list[str]:
         "--authorization-mode=Node,RBAC",
         f"--service-cluster-ip-range={SERVICE_CIDR}",
         "--allow-privileged=true",
+        # Kubelets of real robots: the API server calls them (logs, exec) at their InternalIP, the
+        # robot's own address, with a client certificate; each kubelet may touch only its own Node.
+        f"--kubelet-client-certificate={pki.client_cert('kubelet-client')}",
+        f"--kubelet-client-key={pki.client_key('kubelet-client')}",
+        "--kubelet-preferred-address-types=InternalIP,Hostname",
+        "--enable-admission-plugins=NodeRestriction",
         # Endpoints may not hold a loopback address, so the `kubernetes` Service gets none.
         "--endpoint-reconciler-type=none",
         "--profiling=false",
