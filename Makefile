@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test venv control-plane lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test venv control-plane node-runtime lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -16,13 +16,19 @@ $(STAMP): pyproject.toml setup.py constraints.txt
 
 venv: $(STAMP)
 
-# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok and helm
-# from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
+# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok, helm, the
+# kubelet and crictl from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
+# containerd, runc, the CNI plugins and the rest real robots need, from Debian (needs root; without
+# root it only reports what is missing, and the tests that need real robots are skipped).
+node-runtime:
+	@if [ "$$(id -u)" -eq 0 ]; then bash hack/setup-node-runtime.sh; \
+	else bash hack/setup-node-runtime.sh --check || echo "==> not root: real-robot tests will be skipped"; fi
+
 # The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
-demo: venv control-plane
+demo: venv control-plane node-runtime
 	@$(VENV)/bin/coral demo
 
 # The same mission on one machine, no cluster: `coral run` with a live tree view.
@@ -33,7 +39,7 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane
+test: venv control-plane node-runtime
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

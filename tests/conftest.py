@@ -1,3 +1,9 @@
 """Fixtures shared by every test folder; each lives in its own module under tests/fixtures/."""
 
-pytest_plugins = ["fixtures.ros", "fixtures.processes", "fixtures.operator", "fixtures.cluster"]
+pytest_plugins = [
+    "fixtures.ros",
+    "fixtures.processes",
+    "fixtures.operator",
+    "fixtures.cluster",
+    "fixtures.robots",
+]

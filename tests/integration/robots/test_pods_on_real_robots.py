@@ -1,0 +1,113 @@
+"""Pods on real robots run as containers: probes, logs, exec, Events, host network and host paths.
+
+Each test applies pods with kubectl, as a user would, and checks what the kubelet and containerd
+really did: the pod's address, the files on the robot, what `kubectl logs` and `exec` return.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+
+import pytest
+from coral_testbed.cluster import Cluster, realrobots, robotnet
+from coral_testbed.waiting import wait_for
+from fixtures.robots import REAL_ROBOTS
+from kubernetes import client as k8s
+
+from .pods import condition, events_for, robot_pod, wait_pod
+
+pytestmark = [pytest.mark.cluster, pytest.mark.real_robots]
+
+
+def test_exec_readiness_probe_gates_a_pod_on_the_robot_bridge(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+) -> None:
+    robot = REAL_ROBOTS[0]
+    core = k8s.CoreV1Api(cluster.api_client)
+    manifest = robot_pod(
+        "gated", robot, "echo started on $(hostname); exec sleep 3600", readiness=["test", "-f", "/tmp/ready"]
+    )
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=manifest)
+
+    pod = wait_pod(core, namespace, "gated", ready=False)
+    layout = real_robots.layout(robot)
+    assert ipaddress.ip_address(pod.status.pod_ip) in ipaddress.ip_network(
+        robotnet.pod_subnet(layout.slot, layout.index)
+    )
+    # The kubelet reports the failing probe as an Event, as on any cluster.
+    wait_for(
+        lambda: any(
+            e.reason == "Unhealthy" and "Readiness probe failed" in e.message
+            for e in events_for(core, namespace, "gated")
+        ),
+        timeout=60,
+        message="a kubelet Event for the failing readiness probe",
+    )
+
+    cluster.kubectl("exec", "-n", namespace, "gated", "--", "touch", "/tmp/ready")
+    pod = wait_pod(core, namespace, "gated", ready=True)
+    assert condition(pod, "ContainersReady") == "True"
+    logs = cluster.kubectl("logs", "-n", namespace, "gated").stdout
+    assert logs.strip() == "started on gated"
+
+
+def test_host_network_pod_shares_a_host_path_with_a_bridged_pod(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+) -> None:
+    robot, other = REAL_ROBOTS
+    core = k8s.CoreV1Api(cluster.api_client)
+    folder = f"/var/lib/coral/tests/{namespace}"
+    writer = robot_pod(
+        "writer",
+        robot,
+        "ip -o -4 addr show eth0 > /shared/address; exec sleep 3600",
+        host_network=True,
+        host_path=folder,
+    )
+    reader = robot_pod(
+        "reader",
+        robot,
+        "while [ ! -s /shared/address ]; do sleep 0.2; done; cat /shared/address; exec sleep 3600",
+        host_path=folder,
+    )
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=writer)
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=reader)
+
+    pod = wait_pod(core, namespace, "writer")
+    assert pod.status.pod_ip == real_robots.address(robot)
+    wait_pod(core, namespace, "reader")
+    wait_for(
+        lambda: real_robots.address(robot) in cluster.kubectl("logs", "-n", namespace, "reader").stdout,
+        timeout=30,
+        message="the bridged pod to print the robot address the host-network pod wrote",
+    )
+    # The host path lives in the robot's own view of the host: the other robot has no such file.
+    on_host = real_robots.host_path(robot, f"{folder}/address")
+    assert real_robots.address(robot) in on_host.read_text()
+    assert not real_robots.host_path(other, f"{folder}/address").exists()
+
+    exec_result = cluster.kubectl("exec", "-n", namespace, "reader", "--", "cat", "/shared/address")
+    assert real_robots.address(robot) in exec_result.stdout
+
+
+def test_containers_are_visible_through_the_cri(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+) -> None:
+    robot = REAL_ROBOTS[1]
+    core = k8s.CoreV1Api(cluster.api_client)
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=robot_pod("seen", robot, "exec sleep 3600"))
+    pod = wait_pod(core, namespace, "seen")
+    container_id = pod.status.container_statuses[0].container_id
+    assert container_id.startswith("containerd://")
+    listed = real_robots.crictl(
+        robot, "ps", "-q", "--label", f"io.kubernetes.pod.namespace={namespace}"
+    ).stdout
+    assert container_id.removeprefix("containerd://") in listed.split()
+    # Killing the container through the CRI makes the kubelet restart it, as it would on a robot.
+    real_robots.crictl(robot, "stop", "--timeout", "0", container_id.removeprefix("containerd://"))
+    wait_for(
+        lambda: core.read_namespaced_pod("seen", namespace).status.container_statuses[0].restart_count >= 1,
+        timeout=60,
+        message="the kubelet to restart the container stopped through the CRI",
+    )
+    wait_pod(core, namespace, "seen")
