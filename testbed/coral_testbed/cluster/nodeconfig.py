@@ -199,7 +199,6 @@ def build_cni_config(layout: RobotLayout) -> dict[str, Any]:
                     "dataDir": str(layout.dir / "cni" / "ipam"),
                 },
             },
-            {"type": "portmap", "capabilities": {"portMappings": True}},
         ],
     }
 

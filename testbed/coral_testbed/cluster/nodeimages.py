@@ -25,7 +25,26 @@ BUSYBOX = Path("/bin/busybox")
 
 # The pause process: PID 1 ignores signals it has no handler for, so it traps them to stop at once.
 _PAUSE = ["/bin/sh", "-c", "trap 'exit 0' TERM INT; while :; do sleep 3600 & wait $!; done"]
-_APPLETS = ("sh", "sleep", "cat", "echo", "ls", "wget", "httpd", "touch", "test", "env", "id", "ip", "ps")
+_APPLETS = (
+    "sh",
+    "sleep",
+    "cat",
+    "echo",
+    "ls",
+    "mkdir",
+    "wget",
+    "ssl_client",
+    "nc",
+    "timeout",
+    "httpd",
+    "touch",
+    "test",
+    "env",
+    "id",
+    "ip",
+    "ps",
+    "hostname",
+)
 
 
 class ImageError(RuntimeError):

@@ -20,7 +20,17 @@ from typing import Any
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
-from coral_testbed.cluster import cgroups, mountview, nodeconfig, nodeimages, pki, processes, robotnet, robots
+from coral_testbed.cluster import (
+    cgroups,
+    components,
+    mountview,
+    nodeconfig,
+    nodeimages,
+    pki,
+    processes,
+    robotnet,
+    robots,
+)
 from coral_testbed.waiting import WaitTimeout, wait_for
 
 Progress = Callable[[str], None]
@@ -187,6 +197,7 @@ class RealRobots:
         data["robots"][layout.name] = {"layout": layout.to_json(), "labels": labels, "processes": {}}
         self._save(data)
         robotnet.add_robot(layout.link)
+        robotnet.route_api_service(layout.link, components.KUBERNETES_SERVICE_IP, layout.api_port)
         cgroups.create(layout.runtime_cgroup)
         mountview.create(layout.ns_file, layout.root)
         cert, key = pki.sign_node_client(self.pki, layout.name)

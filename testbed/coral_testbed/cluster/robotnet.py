@@ -155,6 +155,46 @@ def add_robot(link: RobotLink) -> None:
     ip("-n", ns, "route", "add", "default", "via", gateway_address(link.slot))
 
 
+def route_api_service(link: RobotLink, service_ip: str, api_port: int) -> None:
+    """Sends the `kubernetes` Service (service_ip:443) to the uplink's 127.0.0.1:api_port inside the robot.
+
+    There is no kube-proxy; this one rule per robot gives pods the in-cluster API address that
+    their ServiceAccount clients use (the server certificate names service_ip). Pods on the
+    robot's bridge arrive through PREROUTING, host-network pods through OUTPUT; a loopback
+    destination from the bridge needs route_localnet, set in the robot's namespace only.
+    """
+    ns = ["ip", "netns", "exec", link.netns]
+    _run([*ns, "sysctl", "-q", "-w", "net.ipv4.conf.all.route_localnet=1"])
+    for chain in ("PREROUTING", "OUTPUT"):
+        _run(
+            [
+                *ns,
+                "iptables",
+                "-w",
+                "-t",
+                "nat",
+                "-A",
+                chain,
+                "-d",
+                f"{service_ip}/32",
+                "-p",
+                "tcp",
+                "--dport",
+                "443",
+                "-j",
+                "DNAT",
+                "--to-destination",
+                f"127.0.0.1:{api_port}",
+            ]
+        )
+
+
+def _run(argv: list[str]) -> None:
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=30, check=False)
+    if result.returncode != 0:
+        raise NetworkError(f"`{' '.join(argv)}` exited with {result.returncode}: {result.stderr.strip()}")
+
+
 def set_link(link: RobotLink, up: bool) -> None:
     ip("link", "set", link.host_veth, "up" if up else "down")
 

@@ -7,6 +7,7 @@ really did: the pod's address, the files on the robot, what `kubectl logs` and `
 from __future__ import annotations
 
 import ipaddress
+import json
 
 import pytest
 from coral_testbed.cluster import Cluster, realrobots, robotnet
@@ -111,3 +112,38 @@ def test_containers_are_visible_through_the_cri(
         message="the kubelet to restart the container stopped through the CRI",
     )
     wait_pod(core, namespace, "seen")
+
+
+@pytest.mark.parametrize("host_network", [False, True], ids=["bridge", "host-network"])
+def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots, host_network: bool
+) -> None:
+    """In-cluster clients use $KUBERNETES_SERVICE_HOST and the pod's projected ServiceAccount token."""
+    robot = REAL_ROBOTS[0]
+    core = k8s.CoreV1Api(cluster.api_client)
+    review = '{"apiVersion":"authentication.k8s.io/v1","kind":"SelfSubjectReview"}'
+    script = (
+        "token=$(cat /var/run/secrets/kubernetes.io/serviceaccount/token); "
+        'wget -q -O - --no-check-certificate --header "Authorization: Bearer $token" '
+        "--header 'Content-Type: application/json' "
+        f"--post-data '{review}' "
+        "https://$KUBERNETES_SERVICE_HOST:$KUBERNETES_SERVICE_PORT"
+        "/apis/authentication.k8s.io/v1/selfsubjectreviews; "
+        "exec sleep 3600"
+    )
+    cluster.kubectl(
+        "apply",
+        "-n",
+        namespace,
+        "-f",
+        "-",
+        input=robot_pod("whoami", robot, script, host_network=host_network),
+    )
+    wait_pod(core, namespace, "whoami")
+    expected = f"system:serviceaccount:{namespace}:default"
+    logs = wait_for(
+        lambda: cluster.kubectl("logs", "-n", namespace, "whoami").stdout,
+        timeout=30,
+        message="the pod to print its SelfSubjectReview",
+    )
+    assert json.loads(logs)["status"]["userInfo"]["username"] == expected, logs
