@@ -79,7 +79,7 @@ class Cluster:
 
     @cached_property
     def robots(self) -> realrobots.RealRobots:
-        """The cluster's real robots (kubelet + containerd each): add, stop, start, cut_link, crictl...
+        """The cluster's real robots (kubelet + containerd each): add, stop, start, cut_link, cri...
 
         Raises:
             RobotError: the cluster is not a local control plane with a state folder.

@@ -292,13 +292,8 @@ def build_ctr(layout: RobotLayout) -> list[str]:
     return [*enter_robot(layout), shutil.which("ctr") or "ctr", "--address", CONTAINERD_SOCKET]
 
 
-def build_crictl(layout: RobotLayout) -> list[str]:
-    return [
-        *enter_robot(layout),
-        str(layout.bin_dir / "crictl"),
-        "--runtime-endpoint",
-        f"unix://{CONTAINERD_SOCKET}",
-    ]
+def build_cri(layout: RobotLayout) -> list[str]:
+    return [*enter_robot(layout), str(layout.bin_dir / "coral-cri"), f"--endpoint=unix://{CONTAINERD_SOCKET}"]
 
 
 def write_files(layout: RobotLayout, client_cert: Path, client_key: Path) -> None:

@@ -2,10 +2,10 @@
 
 `SANDBOX_IMAGE` is every robot's pause image; `TEST_IMAGE` is the same root filesystem under a
 name for test pods (sh, sleep, wget, httpd...). Both are one layer holding Debian's
-busybox-static, packed as an OCI archive (content-addressed, so the archive is made once per
-busybox) and imported with `ctr -n k8s.io images import`. `ensure_image` is the one place that
-decides how a robot gets an image: imported here, or (any other name) pulled by containerd from
-the local registry (docs/real-robots.md).
+busybox-static, packed as a reproducible OCI archive (stored under its content digest) and
+imported with `ctr -n k8s.io images import`. `ensure_image` is the one place that decides how a
+robot gets an image: imported here, or (any other name) pulled by containerd from the local
+registry (docs/real-robots.md).
 """
 
 from __future__ import annotations
@@ -44,6 +44,8 @@ _APPLETS = (
     "ip",
     "ps",
     "hostname",
+    "true",
+    "false",
 )
 
 
@@ -142,15 +144,14 @@ def build_archive(busybox: bytes, names: tuple[str, ...]) -> bytes:
 
 
 def local_archive(cache_dir: Path) -> Path:
-    """The archive of `LOCAL_IMAGES`, made once per busybox binary (named by its content)."""
+    """The archive of `LOCAL_IMAGES`, written once per content (named by its digest)."""
     if not BUSYBOX.is_file():
         raise ImageError(f"{BUSYBOX} is missing: install busybox-static (hack/setup-node-runtime.sh)")
-    busybox = BUSYBOX.read_bytes()
-    key = hashlib.sha256(busybox + "\0".join(LOCAL_IMAGES).encode()).hexdigest()[:16]
-    path = cache_dir / f"busybox-{key}.oci.tar"
+    archive = build_archive(BUSYBOX.read_bytes(), LOCAL_IMAGES)
+    path = cache_dir / f"busybox-{hashlib.sha256(archive).hexdigest()[:16]}.oci.tar"
     if not path.exists():
         cache_dir.mkdir(parents=True, exist_ok=True)
-        path.with_suffix(".tmp").write_bytes(build_archive(busybox, LOCAL_IMAGES))
+        path.with_suffix(".tmp").write_bytes(archive)
         path.with_suffix(".tmp").replace(path)
     return path
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import socket
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
@@ -31,6 +32,7 @@ from coral_testbed.cluster import (
     robotnet,
     robots,
 )
+from coral_testbed.cluster.uplink import entered_netns
 from coral_testbed.waiting import WaitTimeout, wait_for
 
 Progress = Callable[[str], None]
@@ -55,8 +57,9 @@ def unsupported_reason(bin_dir: Path | None) -> str | None:
             return f"real robots need `{tool}`; install it with `sudo bash hack/setup-node-runtime.sh`"
     if not Path(nodeconfig.CNI_BIN_DIR, "bridge").exists():
         return f"real robots need the CNI plugins in {nodeconfig.CNI_BIN_DIR} (containernetworking-plugins)"
-    if bin_dir is None or not os.access(bin_dir / "kubelet", os.X_OK):
-        return "the kubelet is not built yet; run `make control-plane`"
+    for binary in ("kubelet", "coral-cri"):
+        if bin_dir is None or not os.access(bin_dir / binary, os.X_OK):
+            return f"{binary} is not built yet; run `make control-plane`"
     if not cgroups.hierarchies():
         return "no cgroup hierarchy is mounted"
     return None
@@ -70,7 +73,7 @@ class RealRobots:
         api: a client for the cluster, to wait on Nodes and delete them.
         api_port: the API server's port on 127.0.0.1.
         pki_dir: the control plane's certificates (signs each kubelet's client certificate).
-        bin_dir: the pinned binaries (kubelet, crictl).
+        bin_dir: the pinned binaries (kubelet, coral-cri).
         die_with_parent: stop the node processes when this process dies (test sessions).
     """
 
@@ -202,7 +205,7 @@ class RealRobots:
         mountview.create(layout.ns_file, layout.root)
         cert, key = pki.sign_node_client(self.pki, layout.name)
         nodeconfig.write_files(layout, cert, key)
-        self._spawn(layout, "uplink", nodeconfig.build_uplink(layout))
+        self._start_uplink(layout)
         containerd = self._spawn(
             layout, "containerd", nodeconfig.build_containerd(layout), in_runtime_cgroup=True
         )
@@ -242,6 +245,19 @@ class RealRobots:
             raise RobotError(
                 f"{error}; last lines of {process.log}:\n{processes.log_tail(process.log)}"
             ) from error
+
+    def _start_uplink(self, layout: nodeconfig.RobotLayout) -> None:
+        uplink = self._spawn(layout, "uplink", nodeconfig.build_uplink(layout))
+
+        def listening() -> bool:
+            with entered_netns(str(layout.link.netns_path)):
+                try:
+                    socket.create_connection(("127.0.0.1", layout.api_port), timeout=1).close()
+                except OSError:
+                    return False
+            return True
+
+        self._await(uplink, listening, f"the uplink of {layout.name} to listen")
 
     def _ctr_ok(self, layout: nodeconfig.RobotLayout) -> bool:
         result = subprocess.run(
@@ -330,7 +346,7 @@ class RealRobots:
         robotnet.set_link(layout.link, True)
         uplink = self._recorded(name, "uplink")
         if uplink is None or not processes.is_alive(uplink):
-            self._spawn(layout, "uplink", nodeconfig.build_uplink(layout))
+            self._start_uplink(layout)
 
     def link_is_up(self, name: str) -> bool:
         return robotnet.link_is_up(self.layout(name).link)
@@ -348,19 +364,19 @@ class RealRobots:
         """The command prefix that runs a command inside the robot's network and mount view."""
         return nodeconfig.enter_robot(self.layout(name))
 
-    def crictl(
+    def cri(
         self, name: str, *args: str, check: bool = True, timeout: float = 60
     ) -> subprocess.CompletedProcess[str]:
-        """Runs crictl against the robot's containerd (CRI), e.g. `crictl(robot, "ps", "-o", "json")`.
+        """Runs coral-cri (hack/coral-cri) against the robot's containerd, e.g. `cri(robot, "ps", "-q")`.
 
         Raises:
-            RobotError: `check` is set and crictl failed (the message has its stderr).
+            RobotError: `check` is set and coral-cri failed (the message has its stderr).
         """
-        argv = [*nodeconfig.build_crictl(self.layout(name)), *args]
+        argv = [*nodeconfig.build_cri(self.layout(name)), *args]
         result = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, check=False)
         if check and result.returncode != 0:
             raise RobotError(
-                f"`crictl {' '.join(args)}` on {name} exited with {result.returncode}: "
+                f"`coral-cri {' '.join(args)}` on {name} exited with {result.returncode}: "
                 f"{result.stderr.strip()}"
             )
         return result

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+from typing import Any
 
 import pytest
 from coral_testbed.cluster import Cluster, realrobots, robotnet
@@ -100,12 +101,10 @@ def test_containers_are_visible_through_the_cri(
     pod = wait_pod(core, namespace, "seen")
     container_id = pod.status.container_statuses[0].container_id
     assert container_id.startswith("containerd://")
-    listed = real_robots.crictl(
-        robot, "ps", "-q", "--label", f"io.kubernetes.pod.namespace={namespace}"
-    ).stdout
+    listed = real_robots.cri(robot, "ps", "-q", "--label", f"io.kubernetes.pod.namespace={namespace}").stdout
     assert container_id.removeprefix("containerd://") in listed.split()
     # Killing the container through the CRI makes the kubelet restart it, as it would on a robot.
-    real_robots.crictl(robot, "stop", "--timeout", "0", container_id.removeprefix("containerd://"))
+    real_robots.cri(robot, "stop", "--timeout", "0", container_id.removeprefix("containerd://"))
     wait_for(
         lambda: core.read_namespaced_pod("seen", namespace).status.container_statuses[0].restart_count >= 1,
         timeout=60,
@@ -128,7 +127,7 @@ def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
         "--header 'Content-Type: application/json' "
         f"--post-data '{review}' "
         "https://$KUBERNETES_SERVICE_HOST:$KUBERNETES_SERVICE_PORT"
-        "/apis/authentication.k8s.io/v1/selfsubjectreviews; "
+        "/apis/authentication.k8s.io/v1/selfsubjectreviews; echo; "
         "exec sleep 3600"
     )
     cluster.kubectl(
@@ -141,9 +140,12 @@ def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
     )
     wait_pod(core, namespace, "whoami")
     expected = f"system:serviceaccount:{namespace}:default"
-    logs = wait_for(
-        lambda: cluster.kubectl("logs", "-n", namespace, "whoami").stdout,
-        timeout=30,
-        message="the pod to print its SelfSubjectReview",
-    )
-    assert json.loads(logs)["status"]["userInfo"]["username"] == expected, logs
+
+    def review() -> dict[str, Any] | None:
+        try:
+            return json.loads(cluster.kubectl("logs", "-n", namespace, "whoami").stdout)
+        except ValueError:
+            return None  # not written completely yet
+
+    answer = wait_for(review, timeout=30, message="the pod to print its SelfSubjectReview")
+    assert answer["status"]["userInfo"]["username"] == expected, answer
