@@ -18,6 +18,21 @@ from kubernetes import config as k8s_config
 from coral_testbed.cluster import binaries, realrobots, robots
 
 
+def parse_table(text: str) -> dict[str, dict[str, str]]:
+    """kubectl's column output (`get ... -o wide`) as {first column: {header: value}}.
+
+    Columns are cut at the header's word positions, so values with spaces (OS-IMAGE) stay whole.
+    """
+    header, *lines = text.splitlines()
+    starts = [i for i, char in enumerate(header) if char != " " and (i == 0 or header[i - 1] == " ")]
+    names = header.split()
+    rows = {}
+    for line in lines:
+        cells = [line[a:b].strip() for a, b in zip(starts, [*starts[1:], None], strict=True)]
+        rows[cells[0]] = dict(zip(names, cells, strict=True))
+    return rows
+
+
 class KubectlError(subprocess.CalledProcessError):
     """A kubectl command failed; unlike its base class, the message includes kubectl's stderr."""
 

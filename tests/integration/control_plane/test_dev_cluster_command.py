@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from coral_testbed.cluster import binaries, controlplane, processes, realrobots
+from coral_testbed.cluster.client import parse_table
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -117,8 +118,7 @@ def test_real_and_kwok_robots_side_by_side_and_down_leaves_nothing(tmp_path: Pat
         assert up.returncode == 0, up.stderr
         kubeconfig = Path(up.stdout.strip())
         wide = _kubectl(kubeconfig, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot,coral.dev/model")
-        header, *lines = wide.splitlines()
-        rows = {line.split()[0]: dict(zip(header.split(), line.split(), strict=False)) for line in lines}
+        rows = parse_table(wide)
         assert set(rows) == {"robot-1", "kwok-robot-1"}, wide
         assert rows["robot-1"]["VERSION"] == binaries.KUBE_VERSION
         assert rows["robot-1"]["CONTAINER-RUNTIME"].startswith("containerd://"), wide

@@ -9,6 +9,7 @@ import json
 
 import pytest
 from coral_testbed.cluster import Cluster, binaries, realrobots
+from coral_testbed.cluster.client import parse_table
 from fixtures.robots import REAL_ROBOTS
 from kubernetes import client as k8s
 
@@ -18,15 +19,14 @@ pytestmark = [pytest.mark.cluster, pytest.mark.real_robots]
 def test_real_robots_show_the_pinned_kubelet_and_containerd(
     cluster: Cluster, real_robots: realrobots.RealRobots
 ) -> None:
-    wide = cluster.kubectl("get", "nodes", "-o", "wide", "--no-headers").stdout
-    rows = {line.split()[0]: line.split() for line in wide.splitlines()}
-    header = cluster.kubectl("get", "nodes", "-o", "wide").stdout.splitlines()[0].split()
+    wide = cluster.kubectl("get", "nodes", "-o", "wide").stdout
+    rows = parse_table(wide)
     for name in REAL_ROBOTS:
-        row = dict(zip(header, rows[name], strict=False))
-        assert row["STATUS"] == "Ready", wide
-        assert row["VERSION"] == binaries.KUBE_VERSION, wide
-        assert row["INTERNAL-IP"] == real_robots.address(name), wide
-        assert rows[name][-1].startswith("containerd://"), wide
+        assert rows[name]["STATUS"] == "Ready", wide
+        assert rows[name]["VERSION"] == binaries.KUBE_VERSION, wide
+        assert rows[name]["INTERNAL-IP"] == real_robots.address(name), wide
+        assert rows[name]["CONTAINER-RUNTIME"].startswith("containerd://"), wide
+        assert rows[name]["OS-IMAGE"] != "<unknown>", wide
 
 
 def test_real_robots_carry_the_robot_label_contract_and_their_own_address(
