@@ -11,7 +11,7 @@ import json
 from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster, realrobots, robotnet
+from coral_testbed.cluster import Cluster, nodeimages, realrobots, robotnet
 from coral_testbed.waiting import wait_for
 from fixtures.robots import REAL_ROBOTS
 from kubernetes import client as k8s
@@ -149,3 +149,30 @@ def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
 
     answer = wait_for(review, timeout=30, message="the pod to print its SelfSubjectReview")
     assert answer["status"]["userInfo"]["username"] == expected, answer
+
+
+def test_an_image_that_cannot_be_pulled_is_reported_on_the_pod(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+) -> None:
+    robot = REAL_ROBOTS[1]
+    core = k8s.CoreV1Api(cluster.api_client)
+    image = f"coral.local/no-such-image-{namespace}:1"
+    manifest = robot_pod("unpullable", robot, "exec sleep 3600").replace(nodeimages.TEST_IMAGE, image)
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=manifest)
+
+    def waiting_reason() -> Any:
+        statuses = core.read_namespaced_pod("unpullable", namespace).status.container_statuses or []
+        waiting = statuses[0].state.waiting if statuses else None
+        return waiting if waiting and waiting.reason in ("ErrImagePull", "ImagePullBackOff") else None
+
+    waiting = wait_for(
+        waiting_reason, timeout=90, message="the pod to report that its image cannot be pulled"
+    )
+    assert image in waiting.message
+    wait_for(
+        lambda: any(
+            e.reason == "Failed" and image in e.message for e in events_for(core, namespace, "unpullable")
+        ),
+        timeout=60,
+        message="a kubelet Event naming the image that failed to pull",
+    )
