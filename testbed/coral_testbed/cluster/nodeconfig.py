@@ -20,6 +20,7 @@ import yaml
 from coral_testbed.cluster import kubeconfigs, nodeimages, robotnet
 
 KUBELET_PORT = 10250
+KUBELET_HEALTHZ_PORT = 10248
 DEFAULT_REGISTRY = "127.0.0.1:5000"
 REGISTRY_ENV = "CORAL_REGISTRY"
 # Image names for robots; containerd maps this host name to the local registry.
@@ -211,7 +212,7 @@ def build_kubelet_config(layout: RobotLayout) -> dict[str, Any]:
         "port": KUBELET_PORT,
         "readOnlyPort": 0,
         "healthzBindAddress": "127.0.0.1",
-        "healthzPort": 10248,
+        "healthzPort": KUBELET_HEALTHZ_PORT,
         "authentication": {
             "anonymous": {"enabled": False},
             "webhook": {"enabled": True},

@@ -9,6 +9,7 @@ mounts, network namespaces, links and cgroups.
 
 from __future__ import annotations
 
+import http.client
 import json
 import os
 import shutil
@@ -153,7 +154,8 @@ class RealRobots:
 
         Raises:
             RobotError: the machine cannot host them, a name is taken, or a robot failed to start
-                (the message has the failing process's log tail); robots that failed are torn down.
+                (the message has the failing process's log tail); every robot of the call is then
+                torn down again.
         """
         reason = unsupported_reason(self.bin_dir)
         if reason:
@@ -170,7 +172,6 @@ class RealRobots:
         mountview.ensure_private_folder(self.folder / ".ns")
         registry = nodeconfig.registry_address()
         used = {entry["layout"]["index"] for entry in data["robots"].values()}
-        started = []
         try:
             for name in names:
                 index = min(set(range(len(used) + 1)) - used)
@@ -187,7 +188,6 @@ class RealRobots:
                 )
                 progress(f"Starting real robot {name} at {layout.link.address}")
                 self._start_robot(layout, {**(labels or {}), robots.ROBOT_LABEL: name})
-                started.append(name)
             self.wait_ready(names, timeout=timeout)
         except BaseException:
             for name in names:
@@ -209,8 +209,10 @@ class RealRobots:
         containerd = self._spawn(
             layout, "containerd", nodeconfig.build_containerd(layout), in_runtime_cgroup=True
         )
-        socket = mountview.host_path(layout.root, nodeconfig.CONTAINERD_SOCKET)
-        self._await(containerd, lambda: socket.exists() and self._ctr_ok(layout), "containerd to serve")
+        containerd_socket = mountview.host_path(layout.root, nodeconfig.CONTAINERD_SOCKET)
+        self._await(
+            containerd, lambda: containerd_socket.exists() and self._ctr_ok(layout), "containerd to serve"
+        )
         nodeimages.import_local(nodeconfig.build_ctr(layout), layout.image_cache)
         self._start_kubelet(layout, labels)
 
@@ -275,17 +277,15 @@ class RealRobots:
 
     def _kubelet_healthy(self, layout: nodeconfig.RobotLayout) -> bool:
         # /healthz listens on the robot's own loopback, so it is asked from inside the robot.
-        probe = [
-            *nodeconfig.enter_robot(layout),
-            "busybox",
-            "wget",
-            "-q",
-            "-O",
-            "-",
-            "http://127.0.0.1:10248/healthz",
-        ]
-        result = subprocess.run(probe, capture_output=True, text=True, timeout=10, check=False)
-        return result.stdout.strip() == "ok"
+        with entered_netns(str(layout.link.netns_path)):
+            connection = http.client.HTTPConnection("127.0.0.1", nodeconfig.KUBELET_HEALTHZ_PORT, timeout=2)
+            try:
+                connection.request("GET", "/healthz")
+                return connection.getresponse().read().strip() == b"ok"
+            except (OSError, http.client.HTTPException):
+                return False
+            finally:
+                connection.close()
 
     def wait_ready(self, names: list[str], ready: str = "True", timeout: float = 180) -> None:
         """Waits until each robot's Node reports Ready=`ready` ("True", "False" or "Unknown")."""
