@@ -1,11 +1,12 @@
-"""A robot's own view of host paths: a persistent mount namespace with private bind mounts.
+"""A robot's own view of host paths and its own host name: persistent mount and UTS namespaces.
 
 Used by `realrobots`. The namespace is kept alive by a bind mount of its nsfs file in a folder that
 is itself a private mount (a namespace file may not sit on a shared mount), so the kubelet and
 containerd can join it with `nsenter --mount=FILE` at any time. Inside it, each path in `PRIVATE`
 is a bind mount of a folder in the robot's state folder; every mount the kubelet and containerd
 make later (volumes, rootfs, pod network namespaces) stays inside the namespace and vanishes
-with it.
+with it. The UTS namespace beside it carries the robot's name as host name, which host-network
+pods see, as on a real robot.
 """
 
 from __future__ import annotations
@@ -63,8 +64,14 @@ def host_path(root: Path, path: str) -> Path:
     return Path(normal)
 
 
-def create(ns_file: Path, root: Path) -> None:
-    """Creates the namespace pinned at `ns_file`, with each `PRIVATE` path bound to `root`/path."""
+def uts_file(ns_file: Path) -> Path:
+    """Where the UTS namespace that goes with the mount namespace at `ns_file` is pinned."""
+    return ns_file.with_suffix(".uts")
+
+
+def create(ns_file: Path, root: Path, hostname: str) -> None:
+    """Creates the namespaces pinned at `ns_file` (mounts: each `PRIVATE` path bound to `root`/path)
+    and `uts_file(ns_file)` (host name `hostname`)."""
     binds = []
     for private in PRIVATE:
         source = root / private.lstrip("/")
@@ -73,23 +80,26 @@ def create(ns_file: Path, root: Path) -> None:
         Path(private).mkdir(parents=True, exist_ok=True)
         binds.append(f"mount --bind {source} {private}")
     ns_file.touch()
+    uts_file(ns_file).touch()
     _run(
         "unshare",
         f"--mount={ns_file}",
+        f"--uts={uts_file(ns_file)}",
         "--propagation=private",
         "--",
         "sh",
         "-ec",
-        " && ".join(binds),
+        " && ".join([*binds, f"hostname {hostname}"]),
     )
 
 
 def remove(ns_file: Path) -> None:
-    """Releases the namespace (it disappears once no process is left in it)."""
-    if ns_file.exists():
-        if is_mountpoint(ns_file):
-            _run("umount", str(ns_file))
-        ns_file.unlink()
+    """Releases the namespaces (they disappear once no process is left in them)."""
+    for pinned in (ns_file, uts_file(ns_file)):
+        if pinned.exists():
+            if is_mountpoint(pinned):
+                _run("umount", str(pinned))
+            pinned.unlink()
 
 
 def mounts_under(folder: Path) -> list[str]:

@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from coral_testbed.cluster import kubeconfigs, nodeimages, robotnet
+from coral_testbed.cluster import kubeconfigs, mountview, nodeimages, robotnet
 
 KUBELET_PORT = 10250
 KUBELET_HEALTHZ_PORT = 10248
@@ -121,9 +121,15 @@ class RobotLayout:
 
 
 def enter_robot(layout: RobotLayout) -> list[str]:
-    """What to put before a command so it runs in the robot's network and mount view."""
+    """What to put before a command so it runs in the robot's network, mount view and host name."""
     nsenter = shutil.which("nsenter") or "/usr/bin/nsenter"
-    return [nsenter, f"--net={layout.link.netns_path}", f"--mount={layout.ns_file}", "--"]
+    return [
+        nsenter,
+        f"--net={layout.link.netns_path}",
+        f"--mount={layout.ns_file}",
+        f"--uts={mountview.uts_file(layout.ns_file)}",
+        "--",
+    ]
 
 
 def build_containerd_config(layout: RobotLayout) -> str:

@@ -202,7 +202,7 @@ class RealRobots:
         robotnet.add_robot(layout.link)
         robotnet.route_api_service(layout.link, components.KUBERNETES_SERVICE_IP, layout.api_port)
         cgroups.create(layout.runtime_cgroup)
-        mountview.create(layout.ns_file, layout.root)
+        mountview.create(layout.ns_file, layout.root, layout.name)
         cert, key = pki.sign_node_client(self.pki, layout.name)
         nodeconfig.write_files(layout, cert, key)
         self._start_uplink(layout)

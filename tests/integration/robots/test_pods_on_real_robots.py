@@ -176,3 +176,30 @@ def test_an_image_that_cannot_be_pulled_is_reported_on_the_pod(
         timeout=60,
         message="a kubelet Event naming the image that failed to pull",
     )
+
+
+def test_host_network_pods_of_two_robots_are_isolated_and_reach_each_other(
+    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+) -> None:
+    """Each robot has its own host network: the same port twice, each robot's own address."""
+    core = k8s.CoreV1Api(cluster.api_client)
+    serve = "mkdir -p /www && hostname > /www/name && exec httpd -f -p 8766 -h /www"
+    for robot in REAL_ROBOTS:
+        cluster.kubectl(
+            "apply",
+            "-n",
+            namespace,
+            "-f",
+            "-",
+            input=robot_pod(f"web-{robot}", robot, serve, host_network=True),
+        )
+    for robot in REAL_ROBOTS:
+        assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == real_robots.address(robot)
+    first, second = REAL_ROBOTS
+    for source, target in ((first, second), (second, first)):
+        url = f"http://{real_robots.address(target)}:8766/name"
+        answer = cluster.kubectl(
+            "exec", "-n", namespace, f"web-{source}", "--", "timeout", "5", "wget", "-qO-", url
+        )
+        # A host-network pod's hostname is its robot's name.
+        assert answer.stdout.strip() == target

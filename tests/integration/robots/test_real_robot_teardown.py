@@ -59,7 +59,7 @@ def test_removed_robot_leaves_nothing_behind(
     assert [pid for pid in pids if _alive(pid)] == []
     assert cgroups.existing(layout.cgroup_root) == []
     assert mountview.mounts_under(layout.dir) == [] and not layout.dir.exists()
-    assert not layout.ns_file.exists()
+    assert not layout.ns_file.exists() and not mountview.uts_file(layout.ns_file).exists()
     namespaces = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True, check=True).stdout
     assert layout.link.netns not in namespaces
     links = subprocess.run(["ip", "-o", "link", "show"], capture_output=True, text=True, check=True).stdout
