@@ -187,13 +187,28 @@ class RealRobots:
                     ca_cert=self.pki.ca_cert,
                 )
                 progress(f"Starting real robot {name} at {layout.link.address}")
-                self._start_robot(layout, {**(labels or {}), robots.ROBOT_LABEL: name})
+                # The kubelet registers only the robot label: NodeRestriction refuses kubelets some
+                # label keys, so the others are the administrator's to set, below.
+                self._start_robot(layout, {robots.ROBOT_LABEL: name})
             self.wait_ready(names, timeout=timeout)
+            if labels:
+                self._label(names, labels)
         except BaseException:
             for name in names:
                 if name in self._load()["robots"]:
                     self._teardown(name)
             raise
+
+    def _label(self, names: list[str], labels: dict[str, str]) -> None:
+        core = k8s.CoreV1Api(self.api)
+        wanted = {key: value for key, value in labels.items() if key != robots.ROBOT_LABEL}
+        for name in names:
+            try:
+                core.patch_node(name, {"metadata": {"labels": wanted}})
+            except ApiException as error:
+                raise RobotError(
+                    f"labels {wanted} refused for {name}: {error.status} {error.body}"
+                ) from error
 
     def _start_robot(self, layout: nodeconfig.RobotLayout, labels: dict[str, str]) -> None:
         data = self._load()

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from coral_testbed.cluster import mountview, nodeconfig, nodeimages, robotnet
+from coral_testbed.cluster.client import parse_table
 
 
 def _layout(tmp_path: Path, name: str = "r1", index: int = 0, slot: int = 3) -> nodeconfig.RobotLayout:
@@ -125,3 +126,15 @@ def test_local_image_archive_is_a_valid_oci_layout_and_reproducible() -> None:
     assert config["rootfs"]["diff_ids"] == [f"sha256:{hashlib.sha256(layer).hexdigest()}"]
     with tarfile.open(fileobj=io.BytesIO(layer)) as files:
         assert files.getmember("bin/sh").linkname == "busybox"
+
+
+def test_kubectl_wide_tables_are_read_by_column_position() -> None:
+    table = (
+        "NAME      STATUS   OS-IMAGE                         CONTAINER-RUNTIME\n"
+        "robot-1   Ready    Debian GNU/Linux 12 (bookworm)   containerd://1.6.20\n"
+        "kwok-1    Ready    <unknown>                        kwok-0.7.0\n"
+    )
+    rows = parse_table(table)
+    assert rows["robot-1"]["OS-IMAGE"] == "Debian GNU/Linux 12 (bookworm)"
+    assert rows["robot-1"]["CONTAINER-RUNTIME"] == "containerd://1.6.20"
+    assert rows["kwok-1"]["CONTAINER-RUNTIME"] == "kwok-0.7.0"
