@@ -328,6 +328,7 @@ def status(state_dir: Path | None = None) -> dict[str, Any]:
         "kube-scheduler": lambda: health.component_healthy(ports.scheduler),
         "kwok": lambda: health.kwok_healthy(ports.kwok),
     }
+    probes.update(realrobots.kubelet_probes(state_dir))
     node_processes = [process for _, process in realrobots.node_processes(state_dir)]
     rows = []
     for process in [*state.processes, *node_processes]:

@@ -9,6 +9,7 @@ mounts, network namespaces, links and cgroups.
 
 from __future__ import annotations
 
+import functools
 import http.client
 import json
 import os
@@ -132,13 +133,9 @@ class RealRobots:
         entry = self._load()["robots"].get(name, {}).get("processes", {}).get(process)
         return processes.Recorded.from_json(entry) if entry else None
 
-    def _record(self, name: str, process: str, recorded: processes.Recorded | None) -> None:
+    def _record(self, name: str, process: str, recorded: processes.Recorded) -> None:
         data = self._load()
-        table = data["robots"][name].setdefault("processes", {})
-        if recorded is None:
-            table.pop(process, None)
-        else:
-            table[process] = recorded.to_json()
+        data["robots"][name].setdefault("processes", {})[process] = recorded.to_json()
         self._save(data)
 
     # ---- starting ------------------------------------------------------------------------------
@@ -287,20 +284,8 @@ class RealRobots:
             layout, "kubelet", nodeconfig.build_kubelet(layout, labels), in_runtime_cgroup=True
         )
         self._await(
-            kubelet, lambda: self._kubelet_healthy(layout), f"the kubelet of {layout.name} to be healthy"
+            kubelet, lambda: kubelet_healthy(layout), f"the kubelet of {layout.name} to be healthy"
         )
-
-    def _kubelet_healthy(self, layout: nodeconfig.RobotLayout) -> bool:
-        # /healthz listens on the robot's own loopback, so it is asked from inside the robot.
-        with entered_netns(str(layout.link.netns_path)):
-            connection = http.client.HTTPConnection("127.0.0.1", nodeconfig.KUBELET_HEALTHZ_PORT, timeout=2)
-            try:
-                connection.request("GET", "/healthz")
-                return connection.getresponse().read().strip() == b"ok"
-            except (OSError, http.client.HTTPException):
-                return False
-            finally:
-                connection.close()
 
     def wait_ready(self, names: list[str], ready: str = "True", timeout: float = 180) -> None:
         """Waits until each robot's Node reports Ready=`ready` ("True", "False" or "Unknown")."""
@@ -331,8 +316,8 @@ class RealRobots:
         self.layout(name)
         kubelet = self._recorded(name, "kubelet")
         if kubelet is not None:
+            # The record stays, so `coral dev-cluster status` shows the kubelet as stopped.
             processes.stop(kubelet)
-            self._record(name, "kubelet", None)
 
     def start(self, name: str, wait: bool = True) -> None:
         """Starts the robot's kubelet again (a no-op when it runs) and waits until the Node is Ready."""
@@ -354,7 +339,6 @@ class RealRobots:
         uplink = self._recorded(name, "uplink")
         if uplink is not None:
             processes.stop(uplink)
-            self._record(name, "uplink", None)
 
     def restore_link(self, name: str) -> None:
         layout = self.layout(name)
@@ -434,6 +418,28 @@ def _load(state_dir: Path) -> dict[str, Any]:
     if not path.exists():
         return {"slot": None, "robots": {}}
     return json.loads(path.read_text())
+
+
+def kubelet_healthy(layout: nodeconfig.RobotLayout) -> bool:
+    """The kubelet's /healthz, asked inside the robot (it listens on the robot's own loopback)."""
+    with entered_netns(str(layout.link.netns_path)):
+        connection = http.client.HTTPConnection("127.0.0.1", nodeconfig.KUBELET_HEALTHZ_PORT, timeout=2)
+        try:
+            connection.request("GET", "/healthz")
+            return connection.getresponse().read().strip() == b"ok"
+        except (OSError, http.client.HTTPException):
+            return False
+        finally:
+            connection.close()
+
+
+def kubelet_probes(state_dir: Path) -> dict[str, Callable[[], bool]]:
+    """A health probe per real robot's kubelet, keyed by its process name, for `coral dev-cluster status`."""
+    probes: dict[str, Callable[[], bool]] = {}
+    for name, entry in _load(state_dir.resolve())["robots"].items():
+        layout = nodeconfig.RobotLayout.from_json(entry["layout"])
+        probes[f"{name}/kubelet"] = functools.partial(kubelet_healthy, layout)
+    return probes
 
 
 def node_processes(state_dir: Path) -> list[tuple[str, processes.Recorded]]:
