@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test venv control-plane image-builder images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -16,18 +16,20 @@ $(STAMP): pyproject.toml setup.py constraints.txt
 
 venv: $(STAMP)
 
-# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok and helm
-# from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
+# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok, helm, the
+# kubelet and coral-cri (a CRI client) from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
-# buildah, mmdebstrap and docker-registry from Debian (needs root; idempotent).
-# Without them the tests that need images are skipped, so a missing install does not stop `make test`.
-image-builder:
-	@bash hack/setup-image-builder.sh || echo "==> image builder not installed: tests that need images will be skipped"
+# containerd, runc, the CNI plugins and the rest real robots need, and buildah, mmdebstrap and
+# docker-registry for the images, from Debian (needs root; without root it only reports what is
+# missing, and the tests that need real robots or images are skipped).
+node-runtime:
+	@if [ "$$(id -u)" -eq 0 ]; then bash hack/setup-node-runtime.sh; \
+	else bash hack/setup-node-runtime.sh --check || echo "==> not root: real-robot and image tests will be skipped"; fi
 
 # Every image from the repository's Dockerfiles, pushed to the local registry (docs/images.md).
-images: venv image-builder
+images: venv node-runtime
 	@$(VENV)/bin/coral images build
 
 # coral-verdicts: kstatus, Argo CD's Lua runtime and Flux's CEL for the verdict tests (docs/verdicts.md);
@@ -36,7 +38,7 @@ verdict-tools:
 	@bash hack/build-verdict-tools.sh >/dev/null
 
 # The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
-demo: venv control-plane
+demo: venv control-plane node-runtime
 	@$(VENV)/bin/coral demo
 
 # The same mission on one machine, no cluster: `coral run` with a live tree view.
@@ -47,7 +49,7 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane image-builder verdict-tools
+test: venv control-plane node-runtime verdict-tools
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the pinned control-plane binaries (etcd, kube-apiserver, kube-controller-manager,
-# kube-scheduler, kubectl, kwok, helm) with the go tool from Go modules, and caches them outside
-# the repository, keyed by version, so a machine pays for the build once.
+# kube-scheduler, kubectl, kwok, helm) and the node binaries of real robots (kubelet, coral-cri) with
+# the go tool from Go modules, and caches them outside the repository, keyed by version, so a
+# machine pays for the build once. Only missing binaries are built.
 #
 # Usage: hack/build-control-plane.sh            -> prints the bin directory when done
 # Env:   CORAL_CACHE_DIR (default ~/.cache/coral-on-kubernetes)
@@ -15,7 +16,7 @@ HELM_VERSION="${HELM_VERSION:-v3.19.0}"
 cache_root="${CORAL_CACHE_DIR:-$HOME/.cache/coral-on-kubernetes}"
 key="kube-${KUBE_VERSION}_etcd-${ETCD_VERSION}_kwok-${KWOK_VERSION}_helm-${HELM_VERSION}"
 bin_dir="$cache_root/control-plane/$key/bin"
-wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm)
+wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm kubelet coral-cri)
 
 have_all() {
   for b in "${wanted[@]}"; do [[ -x "$bin_dir/$b" ]] || return 1; done
@@ -41,8 +42,10 @@ minor="${KUBE_VERSION#v1.}"; minor="${minor%%.*}"
 patch="${KUBE_VERSION##*.}"
 staging_version="v0.${minor}.${patch}"
 
-if ! (staged kube-apiserver && staged kube-controller-manager && staged kube-scheduler && staged kubectl); then
+kube_module() {
+  # One module for every k8s.io/kubernetes command, resolved once and shared by their builds.
   mod="$work/kube"
+  [[ -f "$mod/.resolved-with-kubelet" ]] && return 0
   mkdir -p "$mod"
   log "resolving k8s.io/kubernetes ${KUBE_VERSION} (staging modules at ${staging_version})"
   staging=(api apiextensions-apiserver apimachinery apiserver cli-runtime client-go cloud-provider
@@ -71,18 +74,34 @@ import (
 	_ "k8s.io/kubernetes/cmd/kube-controller-manager"
 	_ "k8s.io/kubernetes/cmd/kube-scheduler"
 	_ "k8s.io/kubernetes/cmd/kubectl"
+	_ "k8s.io/kubernetes/cmd/kubelet"
 )
 GO
   (cd "$mod" && go mod tidy -e >&2 2>"$mod/tidy.log" || true)
-  ldflags="-s -w"
+  touch "$mod/.resolved-with-kubelet"
+}
+
+kube_ldflags() {
+  local flags="-s -w"
   for pkg in k8s.io/component-base/version k8s.io/client-go/pkg/version; do
-    ldflags+=" -X $pkg.gitVersion=${KUBE_VERSION} -X $pkg.gitMajor=1 -X $pkg.gitMinor=${minor}"
-    ldflags+=" -X $pkg.gitTreeState=clean -X $pkg.buildDate=1970-01-01T00:00:00Z"
+    flags+=" -X $pkg.gitVersion=${KUBE_VERSION} -X $pkg.gitMajor=1 -X $pkg.gitMinor=${minor}"
+    flags+=" -X $pkg.gitTreeState=clean -X $pkg.buildDate=1970-01-01T00:00:00Z"
   done
+  echo "$flags"
+}
+
+if ! (staged kube-apiserver && staged kube-controller-manager && staged kube-scheduler && staged kubectl); then
+  kube_module
   log "building kube-apiserver, kube-controller-manager, kube-scheduler, kubectl ${KUBE_VERSION} (first run: 15-30 min on 2 cores)"
-  (cd "$mod" && go build -trimpath -ldflags "$ldflags" -o "$bin_dir/" \
+  (cd "$work/kube" && go build -trimpath -ldflags "$(kube_ldflags)" -o "$bin_dir/" \
     k8s.io/kubernetes/cmd/kube-apiserver k8s.io/kubernetes/cmd/kube-controller-manager \
     k8s.io/kubernetes/cmd/kube-scheduler k8s.io/kubernetes/cmd/kubectl)
+fi
+
+if ! staged kubelet; then
+  kube_module
+  log "building kubelet ${KUBE_VERSION} (first run: about 4 min on 2 cores)"
+  (cd "$work/kube" && go build -trimpath -ldflags "$(kube_ldflags)" -o "$bin_dir/kubelet" k8s.io/kubernetes/cmd/kubelet)
 fi
 
 if ! staged etcd; then
@@ -105,6 +124,19 @@ fi
 if ! staged helm; then
   log "building helm ${HELM_VERSION}"
   GOBIN="$bin_dir" go install -trimpath -ldflags "-s -w -X helm.sh/helm/v3/internal/version.version=${HELM_VERSION}" "helm.sh/helm/v3/cmd/helm@${HELM_VERSION}"
+fi
+
+# A small CRI client of ours (hack/coral-cri), built in the kube module against the pinned CRI API;
+# rebuilt whenever its source changes.
+cri_source="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/coral-cri/main.go"
+cri_sum=$(sha256sum "$cri_source" | cut -d' ' -f1)
+if ! staged coral-cri || [[ "$(cat "$bin_dir/.coral-cri.sha256" 2>/dev/null)" != "$cri_sum" ]]; then
+  kube_module
+  log "building coral-cri"
+  mkdir -p "$work/kube/cmd/coral-cri"
+  cp "$cri_source" "$work/kube/cmd/coral-cri/main.go"
+  (cd "$work/kube" && go build -trimpath -ldflags "-s -w" -o "$bin_dir/coral-cri" ./cmd/coral-cri)
+  echo "$cri_sum" > "$bin_dir/.coral-cri.sha256"
 fi
 
 have_all || { echo "error: some control-plane binaries are missing in $bin_dir" >&2; exit 1; }

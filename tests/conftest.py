@@ -6,4 +6,5 @@ pytest_plugins = [
     "fixtures.operator",
     "fixtures.cluster",
     "fixtures.images",
+    "fixtures.robots",
 ]

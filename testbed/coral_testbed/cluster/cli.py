@@ -14,7 +14,7 @@ from typing import Any
 import click
 from coral import terminal
 
-from coral_testbed.cluster import binaries, controlplane, demo
+from coral_testbed.cluster import binaries, controlplane, demo, realrobots
 from coral_testbed.cluster.client import Cluster
 
 
@@ -59,7 +59,12 @@ def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return command(*args, **kwargs)
-        except (controlplane.ControlPlaneError, binaries.BinariesMissing, ValueError) as error:
+        except (
+            controlplane.ControlPlaneError,
+            binaries.BinariesMissing,
+            realrobots.RobotError,
+            ValueError,
+        ) as error:
             raise click.ClickException(str(error)) from error
 
     return wrapper
@@ -67,31 +72,51 @@ def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
 
 @click.group("dev-cluster")
 def dev_cluster() -> None:
-    """A local Kubernetes control plane with kwok robots (etcd, kube-apiserver, controllers, kwok)."""
+    """A local Kubernetes control plane (etcd, kube-apiserver, controllers) with real and kwok robots."""
 
 
 @dev_cluster.command()
 @dir_option
-@click.option("--robots", "count", type=click.IntRange(min=0), default=0, help="Robot Nodes to create.")
 @click.option(
-    "--robot-prefix", default="robot-", show_default=True, help="Robots are named PREFIX1..PREFIXN."
+    "--robots",
+    "count",
+    type=click.IntRange(min=0),
+    default=0,
+    help="Real robots to start (a kubelet and a containerd each; needs root and the node runtime).",
 )
 @click.option(
-    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
+    "--robot-prefix", default="robot-", show_default=True, help="Real robots are named PREFIX1..PREFIXN."
+)
+@click.option(
+    "--kwok-robots", "kwok_count", type=click.IntRange(min=0), default=0, help="kwok robot Nodes to create."
+)
+@click.option(
+    "--kwok-prefix", default="kwok-robot-", show_default=True, help="kwok robots are named PREFIX1..PREFIXN."
+)
+@click.option(
+    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for every robot."
 )
 @_fail_on_errors
-def up(state_dir: Path, count: int, robot_prefix: str, labels: dict[str, str]) -> None:
+def up(
+    state_dir: Path, count: int, robot_prefix: str, kwok_count: int, kwok_prefix: str, labels: dict[str, str]
+) -> None:
     """Start the control plane in the background; print the kubeconfig path once the API is healthy."""
     try:
         state = controlplane.start(state_dir, progress=_say)
     except controlplane.AlreadyRunning as running:
         _say(str(running))
         state = controlplane.load_state(state_dir.resolve())  # type: ignore[assignment]
+    cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir)
+    if kwok_count:
+        names = [f"{kwok_prefix}{i}" for i in range(1, kwok_count + 1)]
+        _say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
+        cluster.add_robots(names, labels)
     if count:
         names = [f"{robot_prefix}{i}" for i in range(1, count + 1)]
-        _say(f"Creating robots {', '.join(names)}")
-        cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True)
-        cluster.add_robots(names, labels)
+        wanted = [name for name in names if name not in cluster.robots.names()]
+        if wanted:
+            cluster.robots.add(wanted, labels, progress=_say)
+        _say(f"Real robots {', '.join(names)} are Ready")
     click.echo(str(state.kubeconfig))
 
 
@@ -126,7 +151,7 @@ def status(state_dir: Path) -> None:
 
 @dev_cluster.group()
 def robots() -> None:
-    """Create, remove and fail simulated robots (kwok Nodes labelled coral.dev/robot=NAME)."""
+    """Create, remove and fail robots: kwok Nodes, and real robots (kubelet + containerd)."""
 
 
 @robots.command("add")
@@ -146,8 +171,60 @@ def add_robots(state_dir: Path, names: tuple[str, ...], labels: dict[str, str]) 
 @click.argument("names", nargs=-1, required=True)
 @_fail_on_errors
 def remove_robots(state_dir: Path, names: tuple[str, ...]) -> None:
-    """Delete robots' Nodes."""
-    _running_cluster(state_dir).remove_robots(list(names))
+    """Delete robots' Nodes; real robots are torn down first (processes, mounts, network, cgroups)."""
+    cluster = _running_cluster(state_dir)
+    real = [name for name in names if name in cluster.robots.names()]
+    if real:
+        cluster.robots.remove(real)
+    cluster.remove_robots([name for name in names if name not in real])
+
+
+@robots.command("add-real")
+@dir_option
+@click.argument("names", nargs=-1, required=True)
+@click.option(
+    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
+)
+@_fail_on_errors
+def add_real_robots(state_dir: Path, names: tuple[str, ...], labels: dict[str, str]) -> None:
+    """Start real robots (kubelet + containerd each) and wait until they are Ready."""
+    _running_cluster(state_dir).robots.add(list(names), labels, progress=_say)
+
+
+@robots.command("stop")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_stop(state_dir: Path, name: str) -> None:
+    """Stop a real robot's kubelet: its containers keep running, its Node goes NotReady (about 40 s)."""
+    _running_cluster(state_dir).robots.stop(name)
+
+
+@robots.command("start")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_start(state_dir: Path, name: str) -> None:
+    """Start a stopped real robot's kubelet again and wait until its Node is Ready."""
+    _running_cluster(state_dir).robots.start(name)
+
+
+@robots.command("cut")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_cut(state_dir: Path, name: str) -> None:
+    """Cut a real robot's network link: no traffic to other robots, the API server or the registry."""
+    _running_cluster(state_dir).robots.cut_link(name)
+
+
+@robots.command("restore")
+@dir_option
+@click.argument("name")
+@_fail_on_errors
+def robot_restore(state_dir: Path, name: str) -> None:
+    """Restore a cut real robot's network link."""
+    _running_cluster(state_dir).robots.restore_link(name)
 
 
 @robots.command("ready")

@@ -15,7 +15,22 @@ from pathlib import Path
 from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 
-from coral_testbed.cluster import binaries, robots
+from coral_testbed.cluster import binaries, realrobots, robots
+
+
+def parse_table(text: str) -> dict[str, dict[str, str]]:
+    """kubectl's column output (`get ... -o wide`) as {first column: {header: value}}.
+
+    Columns are cut at the header's word positions, so values with spaces (OS-IMAGE) stay whole.
+    """
+    header, *lines = text.splitlines()
+    starts = [i for i, char in enumerate(header) if char != " " and (i == 0 or header[i - 1] == " ")]
+    names = header.split()
+    rows = {}
+    for line in lines:
+        cells = [line[a:b].strip() for a, b in zip(starts, [*starts[1:], None], strict=True)]
+        rows[cells[0]] = dict(zip(names, cells, strict=True))
+    return rows
 
 
 class KubectlError(subprocess.CalledProcessError):
@@ -33,12 +48,24 @@ class Cluster:
         kubeconfig: admin kubeconfig file.
         bin_dir: the pinned binaries that run the local control plane, None for external clusters.
         is_local: True for the control plane this project started itself.
+        state_dir: the local control plane's state folder (None for external clusters); real
+            robots need it.
+        die_with_parent: real robots started through `robots` stop when this process dies.
     """
 
-    def __init__(self, kubeconfig: Path, bin_dir: Path | None, is_local: bool) -> None:
+    def __init__(
+        self,
+        kubeconfig: Path,
+        bin_dir: Path | None,
+        is_local: bool,
+        state_dir: Path | None = None,
+        die_with_parent: bool = False,
+    ) -> None:
         self.kubeconfig = Path(kubeconfig)
         self.bin_dir = bin_dir
         self.is_local = is_local
+        self.state_dir = state_dir
+        self.die_with_parent = die_with_parent
         self._kubectl = binaries.find_kubectl(bin_dir)
 
     @classmethod
@@ -56,7 +83,7 @@ class Cluster:
             raise controlplane.ControlPlaneError(
                 f"no control plane is running from {folder}; start one with `coral dev-cluster up`"
             )
-        return cls(state.kubeconfig, state.layout.bin_dir, is_local=True)
+        return cls(state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=folder)
 
     def __repr__(self) -> str:
         return f"Cluster(kubeconfig={str(self.kubeconfig)!r}, is_local={self.is_local})"
@@ -64,6 +91,29 @@ class Cluster:
     @cached_property
     def api_client(self) -> k8s.ApiClient:
         return k8s_config.new_client_from_config(config_file=str(self.kubeconfig))
+
+    @cached_property
+    def robots(self) -> realrobots.RealRobots:
+        """The cluster's real robots (kubelet + containerd each): add, stop, start, cut_link, cri...
+
+        Raises:
+            RobotError: the cluster is not a local control plane with a state folder.
+        """
+        from coral_testbed.cluster import controlplane
+
+        state = controlplane.load_state(self.state_dir) if self.state_dir is not None else None
+        if state is None or self.bin_dir is None:
+            raise realrobots.RobotError(
+                f"{self!r}: real robots run only on a local control plane (`coral dev-cluster up`)"
+            )
+        return realrobots.RealRobots(
+            self.state_dir,
+            self.api_client,
+            api_port=state.layout.ports.apiserver,
+            pki_dir=state.layout.pki.dir,
+            bin_dir=self.bin_dir,
+            die_with_parent=self.die_with_parent,
+        )
 
     def close(self) -> None:
         if "api_client" in self.__dict__:

@@ -14,6 +14,8 @@ from typing import Any
 from coral_testbed.cluster import pki as pki_module
 
 SERVICE_CIDR = "10.96.0.0/16"
+# The `kubernetes` Service's address (the first of SERVICE_CIDR), in the API server's certificate.
+KUBERNETES_SERVICE_IP = "10.96.0.1"
 # kwok hands out pod IPs from this CIDR starting at its address, so it starts at .1. It avoids
 # kind's pod subnet (10.244.0.0/16), where kwok also runs in `make test-kind`.
 POD_CIDR = "10.250.0.1/16"
@@ -111,6 +113,12 @@ def build_apiserver(layout: Layout) -> list[str]:
         "--authorization-mode=Node,RBAC",
         f"--service-cluster-ip-range={SERVICE_CIDR}",
         "--allow-privileged=true",
+        # Kubelets of real robots: the API server calls them (logs, exec) at their InternalIP, the
+        # robot's own address, with a client certificate; each kubelet may touch only its own Node.
+        f"--kubelet-client-certificate={pki.client_cert('kubelet-client')}",
+        f"--kubelet-client-key={pki.client_key('kubelet-client')}",
+        "--kubelet-preferred-address-types=InternalIP,Hostname",
+        "--enable-admission-plugins=NodeRestriction",
         # Endpoints may not hold a loopback address, so the `kubernetes` Service gets none.
         "--endpoint-reconciler-type=none",
         "--profiling=false",

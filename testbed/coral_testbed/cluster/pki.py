@@ -9,6 +9,7 @@ machines.
 
 from __future__ import annotations
 
+import secrets
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -31,6 +32,10 @@ CLIENTS: dict[str, tuple[str, str | None]] = {
     "controller-manager": ("system:kube-controller-manager", None),
     "scheduler": ("system:kube-scheduler", None),
 }
+
+# The API server's identity towards kubelets (logs, exec, port-forward); kubelets authorize it by
+# asking the API server, and system:masters may do everything there.
+KUBELET_CLIENT = ("kube-apiserver-kubelet-client", "system:masters")
 
 _REQ_CONFIG = "[req]\ndistinguished_name = dn\nprompt = no\n[dn]\nCN = placeholder\n"
 
@@ -76,6 +81,11 @@ class Pki:
         return self.dir / f"{name}.key"
 
 
+def node_identity(node: str) -> tuple[str, str]:
+    """(common name, organization) of a kubelet: what the Node authorizer and NodeRestriction expect."""
+    return f"system:node:{node}", "system:nodes"
+
+
 def _openssl(*args: str, cwd: Path) -> None:
     openssl = shutil.which("openssl")
     if openssl is None:
@@ -116,6 +126,7 @@ def build_extensions(server: bool, sans: tuple[str, ...] = ()) -> str:
 
 
 def _sign(pki: Pki, name: str, subject: str, extensions: str, serial: int) -> None:
+    """Writes `name`.key and `name`.crt, signed by the CA (serials must differ per certificate)."""
     key, cert = pki.dir / f"{name}.key", pki.dir / f"{name}.crt"
     csr, ext, cfg = pki.dir / f"{name}.csr", pki.dir / f"{name}.ext", pki.dir / "req.cnf"
     _new_key(key)
@@ -179,6 +190,16 @@ def create_pki(directory: Path) -> Pki:
     _sign(pki, "apiserver", "/CN=kube-apiserver", build_extensions(server=True, sans=SERVER_SANS), serial=2)
     for serial, (name, (common_name, organization)) in enumerate(CLIENTS.items(), start=3):
         _sign(pki, name, build_subject(common_name, organization), build_extensions(server=False), serial)
+    common_name, organization = KUBELET_CLIENT
+    _sign(pki, "kubelet-client", build_subject(common_name, organization), build_extensions(server=False), 99)
     _new_key(pki.sa_key)
     _openssl("pkey", "-in", str(pki.sa_key), "-pubout", "-out", str(pki.sa_pub), cwd=directory)
     return pki
+
+
+def sign_node_client(pki: Pki, node: str) -> tuple[Path, Path]:
+    """A kubelet's client certificate for `node`; returns (certificate, key)."""
+    name = f"node-{node}"
+    subject = build_subject(*node_identity(node))
+    _sign(pki, name, subject, build_extensions(server=False), secrets.randbits(62))
+    return pki.client_cert(name), pki.client_key(name)

@@ -11,6 +11,7 @@ import os
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,9 +61,24 @@ def _die_with_parent() -> None:
 
 
 def spawn(
-    name: str, argv: list[str], log: Path, env: dict[str, str] | None = None, die_with_parent: bool = False
+    name: str,
+    argv: list[str],
+    log: Path,
+    env: dict[str, str] | None = None,
+    die_with_parent: bool = False,
+    before_exec: Callable[[], None] | None = None,
 ) -> Recorded:
-    """Starts `argv` in a new session with stdout and stderr appended to `log`."""
+    """Starts `argv` in a new session with stdout and stderr appended to `log`.
+
+    `before_exec` runs in the child before it execs (e.g. to join a cgroup).
+    """
+
+    def prepare() -> None:
+        if die_with_parent:
+            _die_with_parent()
+        if before_exec is not None:
+            before_exec()
+
     log.parent.mkdir(parents=True, exist_ok=True)
     with log.open("ab") as sink:
         child = subprocess.Popen(
@@ -72,7 +88,7 @@ def spawn(
             stderr=subprocess.STDOUT,
             env=env,
             start_new_session=True,
-            preexec_fn=_die_with_parent if die_with_parent else None,
+            preexec_fn=prepare if die_with_parent or before_exec is not None else None,
         )
     start_time = process_start_time(child.pid)
     # A child that already exited still has a start time until reaped; if not, it died instantly.

@@ -52,7 +52,7 @@ class Buildah:
     @classmethod
     def at(cls, folder: Path, driver: str) -> Buildah:
         if shutil.which("buildah") is None:
-            raise BuildahError("buildah is not installed; run `sudo bash hack/setup-image-builder.sh`")
+            raise BuildahError("buildah is not installed; run `sudo bash hack/setup-node-runtime.sh`")
         # Keyed by driver: one storage folder cannot switch drivers once it holds layers.
         return cls(root=folder / f"storage-{driver}", driver=driver)
 

@@ -146,7 +146,7 @@ def start(address: str, storage: Path, state_dir: Path, die_with_parent: bool = 
     split_address(address)
     binary = shutil.which("docker-registry")
     if binary is None:
-        raise RegistryError("docker-registry is not installed; run `sudo bash hack/setup-image-builder.sh`")
+        raise RegistryError("docker-registry is not installed; run `sudo bash hack/setup-node-runtime.sh`")
     if not _port_is_free(address):
         raise RegistryError(f"cannot start a registry on {address}: the address is in use")
     storage.mkdir(parents=True, exist_ok=True)

@@ -69,7 +69,7 @@ def ensure(cache_dir: Path, progress: Callable[[str], None]) -> Path:
     if tarball.is_file():
         return folder
     if not _MERGED_USR_HOOK.is_dir():
-        raise RootfsError("mmdebstrap is not installed; run `sudo bash hack/setup-image-builder.sh`")
+        raise RootfsError("mmdebstrap is not installed; run `sudo bash hack/setup-node-runtime.sh`")
     folder.mkdir(parents=True, exist_ok=True)
     partial = folder / "rootfs.tar.partial.tar"
     log = folder / "mmdebstrap.log"

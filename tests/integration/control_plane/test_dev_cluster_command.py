@@ -5,13 +5,15 @@ These start control planes of their own (not the session's), in temporary folder
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from coral_testbed.cluster import binaries, controlplane, processes
+from coral_testbed.cluster import binaries, controlplane, processes, realrobots
+from coral_testbed.cluster.client import parse_table
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -51,7 +53,17 @@ def _processes_mentioning(text: str) -> list[int]:
 
 def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> None:
     state_dir = tmp_path / "dev"
-    up = _coral("up", "--dir", str(state_dir), "--robots", "2", "--label", "coral.dev/model=tb4")
+    up = _coral(
+        "up",
+        "--dir",
+        str(state_dir),
+        "--kwok-robots",
+        "2",
+        "--kwok-prefix",
+        "robot-",
+        "--label",
+        "coral.dev/model=tb4",
+    )
     assert up.returncode == 0, up.stderr
     recorded = controlplane.load_state(state_dir)
     assert recorded is not None
@@ -97,6 +109,44 @@ def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> No
     assert not [p.name for p in recorded.processes if processes.is_alive(p)]
     assert _processes_mentioning(str(state_dir.resolve())) == []
     assert _coral("status", "--dir", str(state_dir)).returncode == 1
+
+
+def test_real_and_kwok_robots_side_by_side_and_down_leaves_nothing(tmp_path: Path) -> None:
+    reason = realrobots.unsupported_reason(binaries.optional_bin_dir(("kubelet",)))
+    if reason:
+        pytest.skip(reason)
+    state_dir = tmp_path / "dev"
+    up = _coral(
+        "up", "--dir", str(state_dir), "--robots", "1", "--kwok-robots", "1", "--label", "coral.dev/model=tb4"
+    )
+    robots_state = (
+        json.loads((state_dir / "robots" / "robots.json").read_text()) if up.returncode == 0 else {}
+    )
+    try:
+        assert up.returncode == 0, up.stderr
+        kubeconfig = Path(up.stdout.strip())
+        wide = _kubectl(kubeconfig, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot,coral.dev/model")
+        rows = parse_table(wide)
+        assert set(rows) == {"robot-1", "kwok-robot-1"}, wide
+        assert rows["robot-1"]["VERSION"] == binaries.KUBE_VERSION
+        assert rows["robot-1"]["CONTAINER-RUNTIME"].startswith("containerd://"), wide
+        assert rows["kwok-robot-1"]["CONTAINER-RUNTIME"] != rows["robot-1"]["CONTAINER-RUNTIME"]
+        for row in rows.values():
+            assert row["STATUS"] == "Ready" and row["MODEL"] == "tb4", wide
+
+        status = _coral("status", "--dir", str(state_dir))
+        assert status.returncode == 0, status.stdout
+        assert {"robot-1/uplink", "robot-1/containerd", "robot-1/kubelet"} <= {
+            line.split()[0] for line in status.stdout.splitlines() if "pid" in line
+        }
+        assert _coral("robots", "cut", "robot-1", "--dir", str(state_dir)).returncode == 0
+        assert _coral("robots", "restore", "robot-1", "--dir", str(state_dir)).returncode == 0
+    finally:
+        down = _coral("down", "--dir", str(state_dir))
+    assert down.returncode == 0, down.stderr
+    assert "Removing real robot robot-1" in down.stderr
+    assert realrobots.leftovers(state_dir, robots_state.get("slot")) == []
+    assert _processes_mentioning(str(state_dir.resolve())) == []
 
 
 def test_demo_shows_a_pod_running_on_a_robot_and_stops_everything() -> None:
