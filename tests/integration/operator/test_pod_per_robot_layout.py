@@ -47,6 +47,17 @@ def _ready_instance(coral: Coral, system: str) -> dict[str, Any] | None:
     return None
 
 
+def _conditions_of(coral: Coral) -> dict[str, list[tuple[str, str, str, str]]]:
+    """Each instance's conditions, for a timeout message that says where a robot got stuck."""
+    return {
+        name: [
+            (c["type"], c["status"], c.get("reason", ""), c.get("message", ""))
+            for c in (instance.get("status") or {}).get("conditions") or []
+        ]
+        for name, instance in coral.instances().items()
+    }
+
+
 def test_one_pod_per_robot_reads_like_one_pod_per_component(
     cluster: Any,
     namespace: str,
@@ -93,8 +104,15 @@ def test_a_baseline_namespace_accepts_one_pod_per_robot_and_says_why_it_refuses_
     _enforce_baseline(cluster, namespace)
     robots(1, {"fleet": fleet_label})
     coral = Coral(cluster.api_client, namespace)
-    coral.create_system(_mission("baseline", fleet_label, "PodPerRobot", network="Pod"))
-    ready = wait(lambda: _ready_instance(coral, "baseline"), "the PodPerRobot robot Ready under baseline")
+    manifest = _mission("baseline", fleet_label, "PodPerRobot", network="Pod")
+    for role in ("drivers", "skillsets", "executors"):
+        for component in manifest["spec"].get(role, []):
+            component.pop("hostPaths", None)  # baseline refuses every hostPath volume
+    coral.create_system(manifest)
+    ready = wait(
+        lambda: _ready_instance(coral, "baseline"),
+        lambda: f"the PodPerRobot robot Ready under baseline; instances: {_conditions_of(coral)}",
+    )
     assert condition(ready, "Stalled")["status"] == "False"
 
     # Changing the layout on a live system is a revision like any other: the robot moves to it, and

@@ -61,7 +61,8 @@ def test_an_offline_robot_is_skipped(
     wait_settled(fleet, 3)
     first = fleet.revisions()[names[0]]
     offline = names[2]
-    cluster.set_robot_ready(offline, False)
+    # Off the network: its Lease lapses and the node-lifecycle controller marks it Ready=Unknown.
+    cluster.set_robot_reachable(offline, False)
     wait_for(lambda: fleet.system()["status"]["robots"]["unreachable"] == 1, timeout=60, message="offline")
     fleet.change("2")
     wait_for(lambda: rollout_complete(fleet), timeout=120, message=lambda: f"{fleet.rollout()}")
