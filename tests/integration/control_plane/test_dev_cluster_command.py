@@ -51,6 +51,14 @@ def _processes_mentioning(text: str) -> list[int]:
     return found
 
 
+def _status_rows(stdout: str) -> list[list[str]]:
+    """The rows of `coral dev-cluster status`'s table (COMPONENT, PID, HEALTH, LOG), split on blanks."""
+    lines = stdout.splitlines()
+    header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["COMPONENT", "PID"])
+    footer = ([], ["server"], ["kubeconfig"])
+    return [line.split() for line in lines[header + 1 :] if line.split()[:1] not in footer]
+
+
 def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> None:
     state_dir = tmp_path / "dev"
     up = _coral(
@@ -75,13 +83,7 @@ def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> No
         status = _coral("status", "--dir", str(state_dir))
         assert status.returncode == 0, status.stdout + status.stderr
         assert str(kubeconfig) in status.stdout
-        lines = status.stdout.splitlines()
-        header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["COMPONENT", "PID"])
-        rows = [
-            line.split()
-            for line in lines[header + 1 :]
-            if line.split()[:1] not in (["server"], ["kubeconfig"])
-        ]
+        rows = _status_rows(status.stdout)
         assert {"etcd", "kube-apiserver", "kube-controller-manager", "kube-scheduler", "kwok"} == {
             row[0] for row in rows
         }
@@ -136,9 +138,9 @@ def test_real_and_kwok_robots_side_by_side_and_down_leaves_nothing(tmp_path: Pat
 
         status = _coral("status", "--dir", str(state_dir))
         assert status.returncode == 0, status.stdout
-        assert {"robot-1/uplink", "robot-1/containerd", "robot-1/kubelet"} <= {
-            line.split()[0] for line in status.stdout.splitlines() if "pid" in line
-        }
+        rows = _status_rows(status.stdout)
+        assert {"robot-1/uplink", "robot-1/containerd", "robot-1/kubelet"} <= {row[0] for row in rows}
+        assert {row[2] for row in rows} == {"healthy"}, status.stdout
         assert _coral("robots", "cut", "robot-1", "--dir", str(state_dir)).returncode == 0
         assert _coral("robots", "restore", "robot-1", "--dir", str(state_dir)).returncode == 0
     finally:
