@@ -115,15 +115,17 @@ class TickLoop:
         }
 
     def _report(self, root: Any, force: bool = False) -> None:
-        record = self.status_record(root)
         now = time.monotonic()
+        root_changed = self._last_status is None or self._last_status["root"] != records.status_name(root)
+        if not (force or root_changed or now - self._last_status_at >= STATUS_MIN_INTERVAL_S):
+            return  # nothing could be due: skip building the record (a snapshot of every node)
+        record = self.status_record(root)
         comparable = {k: v for k, v in record.items() if k not in ("tick_count", "last_transition_time")}
         previous = None
         if self._last_status is not None:
             previous = {
                 k: v for k, v in self._last_status.items() if k not in ("tick_count", "last_transition_time")
             }
-        root_changed = self._last_status is None or self._last_status["root"] != record["root"]
         due = (comparable != previous and now - self._last_status_at >= STATUS_MIN_INTERVAL_S) or (
             now - self._last_status_at >= STATUS_HEARTBEAT_S
         )
@@ -140,6 +142,7 @@ class TickLoop:
             while not stop.is_set():
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
+                self.fanout.flush()
                 self._check_degraded()
                 if root in (bt.Status.SUCCESS, bt.Status.FAILURE):
                     break

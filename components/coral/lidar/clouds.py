@@ -84,7 +84,10 @@ def decode(
         raise ValueError(f"point cloud data holds {buffer.size} bytes, expected {count * point_step}")
     layout = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
     records = buffer[: count * point_step].view(layout)
-    points = np.column_stack([records["x"], records["y"], records["z"]]).astype(np.float64)
+    # One pass from the message's buffer into the float64 array KISS-ICP takes (no float32 copy).
+    points = np.empty((count, 3), dtype=np.float64)
+    for column, name in enumerate(("x", "y", "z")):
+        points[:, column] = records[name]
     time_name = next((n for n in TIME_FIELDS if n in names), None)
     times = records[time_name].astype(np.float64) if time_name else None
     return points, times
