@@ -91,8 +91,12 @@ class CpuSampler:
         period_s: float = 0.05,
         threads: bool = True,
         rescan_s: float = 0.25,
+        root_label: str | None = None,
     ) -> None:
+        """`root_label`: also sample the root process itself (in the benchmark, it runs `coral
+        run`'s supervisor and this sampler), under that name."""
         self.root_pid = root_pid or os.getpid()
+        self.root_label = root_label
         self.period_s = period_s
         self.rescan_s = rescan_s
         self._known: list[int] = []
@@ -117,7 +121,8 @@ class CpuSampler:
                 fields = _stat_fields(entry / "stat")
                 if fields is not None:
                     parents[int(entry.name)] = int(fields[1])
-        found, frontier = [], [self.root_pid]
+        found = [self.root_pid] if self.root_label else []
+        frontier = [self.root_pid]
         while frontier:
             parent = frontier.pop()
             children = [pid for pid, ppid in parents.items() if ppid == parent]
@@ -135,7 +140,8 @@ class CpuSampler:
                 continue
             record = self.processes.get(pid)
             if record is None:
-                record = self.processes[pid] = ProcessCpu(_label(pid))
+                label = self.root_label if pid == self.root_pid and self.root_label else _label(pid)
+                record = self.processes[pid] = ProcessCpu(label)
             record.cpu_s = max(record.cpu_s, _cpu_s(fields))
             record.history.append((now, record.cpu_s))
             if not self.with_threads:

@@ -1,7 +1,8 @@
 """PointCloud2 payloads <-> numpy, independent of which message library carries them.
 
-The generator writes clouds with rosbags types, the bag player republishes them with rclpy types
-and the SLAM skillset reads rclpy messages: all three agree on the layout through these helpers.
+The generator writes clouds with rosbags types, the bag player republishes their CDR bytes and
+the SLAM skillset reads those bytes with rosbags (`cdr_typestore`): all agree on the layout
+through these helpers.
 Field datatypes follow sensor_msgs/PointField (INT8=1 ... FLOAT64=8).
 """
 
@@ -91,6 +92,14 @@ def decode(
     time_name = next((n for n in TIME_FIELDS if n in names), None)
     times = records[time_name].astype(np.float64) if time_name else None
     return points, times
+
+
+def cdr_typestore() -> Any:
+    """rosbags' ROS 2 Jazzy message types, to read CDR bytes taken from a raw subscription: the
+    point data comes back as a numpy view on those bytes, where rclpy would copy it into a message."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 def native_bigendian() -> bool:

@@ -81,7 +81,9 @@ class SlamSkillset(Skillset):
         self.scan_wait_s = float(self.param("scan_wait_s", 1.0))
         queue_size = int(self.param("queue_size", 2000))
         self.points_topic = str(self.param("points_topic", "/lidar/points"))
-        self.queue: collections.deque[PointCloud2] = collections.deque(maxlen=queue_size)
+        # Scans stay serialised (CDR) until the worker decodes them, straight into numpy.
+        self.queue: collections.deque[bytes] = collections.deque(maxlen=queue_size)
+        self.typestore = clouds.cdr_typestore()
         self.arrived = threading.Condition()
         self.enabled = False
         self.source_done = False
@@ -139,10 +141,10 @@ class SlamSkillset(Skillset):
         with self.arrived:
             if self.points_subscription is None:
                 self.points_subscription = self.create_subscription(
-                    PointCloud2, self.points_topic, self.on_scan, self.points_qos
+                    PointCloud2, self.points_topic, self.on_scan, self.points_qos, raw=True
                 )
 
-    def on_scan(self, message: PointCloud2) -> None:
+    def on_scan(self, message: bytes) -> None:
         with self.arrived:
             if len(self.queue) == self.queue.maxlen:
                 self.dropped += 1
@@ -261,11 +263,18 @@ class SlamSkillset(Skillset):
                 self.last_registered_at = time.monotonic()
                 self.arrived.notify_all()
 
-    def register(self, message: PointCloud2) -> tuple[bool, dict[str, Any]]:
+    def register(self, raw: bytes) -> tuple[bool, dict[str, Any]]:
+        started = time.perf_counter()
+        try:
+            # rosbags reads the CDR bytes with the point data as a numpy view on them (no copy);
+            # decode then converts it once to the float64 arrays KISS-ICP takes.
+            message = self.typestore.deserialize_cdr(raw, "sensor_msgs/msg/PointCloud2")
+        except Exception as err:  # noqa: BLE001 - rosbags raises several types for a malformed buffer
+            self.failed_scans += 1
+            self.get_logger().warning(f"Rejected an undecodable scan: {err}")
+            return False, {"error": f"scan rejected: undecodable message: {err}", "stamp_ns": 0}
         stamp_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
         try:
-            started = time.perf_counter()
-            # A view on the message's buffer, converted once to the float64 arrays KISS-ICP takes.
             points, times = clouds.decode(
                 message.fields,
                 message.data,
