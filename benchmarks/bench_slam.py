@@ -22,6 +22,12 @@ the same bag:
   skillset's time went (its `.stats.json`) and when the last scan arrived relative to its clock.
 Throughput is scans over that wall time.
 
+Both sides also print the CPU seconds (user + system) of every process they started, within the
+timed window and over each process's life (benchmarks/cpu_usage.py samples /proc), with the
+benchmark's own process as a row (on Coral's side it runs `coral run`'s supervisor), so a miss
+shows where the time went. CPU seconds barely depend on the machine's load, unlike wall time.
+The Coral side runs in a ROS domain of its own, so no other mission on the machine feeds it.
+
 The machine is shared, so the two sides alternate (`--repeat` pairs, in ABBA order, so a load
 trend favours neither) and the ratio is judged on the median of the per-pair ratios (each pair ran
 under similar load); the worst pair and the best ratio (best Coral over best KISS-ICP) are printed
