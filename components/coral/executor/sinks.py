@@ -1,7 +1,7 @@
 """Where executor status records go: the terminal, a JSON-lines file, a ROS topic, or a plugged-in sink.
 
-A sink is any object with `emit(record)` and `close()`, and optionally `flush()`, which the tick
-loop calls once after each tick (a sink may hold a tick's transitions until then). The executor
+A sink is any object with `emit(record)` and `close()`, and optionally `end_tick()`, which the
+tick loop calls once after each tick (a sink may hold a tick's transitions until then). The executor
 (`coral.executor.running`) builds the ones its options ask for; `--sink MODULE:FACTORY` adds
 others (the operator's Kubernetes sink), where `FACTORY(options: dict) -> sink`. A failing sink
 is reported once and then skipped, so a full disk never stops a robot's mission.
@@ -78,7 +78,7 @@ class TerminalSink:
 class JsonLinesSink:
     """One JSON object per line, for readers (tests, the local runtime) that tail it.
 
-    Transitions are flushed once per tick (`flush`), every other record at once: a tick makes
+    Transitions are flushed once per tick (`end_tick`), every other record at once: a tick makes
     several transitions, and a write to the file per transition was a large part of the tick's cost.
     """
 
@@ -94,7 +94,7 @@ class JsonLinesSink:
             if record.get("event") != "transition":
                 self._file.flush()
 
-    def flush(self) -> None:
+    def end_tick(self) -> None:
         with self._lock:
             if not self._file.closed:
                 self._file.flush()
@@ -170,13 +170,13 @@ class SinkFanout:
                     if sink in self._sinks:
                         self._sinks.remove(sink)
 
-    def flush(self) -> None:
+    def end_tick(self) -> None:
         """Ends a tick: sinks that hold records until then write them out."""
         with self._lock:
-            sinks = [sink for sink in self._sinks if hasattr(sink, "flush")]
+            sinks = [sink for sink in self._sinks if hasattr(sink, "end_tick")]
         for sink in sinks:
             try:
-                sink.flush()
+                sink.end_tick()
             except Exception as err:  # noqa: BLE001 - same rule as emit
                 print(f"Status sink {type(sink).__name__} failed and was dropped: {err}", file=sys.stderr)
                 with self._lock:

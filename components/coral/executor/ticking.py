@@ -148,7 +148,7 @@ class TickLoop:
             while not stop.is_set():
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
-                self.fanout.flush()
+                self.fanout.end_tick()
                 self._check_degraded()
                 if root in (bt.Status.SUCCESS, bt.Status.FAILURE):
                     break
