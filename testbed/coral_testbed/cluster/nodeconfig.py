@@ -270,6 +270,7 @@ def build_containerd(layout: RobotLayout) -> list[str]:
 
 def build_kubelet(layout: RobotLayout, labels: dict[str, str]) -> list[str]:
     node_labels = ",".join(f"{key}={value}" for key, value in sorted(labels.items()))
+    label_flags = [f"--node-labels={node_labels}"] if node_labels else []
     return [
         *enter_robot(layout),
         str(layout.bin_dir / "kubelet"),
@@ -277,7 +278,7 @@ def build_kubelet(layout: RobotLayout, labels: dict[str, str]) -> list[str]:
         f"--kubeconfig={layout.kubelet_kubeconfig}",
         f"--hostname-override={layout.name}",
         f"--node-ip={layout.link.address}",
-        f"--node-labels={node_labels}",
+        *label_flags,
         "--root-dir=/var/lib/kubelet",
         f"--cert-dir={layout.dir / 'kubelet-pki'}",
         "--v=1",
