@@ -20,6 +20,9 @@ from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
 CONFIG_DIR = "/etc/coral"
 SERVICE_ACCOUNT_DIR = "/var/run/secrets/kubernetes.io/serviceaccount"
 READY_MARKER = "ready"
+COMPONENT_UID = 10001
+"""The user Coral's component images run as (`coral`, USER 10001:10001 in their Dockerfiles)."""
+PLUGINS_OWNER = "plugins-owner"
 # The executor loads this with `--sink`; it writes the tree status to the robot's CoralInstance.
 STATUS_SINK = "coral_operator.sink.kubernetes:create_sink"
 
@@ -159,6 +162,30 @@ def _volumes(spec: CoralInstanceSpec, namespace: str, component: Component, role
     return volumes + host_volumes, mounts + host_mounts
 
 
+def _plugins_owner(spec: CoralInstanceSpec, component: Component) -> dict[str, Any]:
+    """An init step giving the plugin folder to the components' user.
+
+    The kubelet creates a `DirectoryOrCreate` host path owned by root with mode 0755, and fsGroup
+    does not apply to host paths, so non-root skillsets could not write their plugins there. This
+    step is root with no capability but CAP_CHOWN, runs `chown` on that one folder and exits; the
+    component itself still runs as its non-root user. It uses the component's own image (the
+    images contract: FROM the Debian runtime, which has `chown`), so nothing more is pulled.
+    """
+    return {
+        "name": PLUGINS_OWNER,
+        "image": component.image,
+        "command": ["chown", f"{COMPONENT_UID}:{COMPONENT_UID}", spec.plugins.mount_path],
+        "volumeMounts": [{"name": "plugins", "mountPath": spec.plugins.mount_path}],
+        "securityContext": {
+            "runAsUser": 0,
+            "runAsNonRoot": False,
+            "allowPrivilegeEscalation": False,
+            "capabilities": {"drop": ["ALL"], "add": ["CHOWN"]},
+        },
+        **({"imagePullPolicy": component.image_pull_policy} if component.image_pull_policy else {}),
+    }
+
+
 def _container(
     spec: CoralInstanceSpec, instance: str, component: Component, role: Role, mounts: list[dict[str, Any]]
 ) -> dict[str, Any]:
@@ -252,6 +279,8 @@ def build_pod(
         "containers": [container],
         "volumes": volumes,
     }
+    if not (component.run_as_root or component.privileged):
+        pod_spec["initContainers"] = [_plugins_owner(spec, component)]
     if role == "executor":
         pod_spec["serviceAccountName"] = naming.executor_account_name(instance)
     return _pod(

@@ -14,8 +14,13 @@ from typing import Any
 import click
 from coral import terminal
 
-from coral_testbed.cluster import binaries, controlplane, demo, realrobots
+from coral_testbed import images
+from coral_testbed.cluster import binaries, controlplane, demo, operatorchart, realrobots
 from coral_testbed.cluster.client import Cluster
+from coral_testbed.images import registry
+
+OPERATOR_NODE = "operator-node"
+"""The real non-robot node `up --operator` schedules the operator onto."""
 
 
 def _say(line: str) -> None:
@@ -63,6 +68,7 @@ def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
             controlplane.ControlPlaneError,
             binaries.BinariesMissing,
             realrobots.RobotError,
+            operatorchart.ChartInstallError,
             ValueError,
         ) as error:
             raise click.ClickException(str(error)) from error
@@ -96,9 +102,22 @@ def dev_cluster() -> None:
 @click.option(
     "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for every robot."
 )
+@click.option(
+    "--operator",
+    "with_operator",
+    is_flag=True,
+    help="Install the operator by Helm from its image, on a real non-robot node "
+    f"({operatorchart.DEFAULT_NAMESPACE}/{operatorchart.DEFAULT_RELEASE}, serving every namespace).",
+)
 @_fail_on_errors
 def up(
-    state_dir: Path, count: int, robot_prefix: str, kwok_count: int, kwok_prefix: str, labels: dict[str, str]
+    state_dir: Path,
+    count: int,
+    robot_prefix: str,
+    kwok_count: int,
+    kwok_prefix: str,
+    labels: dict[str, str],
+    with_operator: bool,
 ) -> None:
     """Start the control plane in the background; print the kubeconfig path once the API is healthy."""
     try:
@@ -117,7 +136,30 @@ def up(
         if wanted:
             cluster.robots.add(wanted, labels, progress=_say)
         _say(f"Real robots {', '.join(names)} are Ready")
+    if with_operator:
+        install_operator(cluster)
     click.echo(str(state.kubeconfig))
+
+
+def install_operator(cluster: Cluster, release: operatorchart.Release | None = None) -> None:
+    """Publishes the operator image, starts the operator node if missing, and `helm install`s the
+    chart there (nothing when the release exists already)."""
+    release = release or operatorchart.Release()
+    assert cluster.bin_dir is not None
+    helm = cluster.bin_dir / "helm"
+    listed = cluster.kubectl("get", "deployments", "-n", release.namespace, "-o", "name", check=False)
+    if f"deployment.apps/{release.name}" in listed.stdout:
+        _say(f"The operator is installed already ({release.namespace}/{release.name})")
+        return
+    address = registry.configured_address()
+    images.publish(address, ["operator"], progress=_say)
+    if OPERATOR_NODE not in cluster.robots.names():
+        cluster.robots.add(
+            [OPERATOR_NODE], {operatorchart.OPERATOR_NODE_LABEL: "true"}, progress=_say, robot=False
+        )
+    _say(f"helm install {release.name} charts/coral-operator -n {release.namespace}")
+    pod = operatorchart.install(cluster.api_client, helm, cluster.env(), release)
+    _say(f"The operator runs in pod {release.namespace}/{pod.metadata.name} on {pod.spec.node_name}")
 
 
 @dev_cluster.command()

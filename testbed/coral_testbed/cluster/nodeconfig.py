@@ -25,6 +25,8 @@ DEFAULT_REGISTRY = "127.0.0.1:5000"
 REGISTRY_ENV = "CORAL_REGISTRY"
 # Image names for robots; containerd maps this host name to the local registry.
 REGISTRY_NAME = "coral.local"
+DOCKER_HUB = "docker.io"
+DOCKER_HUB_ENDPOINT = "registry-1.docker.io"
 CNI_BIN_DIR = "/usr/lib/cni"
 CONTAINERD_SOCKET = "/run/containerd/containerd.sock"
 
@@ -176,15 +178,13 @@ def build_containerd_config(layout: RobotLayout) -> str:
 
 
 def build_registry_hosts(registry: str) -> dict[str, str]:
-    """hosts.toml per registry name: `coral.local` and the registry's own address, both plain HTTP."""
-    body = (
-        f'server = "http://{registry}"\n\n'
-        f'[host."http://{registry}"]\n'
-        '  capabilities = ["pull", "resolve"]\n'
-        "  skip_verify = true\n"
-    )
-    return {REGISTRY_NAME: body, registry: body}
-
+    """hosts.toml per registry name: `coral.local` and the registry's own address, both plain HTTP,
+    and Docker Hub with the registry as its mirror, so the names the examples use as on any cluster
+    (`coral/executor:0.1.0`, i.e. docker.io/coral/executor) resolve on robots without Docker Hub."""
+    mirror = f'[host."http://{registry}"]\n  capabilities = ["pull", "resolve"]\n  skip_verify = true\n'
+    body = f'server = "http://{registry}"\n\n{mirror}'
+    hub = f'server = "https://{DOCKER_HUB_ENDPOINT}"\n\n{mirror}'
+    return {REGISTRY_NAME: body, registry: body, DOCKER_HUB: hub}
 
 def build_cni_config(layout: RobotLayout) -> dict[str, Any]:
     """A bridge inside the robot for pods off the host network, addresses from the robot's pod subnet."""
@@ -270,6 +270,7 @@ def build_containerd(layout: RobotLayout) -> list[str]:
 
 def build_kubelet(layout: RobotLayout, labels: dict[str, str]) -> list[str]:
     node_labels = ",".join(f"{key}={value}" for key, value in sorted(labels.items()))
+    label_flags = [f"--node-labels={node_labels}"] if node_labels else []
     return [
         *enter_robot(layout),
         str(layout.bin_dir / "kubelet"),
@@ -277,7 +278,7 @@ def build_kubelet(layout: RobotLayout, labels: dict[str, str]) -> list[str]:
         f"--kubeconfig={layout.kubelet_kubeconfig}",
         f"--hostname-override={layout.name}",
         f"--node-ip={layout.link.address}",
-        f"--node-labels={node_labels}",
+        *label_flags,
         "--root-dir=/var/lib/kubelet",
         f"--cert-dir={layout.dir / 'kubelet-pki'}",
         "--v=1",

@@ -146,8 +146,13 @@ class RealRobots:
         labels: dict[str, str] | None = None,
         progress: Progress = lambda _: None,
         timeout: float = 180,
+        robot: bool = True,
     ) -> None:
         """Starts real robots and waits until their Nodes are Ready.
+
+        With `robot=False` the nodes are plain cluster nodes (for the operator and other
+        infrastructure): the same kubelet and containerd, but without the robot label, so no
+        CoralSystem ever selects them; `labels` are still set.
 
         Raises:
             RobotError: the machine cannot host them, a name is taken, or a robot failed to start
@@ -183,10 +188,11 @@ class RealRobots:
                     registry=registry,
                     ca_cert=self.pki.ca_cert,
                 )
-                progress(f"Starting real robot {name} at {layout.link.address}")
+                kind = "real robot" if robot else "real node"
+                progress(f"Starting {kind} {name} at {layout.link.address}")
                 # The kubelet registers only the robot label: NodeRestriction refuses kubelets some
                 # label keys, so the others are the administrator's to set, below.
-                self._start_robot(layout, {robots.ROBOT_LABEL: name})
+                self._start_robot(layout, {robots.ROBOT_LABEL: name} if robot else {})
             self.wait_ready(names, timeout=timeout)
             if labels:
                 self._label(names, labels)

@@ -24,9 +24,10 @@ from coral.lidar import generating
 from coral.local.console import outline_of
 from rich.live import Live
 
-from coral_testbed.cluster import controlplane
+from coral_testbed.cluster import controlplane, realrobots
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.missions import domains, following, manifests
+from coral_testbed.missions.realstack import RealMissionStack
 from coral_testbed.missions.stack import MissionStack
 from coral_testbed.waiting import wait_for
 
@@ -102,22 +103,25 @@ def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) 
 def _slam(
     stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
 ) -> dict[str, str]:
-    assert stack.runner is not None
-    link = manifests.place_bag(stack.runner, manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
+    link = stack.place_bag(manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
     echo(f"==> The bag is on {manifests.SLAM_ROBOT} at hostPath {manifests.SLAM_BAG} ({link})")
     _apply(stack, manifests.SLAM_MISSION, domain, echo)
     roots = _follow(stack, [manifests.SLAM_ROBOT], timeout, echo)
     _await_executors_done(stack, echo)
     _kubectl(stack.cluster, echo, "get", "coralsystems,coralinstances", "-n", NAMESPACE)
     _kubectl(stack.cluster, echo, "get", "pods", "-n", NAMESPACE, "-o", "wide")
-    output = stack.pod_dir(manifests.SLAM_ROBOT, "slam")
-    if output is None:
-        echo("No SLAM pod folder: no map to score")
-        return roots
-    evaluation = keep_outputs(slam_demo.evaluate(output, dataset), kept)
+    scratch = Path(tempfile.mkdtemp(prefix="coral-demo-output-"))
+    try:
+        output = stack.component_output(manifests.SLAM_ROBOT, "slam", scratch)
+        if output is None:
+            echo("No SLAM output folder: no map to score")
+            return roots
+        evaluation = keep_outputs(slam_demo.evaluate(output, dataset), kept)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
     echo("")
     echo(f"Mission           : {roots.get(manifests.SLAM_ROBOT)} on {manifests.SLAM_ROBOT}")
-    echo(f"Robot's files     : {output} (removed with the demo's robots)")
+    echo(f"SLAM output       : {output} (removed when the demo ends; kept below)")
     for line in evaluation.summary():
         echo(line)
     return roots
@@ -180,6 +184,27 @@ def _relay(
     return roots
 
 
+def real_robots_missing(cluster: Cluster) -> str | None:
+    """Why the SLAM mission cannot run on real robots here (it then runs on the robot runner)."""
+    reason = realrobots.unsupported_reason(cluster.bin_dir)
+    if reason:
+        return reason
+    if os.geteuid() != 0 or shutil.which("buildah") is None:
+        return "building images needs root and buildah (sudo bash hack/setup-node-runtime.sh)"
+    return None
+
+
+def _stack(mission: str, cluster: Cluster, robots: list[str], root: Path, echo: Echo) -> MissionStack:
+    missing = real_robots_missing(cluster) if mission == "slam" else "the relay runs on the robot runner"
+    if missing is None:
+        echo(f"==> The operator by Helm and real robots ({', '.join(robots)}), namespace {NAMESPACE}")
+        return RealMissionStack(cluster, NAMESPACE, robots, root, echo=echo)
+    echo(f"==> Starting the Coral operator (namespace {NAMESPACE})")
+    echo(f"    and the robot runner ({', '.join(robots)})")
+    echo(f"    (not real robots: {missing})")
+    return MissionStack(cluster, NAMESPACE, robots, root)
+
+
 def run(
     mission: str,
     scans: int,
@@ -208,17 +233,15 @@ def run(
             )
             try:
                 state = controlplane.start(state_dir, progress=lambda line: echo(f"    {line}"))
-                cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True)
-                echo(
-                    f"==> Starting the Coral operator (namespace {NAMESPACE})"
-                    f" and the robot runner ({', '.join(robots)})"
+                cluster = Cluster(
+                    state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir
                 )
-                with MissionStack(cluster, NAMESPACE, robots, Path(folder) / "mission") as stack:
+                with _stack(mission, cluster, robots, Path(folder) / "mission", echo) as stack:
                     _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
                     roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
                     if tree_png is not None:
                         draw_trees(stack, robots, tree_png.resolve(), echo)
-                    echo("==> Stopping the robot runner and the operator")
+                    echo("==> Stopping the robots and the operator")
                 cluster.close()
             finally:
                 stopped = controlplane.stop(state_dir)

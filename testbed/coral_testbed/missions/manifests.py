@@ -21,6 +21,9 @@ RELAY_MISSION = ROOT / "examples" / "relay" / "mission.yaml"
 SLAM_ROBOT = "robot-1"
 RELAY_ROBOTS = ("relay-survey", "relay-server", "relay-worker")
 SLAM_BAG = "/var/lib/coral/bags/lidar-slam"
+CONTAINER_OUTPUT_DIR = "/var/lib/coral/output"
+"""$CORAL_OUTPUT_DIR in the component images (components/Dockerfile): where the SLAM skillset's
+container writes the map and trajectory."""
 SURVEY_BAG = "/var/lib/coral/bags/survey"
 SITE_SHARE = "/srv/maps"
 

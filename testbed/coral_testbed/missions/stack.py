@@ -167,6 +167,15 @@ class MissionStack:
         found = sorted(pods.glob(f"{self.namespace}_*-{component}-?????"), key=lambda p: p.stat().st_mtime)
         return found[-1] if found else None
 
+    def place_bag(self, robot: str, bag: Path, robot_path: str) -> Path:
+        """Makes the bag folder `bag` the robot's hostPath `robot_path`; returns where it is here."""
+        assert self.runner is not None
+        return manifests.place_bag(self.runner, robot, bag, robot_path)
+
+    def component_output(self, robot: str, component: str, scratch: Path) -> Path | None:
+        """The folder where `component` on `robot` wrote its outputs (`scratch` is not needed here)."""
+        return self.pod_dir(robot, component)
+
     def log_tail(self, robot: str, component: str, chars: int = 2000) -> str:
         folder = self.pod_dir(robot, component)
         logs = list((folder / "logs").glob("*.log")) if folder else []

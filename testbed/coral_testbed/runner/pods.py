@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import IO, Any
 
 import yaml
+from coral_operator.planning.pods import PLUGINS_OWNER
 
 from coral_testbed.runner import podspec, podstatus, probes, volumes
 
@@ -94,7 +95,11 @@ class PodWorker:
         self.pod = pod
 
     def _prepare(self) -> None:
-        if self.pod["spec"].get("initContainers"):
+        # The operator's plugin-folder owner step hands a root-made host folder to the components'
+        # user; the runner makes that folder itself and runs every process as its own user, so the
+        # step has nothing to do here. Any other init container (PodPerRobot's sidecars) is refused.
+        inits = [c for c in self.pod["spec"].get("initContainers") or [] if c.get("name") != PLUGINS_OWNER]
+        if inits:
             raise podspec.ContainerConfigError("initContainers are not supported by the robot runner")
         made = volumes.materialise(self.pod, self.robot.root, self._lookup, self._tokens, self.robot.address)
         for container in self.containers:

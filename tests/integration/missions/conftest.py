@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import shutil
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 from coral.lidar import generating
-from coral_testbed.cluster import Cluster
+from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.missions import MissionStack, following
 from coral_testbed.runner import network
 
@@ -65,3 +66,19 @@ def wait_finished(stack: MissionStack, robots: list[str], timeout: float) -> dic
         logs = "\n".join(f"--- {r} executor:\n{stack.log_tail(r, 'executor')}" for r in robots)
         raise AssertionError(f"{error}\n--- operator:\n{stack.operator_log_tail()}\n{logs}") from error
     return {following.robot(i): i for i in items}
+
+
+def place_bag_on_real_robot(fleet: realrobots.RealRobots, robot: str, bag: Path, robot_path: str) -> None:
+    """Copies the bag folder into the real robot's `robot_path` (a link would point outside the
+    robot's mount view, where its containers cannot follow it)."""
+    target = fleet.host_path(robot, robot_path)
+    if target.exists():
+        shutil.rmtree(target)
+    shutil.copytree(bag, target)
+
+
+def first_real_robot(fleet: realrobots.RealRobots) -> str:
+    """The first of the session's real robots (not the operator's node)."""
+    from fixtures.robots import REAL_ROBOTS
+
+    return REAL_ROBOTS[0] if REAL_ROBOTS[0] in fleet.names() else sorted(fleet.names())[0]

@@ -142,6 +142,30 @@ def test_components_run_as_non_root_unless_privileged(spec_dict: Callable[..., d
     assert "/dev/ttyUSB0" in mounts
 
 
+def test_non_root_components_get_the_plugin_folder_through_a_chown_only_init_step(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    built = _pods(
+        spec_dict(
+            drivers=[
+                {"name": "lidar", "image": "l", "privileged": True, "devices": [{"hostPath": "/dev/ttyUSB0"}]}
+            ]
+        )
+    )
+    slam = built["slam"]["spec"]
+    (owner,) = slam["initContainers"]
+    # The kubelet creates the host path root-owned 0755: the step gives it to the components' user
+    # with CAP_CHOWN alone, and the skillset itself stays non-root.
+    assert owner["command"] == ["chown", "10001:10001", "/var/lib/coral/plugins"]
+    assert owner["image"] == slam["containers"][0]["image"]
+    assert owner["securityContext"]["capabilities"] == {"drop": ["ALL"], "add": ["CHOWN"]}
+    assert owner["securityContext"]["allowPrivilegeEscalation"] is False
+    assert [m["name"] for m in owner["volumeMounts"]] == ["plugins"]
+    assert slam["containers"][0]["securityContext"]["runAsNonRoot"] is True
+    # A privileged (root) driver writes the folder as it is.
+    assert "initContainers" not in built["lidar"]["spec"]
+
+
 def test_a_new_revision_changes_only_the_pods_whose_component_changed(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:

@@ -44,11 +44,19 @@ def test_containerd_config_carries_the_traps_and_the_robots_own_paths(tmp_path: 
 
 def test_registry_hosts_send_coral_local_to_the_registry_over_plain_http() -> None:
     hosts = nodeconfig.build_registry_hosts("127.0.0.1:5123")
-    assert set(hosts) == {"coral.local", "127.0.0.1:5123"}
-    for body in hosts.values():
+    assert set(hosts) == {"coral.local", "127.0.0.1:5123", "docker.io"}
+    for name, body in hosts.items():
         parsed = tomllib.loads(body)
-        assert parsed["server"] == "http://127.0.0.1:5123"
+        if name != "docker.io":
+            assert parsed["server"] == "http://127.0.0.1:5123"
         assert parsed["host"]["http://127.0.0.1:5123"]["capabilities"] == ["pull", "resolve"]
+
+
+def test_docker_hub_names_are_mirrored_by_the_registry() -> None:
+    hub = tomllib.loads(nodeconfig.build_registry_hosts("127.0.0.1:5123")["docker.io"])
+    # The registry is tried first; Docker Hub stays the upstream where it is reachable.
+    assert hub["server"] == "https://registry-1.docker.io"
+    assert list(hub["host"]) == ["http://127.0.0.1:5123"]
 
 
 @pytest.mark.parametrize(

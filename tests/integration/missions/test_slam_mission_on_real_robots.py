@@ -1,0 +1,123 @@
+"""The committed SLAM mission on a real robot: the operator installed by Helm, the bag player, both
+skillsets and the executor as containers pulled from the registry, plugins exported through the
+shared host-path folder (owned by the components' non-root user), readiness gating the start, the
+executor writing its tree status with its own token, and `kubectl logs` for every pod."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from coral.lidar import demo as slam_demo
+from coral_testbed.cluster import Cluster, realrobots
+from coral_testbed.missions import following, manifests
+from coral_testbed.waiting import wait_for
+from fixtures.operator import HelmOperator
+from kubernetes import client as k8s
+
+from .conftest import first_real_robot, place_bag_on_real_robot
+
+pytestmark = [
+    pytest.mark.cluster,
+    pytest.mark.slow,
+    pytest.mark.ros,
+    pytest.mark.real_robots,
+    pytest.mark.timeout(600),
+]
+
+GROUP, VERSION = "coral.dev", "v1alpha1"
+
+
+def _instances(custom: k8s.CustomObjectsApi, namespace: str) -> list[dict[str, Any]]:
+    return custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances")["items"]
+
+
+def _started(status: Any) -> Any:
+    state = status.state
+    ran = state.running or state.terminated
+    assert ran is not None and ran.started_at is not None, f"{status.name} never started"
+    return ran.started_at
+
+
+def test_slam_mission_runs_from_images_on_a_real_robot(
+    cluster: Cluster,
+    namespace: str,
+    helm_operator: HelmOperator,
+    real_robots: realrobots.RealRobots,
+    short_bag: Path,
+    ros_env: dict[str, str],
+    tmp_path: Path,
+) -> None:
+    robot = first_real_robot(real_robots)
+    place_bag_on_real_robot(real_robots, robot, short_bag / "bag", manifests.SLAM_BAG)
+    text = manifests.rename_robots(manifests.SLAM_MISSION.read_text(), {manifests.SLAM_ROBOT: robot})
+    text = manifests.with_domain(text, int(ros_env["ROS_DOMAIN_ID"]))
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=text)
+
+    core = k8s.CoreV1Api(cluster.api_client)
+    custom = k8s.CustomObjectsApi(cluster.api_client)
+
+    def pod_states() -> str:
+        lines = []
+        for pod in core.list_namespaced_pod(namespace).items:
+            states = [
+                f"{s.name}={next(k for k, v in s.state.to_dict().items() if v)}"
+                for s in (pod.status.init_container_statuses or []) + (pod.status.container_statuses or [])
+            ]
+            lines.append(f"{pod.metadata.name}: {pod.status.phase} {states}")
+        return "\n".join(lines)
+
+    try:
+        instances = following.follow(
+            lambda: _instances(custom, namespace),
+            lambda items: following.finished(items, [robot]),
+            timeout=420,
+        )
+    except TimeoutError as error:
+        raise AssertionError(
+            f"{error}\n{pod_states()}\n--- operator:\n{helm_operator.logs()[-3000:]}"
+        ) from error
+    (instance,) = [i for i in instances if following.robot(i) == robot]
+    assert following.tree(instance)["rootStatus"] == "SUCCESS", following.describe(instance)
+
+    pods = {
+        p.metadata.labels["coral.dev/component"]: p
+        for p in core.list_namespaced_pod(namespace, label_selector="coral.dev/system=lidar-slam").items
+    }
+    assert set(pods) == {"bag-player", "slam", "snapshot", "executor"}
+    for name, pod in pods.items():
+        assert pod.spec.node_name == robot
+        main = pod.status.container_statuses[0]
+        # Pulled from the registry through the robot's containerd, by the example's own name.
+        assert main.image_id.startswith(("docker.io/coral/", "coral.local/", "127.0.0.1:")), main
+        # `kubectl logs` through the robot's kubelet, for every pod.
+        cluster.kubectl("logs", "-n", namespace, pod.metadata.name, "-c", name)
+    # Skillsets wrote their plugins as uid 10001 into the root-created host path: the readiness
+    # probe (the plugin marker) passed, and only then did the executor start.
+    for skillset in ("slam", "snapshot"):
+        assert pods[skillset].status.container_statuses[0].ready or pods[skillset].status.phase == "Running"
+        assert _started(pods[skillset].status.container_statuses[0]) <= _started(
+            pods["executor"].status.container_statuses[0]
+        )
+    executor = pods["executor"]
+    # The executor's identity is its own ServiceAccount (the status came through its projected
+    # token: no other process of this test writes instance status).
+    assert executor.spec.service_account_name not in (None, "default")
+    assert following.tree(instance).get("tickCount", 0) > 0, following.tree(instance)
+    wait_for(
+        lambda: core.read_namespaced_pod(executor.metadata.name, namespace).status.phase == "Succeeded",
+        timeout=60,
+        message="the executor pod to end Succeeded",
+    )
+
+    # The map and trajectory are in the SLAM container's output folder; `kubectl cp` brings them
+    # here, and they match the bag's ground truth as on the runner.
+    output = tmp_path / "output"
+    cluster.kubectl(
+        "cp", "-n", namespace, "-c", "slam",
+        f"{pods['slam'].metadata.name}:{manifests.CONTAINER_OUTPUT_DIR}", str(output),
+    )  # fmt: skip
+    evaluation = slam_demo.evaluate(output, short_bag)
+    assert evaluation.map_points > 1000, evaluation
+    assert evaluation.error is not None and evaluation.error.ate_rmse_m < 0.5, evaluation.error
