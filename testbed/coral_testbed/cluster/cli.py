@@ -14,7 +14,7 @@ from typing import Any
 import click
 from coral import terminal
 
-from coral_testbed import images
+from coral_testbed import clierrors, images
 from coral_testbed.cluster import binaries, controlplane, demo, operatorchart, realrobots
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.images import registry
@@ -59,21 +59,13 @@ def _running_cluster(state_dir: Path) -> Cluster:
     return Cluster.from_dev_cluster(state_dir)
 
 
-def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
-    @functools.wraps(command)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return command(*args, **kwargs)
-        except (
-            controlplane.ControlPlaneError,
-            binaries.BinariesMissing,
-            realrobots.RobotError,
-            operatorchart.ChartInstallError,
-            ValueError,
-        ) as error:
-            raise click.ClickException(str(error)) from error
-
-    return wrapper
+_fail_on_errors = clierrors.fail_on(
+    controlplane.ControlPlaneError,
+    binaries.BinariesMissing,
+    realrobots.RobotError,
+    operatorchart.ChartInstallError,
+    ValueError,
+)
 
 
 @click.group("dev-cluster")

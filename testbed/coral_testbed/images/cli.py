@@ -6,30 +6,21 @@ stderr; `build` prints one line per image on stdout (name, reference, image ID, 
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from typing import Any
 
 import click
 
+from coral_testbed import clierrors
 from coral_testbed.images import buildah, building, catalog, registry, rootfs
 
-
-def _fail_on_errors(command: Callable[..., Any]) -> Callable[..., Any]:
-    @functools.wraps(command)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return command(*args, **kwargs)
-        except (
-            building.ImageBuildError,
-            buildah.BuildahError,
-            registry.RegistryError,
-            rootfs.RootfsError,
-            ValueError,
-        ) as error:
-            raise click.ClickException(str(error)) from error
-
-    return wrapper
+_fail_on_errors = clierrors.fail_on(
+    building.ImageBuildError,
+    buildah.BuildahError,
+    registry.RegistryError,
+    rootfs.RootfsError,
+    ValueError,
+)
 
 
 def _address_option(command: Callable[..., Any]) -> Callable[..., Any]:
