@@ -10,6 +10,7 @@ one machine are serialized by a lock file, so parallel test sessions share one c
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import os
 import sys
 import time
@@ -64,7 +65,14 @@ def images_dir() -> Path:
 
 
 def registry_storage() -> Path:
-    return binaries.cache_root() / "registry"
+    """The registry storage of this checkout.
+
+    Every checkout pushes the same tags (`coral/executor:0.1.0`), so two checkouts of different
+    trees sharing one storage would hand each other's robots the wrong images. One storage per
+    checkout keeps a tag meaning this tree's image; the local build store stays shared.
+    """
+    checkout = str(find_repository_root().resolve()).encode()
+    return binaries.cache_root() / "registry" / hashlib.sha256(checkout).hexdigest()[:12]
 
 
 def registry_state_dir() -> Path:
