@@ -53,11 +53,17 @@ def is_alive(process: Recorded) -> bool:
     return process_start_time(process.pid) == process.start_time
 
 
-def _die_with_parent() -> None:
-    # Ask the kernel to SIGTERM the child when the starting process dies (test sessions only),
-    # so a killed pytest never leaves a control plane behind.
+def die_with_parent() -> None:
+    """A `preexec_fn`: the kernel SIGTERMs the child when the process that started it dies.
+
+    For test sessions only, so a killed pytest never leaves a control plane or an operator behind.
+    """
     libc = ctypes.CDLL("libc.so.6", use_errno=True)
     libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+# `spawn`'s flag of the same name shadows the function inside it.
+_ask_for_sigterm_on_parent_death = die_with_parent
 
 
 def spawn(
@@ -75,7 +81,7 @@ def spawn(
 
     def prepare() -> None:
         if die_with_parent:
-            _die_with_parent()
+            _ask_for_sigterm_on_parent_death()
         if before_exec is not None:
             before_exec()
 

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 import yaml
 from coral_api import Coral, fleet_mission, is_current_and_true
-from coral_testbed.cluster import binaries
+from coral_testbed.cluster import binaries, processes
 from fixtures.operator import opened_policy
 from fixtures.processes import stop_process_group
 
@@ -191,6 +191,7 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
+            preexec_fn=processes.die_with_parent,
         )
         robots(2, {"fleet": fleet_label})
         coral = Coral(cluster.api_client, namespace)

@@ -24,6 +24,7 @@ from typing import Any
 
 import pytest
 from coral_api import Coral, client_as, condition, fleet_mission, is_current_and_true
+from coral_testbed.cluster import processes
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
 from fixtures.processes import stop_process_group
@@ -44,6 +45,7 @@ SUBTREE_MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </Behavio
 
 def _cap_memory() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
+    processes.die_with_parent()
 
 
 @dataclass
