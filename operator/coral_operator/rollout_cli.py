@@ -14,8 +14,15 @@ from collections.abc import Callable
 from typing import Any
 
 import click
+from coral import terminal
+from rich.console import Group, RenderableType
+from rich.padding import Padding
+from rich.text import Text
 
 from coral_operator import rollout_control
+
+TONE_STYLE = {"ok": "green", "warn": "yellow", "bad": "red", "": ""}
+"""How a terminal colours the tone of a line of `rollout_control.Report`."""
 
 
 def _target(function: Callable[..., None]) -> Callable[..., None]:
@@ -30,6 +37,21 @@ def _target(function: Callable[..., None]) -> Callable[..., None]:
 
     run = click.option("-n", "--namespace", default="default", show_default=True)(run)
     return click.argument("system")(run)
+
+
+def _view(said: rollout_control.Report) -> Group:
+    """The report as rich draws it: the counts as a table, what went wrong in colour; plain text
+    with the same words in a pipe."""
+    parts: list[RenderableType] = [Text(said.title, style="bold")]
+    if said.spec:
+        headers = [header for _key, header in rollout_control.COUNT_COLUMNS]
+        row = [str(said.counts[key]) for key, _header in rollout_control.COUNT_COLUMNS]
+        parts += [
+            Text(f"  {said.spec}"),
+            Padding(terminal.table(headers, [row], right=headers), (0, 0, 0, 2), expand=False),
+        ]
+    parts += [Text(f"  {text}", style=TONE_STYLE[tone]) for text, tone in [*said.notes, said.verdict]]
+    return Group(*parts)
 
 
 @click.group()
@@ -53,18 +75,20 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
     of the spec never counts as complete.
     """
     control = rollout_control.RolloutControl.from_kubeconfig(namespace)
+    out = terminal.console()
     deadline = time.monotonic() + timeout
     last = None
     while True:
         body = control.read(system)
-        text = (
-            json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
-            if output == "json"
-            else rollout_control.describe(body)
-        )
-        if text != last:
-            click.echo(text)
-            last = text
+        if output == "json":
+            text = json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
+            if text != last:
+                click.echo(text)
+        else:
+            text = rollout_control.describe(body)
+            if text != last:
+                out.print(_view(rollout_control.report(body)))
+        last = text
         progress = rollout_control.evaluate_progress(body)
         if progress.failure is not None:
             raise click.ClickException(f"the rollout of {system} failed: {progress.failure}")
