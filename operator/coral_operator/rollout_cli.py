@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import functools
 import json
-import time
 from collections.abc import Callable
 from typing import Any
 
 import click
 from coral import terminal
+from coral.local import polling
 from rich.console import Group, RenderableType
 from rich.padding import Padding
 from rich.text import Text
@@ -76,30 +76,31 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
     """
     control = rollout_control.RolloutControl.from_kubeconfig(namespace)
     out = terminal.console()
-    deadline = time.monotonic() + timeout
-    last = None
-    while True:
+    shown: list[str] = []
+    waiting_for: list[str] = []
+
+    def settled() -> bool:
+        """Shows the rollout if it changed; True once it completed (or at once without --watch)."""
         body = control.read(system)
         if output == "json":
             text = json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
-            if text != last:
+            if shown[-1:] != [text]:
                 click.echo(text)
         else:
             text = rollout_control.describe(body)
-            if text != last:
+            if shown[-1:] != [text]:
                 out.print(_view(rollout_control.report(body)))
-        last = text
+        shown[:] = [text]
         progress = rollout_control.evaluate_progress(body)
         if progress.failure is not None:
             raise click.ClickException(f"the rollout of {system} failed: {progress.failure}")
-        if progress.done or not watch:
-            return
-        if time.monotonic() > deadline:
-            raise click.ClickException(
-                f"the rollout of {system} did not complete within {timeout:g} s "
-                f"(waiting for {progress.waiting_for})"
-            )
-        time.sleep(1.0)
+        waiting_for[:] = [progress.waiting_for]
+        return progress.done or not watch
+
+    if not polling.poll_until(settled, timeout_s=timeout, interval_s=1.0):
+        raise click.ClickException(
+            f"the rollout of {system} did not complete within {timeout:g} s (waiting for {waiting_for[0]})"
+        )
 
 
 @rollout.command("pause")
