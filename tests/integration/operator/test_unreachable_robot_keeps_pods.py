@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 from coral_api import condition, is_current_and_true
+from fixtures.tolerations import robot_down_tolerations
 from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
@@ -23,20 +24,7 @@ def test_an_unreachable_robot_keeps_its_pods(scenario: Scenario) -> None:
             "spec": {
                 "nodeName": lost,
                 "containers": [{"name": "c", "image": "example/ordinary:1"}],
-                "tolerations": [
-                    {
-                        "key": "node.kubernetes.io/not-ready",
-                        "operator": "Exists",
-                        "effect": "NoExecute",
-                        "tolerationSeconds": 1,
-                    },
-                    {
-                        "key": "node.kubernetes.io/unreachable",
-                        "operator": "Exists",
-                        "effect": "NoExecute",
-                        "tolerationSeconds": 1,
-                    },
-                ],
+                "tolerations": robot_down_tolerations(seconds=1),
             },
         },
     )
