@@ -42,7 +42,7 @@ def client_with_token(cluster: Any, token: str) -> k8s.ApiClient:
 
 
 def denied(call: Callable[[], Any]) -> bool:
-    """Whether the API server refuses `call` as forbidden (403); any other error is raised."""
+    """Whether the API server refuses `call` as forbidden (403); another API error is not a refusal."""
     try:
         call()
     except ApiException as error:
