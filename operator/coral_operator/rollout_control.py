@@ -18,9 +18,7 @@ from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 from kubernetes.client.exceptions import ApiException
 
-GROUP, VERSION, PLURAL = "coral.dev", "v1alpha1", "coralsystems"
-UNDO_ANNOTATION = "coral.dev/rollout-undo"
-RESUME_ANNOTATION = "coral.dev/rollout-resume"
+from coral_operator.api import names
 
 
 class RolloutError(Exception):
@@ -45,7 +43,9 @@ class RolloutControl:
 
     def read(self, name: str) -> dict[str, Any]:
         try:
-            return self.custom.get_namespaced_custom_object(GROUP, VERSION, self.namespace, PLURAL, name)
+            return self.custom.get_namespaced_custom_object(
+                names.GROUP, names.VERSION, self.namespace, names.SYSTEM_PLURAL, name
+            )
         except ApiException as error:
             if error.status == 404:
                 raise RolloutError(f"coralsystem/{name} not found in namespace {self.namespace}") from error
@@ -53,7 +53,13 @@ class RolloutControl:
 
     def _patch(self, name: str, body: dict[str, Any]) -> None:
         self.custom.patch_namespaced_custom_object(
-            GROUP, VERSION, self.namespace, PLURAL, name, body, _content_type="application/merge-patch+json"
+            names.GROUP,
+            names.VERSION,
+            self.namespace,
+            names.SYSTEM_PLURAL,
+            name,
+            body,
+            _content_type="application/merge-patch+json",
         )
 
     def pause(self, name: str) -> None:
@@ -65,7 +71,7 @@ class RolloutControl:
         patch: dict[str, Any] = {"spec": {"rollout": {"paused": False}}}
         failure = ((body.get("status") or {}).get("rollout") or {}).get("failure")
         if failure and failure.get("time"):
-            patch["metadata"] = {"annotations": {RESUME_ANNOTATION: failure["time"]}}
+            patch["metadata"] = {"annotations": {names.ANNOTATION_ROLLOUT_RESUME: failure["time"]}}
         self._patch(name, patch)
 
     def undo(self, name: str) -> str:
@@ -80,7 +86,7 @@ class RolloutControl:
             raise RolloutError(f"coralsystem/{name} has no revision before {newest} to return to")
         if (rollout.get("rolledBack") or {}).get("fromRevision") == newest:
             raise RolloutError(f"coralsystem/{name} is already rolled back from revision {newest}")
-        self._patch(name, {"metadata": {"annotations": {UNDO_ANNOTATION: newest}}})
+        self._patch(name, {"metadata": {"annotations": {names.ANNOTATION_ROLLOUT_UNDO: newest}}})
         return str(newest)
 
 

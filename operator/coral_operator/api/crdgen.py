@@ -13,8 +13,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel
 
-from coral_operator.api import instance, system
-from coral_operator.api.base import GROUP, VERSION
+from coral_operator.api import instance, names, system
 
 _KEEP = {
     "type",
@@ -162,9 +161,9 @@ def _crd(
     return {
         "apiVersion": "apiextensions.k8s.io/v1",
         "kind": "CustomResourceDefinition",
-        "metadata": {"name": f"{plural}.{GROUP}"},
+        "metadata": {"name": f"{plural}.{names.GROUP}"},
         "spec": {
-            "group": GROUP,
+            "group": names.GROUP,
             "scope": "Namespaced",
             "names": {
                 "kind": kind,
@@ -176,7 +175,7 @@ def _crd(
             },
             "versions": [
                 {
-                    "name": VERSION,
+                    "name": names.VERSION,
                     "served": True,
                     "storage": True,
                     "subresources": {"status": {}},
@@ -194,8 +193,8 @@ def _crd(
 def build_crds() -> dict[str, dict[str, Any]]:
     """File name -> CRD manifest, for every kind of `coral.dev`."""
     systems = _crd(
-        kind="CoralSystem",
-        plural="coralsystems",
+        kind=names.SYSTEM_KIND,
+        plural=names.SYSTEM_PLURAL,
         short_names=["csys", "coralsys"],
         description="A Coral system (behavior tree, components, ROS parameters) and the robots it runs on.",
         spec_model=system.CoralSystemSpec,
@@ -212,8 +211,8 @@ def build_crds() -> dict[str, dict[str, Any]]:
         ],
     )
     instances = _crd(
-        kind="CoralInstance",
-        plural="coralinstances",
+        kind=names.INSTANCE_KIND,
+        plural=names.INSTANCE_PLURAL,
         short_names=["cinst", "coralinst"],
         description="One robot's share of a CoralSystem: its component pods and its behavior-tree status.",
         spec_model=instance.CoralInstanceSpec,
@@ -230,8 +229,8 @@ def build_crds() -> dict[str, dict[str, Any]]:
         ],
     )
     return {
-        f"{GROUP}_coralsystems.yaml": systems,
-        f"{GROUP}_coralinstances.yaml": instances,
+        f"{names.GROUP}_{names.SYSTEM_PLURAL}.yaml": systems,
+        f"{names.GROUP}_{names.INSTANCE_PLURAL}.yaml": instances,
     }
 
 

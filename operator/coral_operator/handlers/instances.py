@@ -23,6 +23,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
@@ -34,7 +35,7 @@ from coral_operator.status import instance_status, ownership
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.transitions import Verdict, merge_conditions
 
-CORAL = ("coral.dev", "v1alpha1", "coralinstances")
+CORAL = (names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 # Passes of one instance at most this often: a stage's pod is created, scheduled and started in
 # quick succession, and one pass (one status write) after the burst is enough.
 PASS_INTERVAL_S = 0.1
@@ -144,7 +145,7 @@ async def instance_changed(
     QUEUE.add(key)
 
 
-@kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+@kopf.on.event("pods", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT})
 async def pod_changed(
     namespace: str,
     labels: kopf.Labels,
@@ -154,10 +155,10 @@ async def pod_changed(
     **_: Any,
 ) -> None:
     _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
-    QUEUE.add((namespace, labels[naming.LABEL_INSTANCE]))
+    QUEUE.add((namespace, labels[names.LABEL_INSTANCE]))
 
 
-@kopf.on.event("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+@kopf.on.event("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
 async def robot_node_changed(
     type: str | None,
     name: str,
@@ -251,7 +252,7 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
 
 def _pod_component(manifest: dict[str, Any]) -> str:
     """What a refusal of this pod is reported under: its component, or the whole robot's pod."""
-    return manifest["metadata"]["labels"].get(naming.LABEL_COMPONENT, naming.ROBOT_POD)
+    return manifest["metadata"]["labels"].get(names.LABEL_COMPONENT, naming.ROBOT_POD)
 
 
 def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool) -> None:

@@ -19,6 +19,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
+from coral_operator.api import names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.handlers import triggers
@@ -28,8 +29,6 @@ from coral_operator.planning.observed import ObservedInstance, RobotNode
 from coral_operator.status.rollout import evaluate_rollout
 from coral_operator.status.transitions import Verdict
 
-UNDO_ANNOTATION = "coral.dev/rollout-undo"
-RESUME_ANNOTATION = "coral.dev/rollout-resume"
 # A move not seen in the index after this long is forgotten (the write failed or was replaced).
 _EXPECTATION_SECONDS = 60.0
 
@@ -173,8 +172,8 @@ def plan_fleet(
             policy=spec.rollout,
             previous=_previous(uid, status),
             now=now,
-            undo_from=annotations.get(UNDO_ANNOTATION),
-            resumed=annotations.get(RESUME_ANNOTATION),
+            undo_from=annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+            resumed=annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
     )
     with _lock:

@@ -16,6 +16,7 @@ import kopf
 from pydantic import ValidationError
 
 from coral_operator import config
+from coral_operator.api import names
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.handlers import events, rollouts, triggers
 from coral_operator.handlers.indexing import ALL_ROBOTS
@@ -26,7 +27,7 @@ from coral_operator.status.conditions import Reason
 
 CONFIG = config.from_environment()
 log = logging.getLogger(__name__)
-CORAL = ("coral.dev", "v1alpha1", "coralsystems")
+CORAL = (names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
 
 
 def _format_validation(error: ValidationError) -> str:
@@ -137,9 +138,9 @@ def reconcile_system(
     # `coral rollout undo` and `resume` (annotations) are inputs too.
     inputs = (
         meta.get("generation"),
-        annotations.get(triggers.ANNOTATION),
-        annotations.get(rollouts.UNDO_ANNOTATION),
-        annotations.get(rollouts.RESUME_ANNOTATION),
+        annotations.get(names.ANNOTATION_OBSERVED),
+        annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+        annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
     )
     if triggers.already_handled(uid, inputs):
         return

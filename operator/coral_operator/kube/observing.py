@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.planning import naming
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
 from coral_operator.status import transitions
@@ -36,7 +37,7 @@ def robot_node(
     Reachable: the kubelet reports in, so Ready is True or False; the node-lifecycle controller
     turns it Unknown and taints the Node `unreachable` once the kubelet's Lease lapses.
     """
-    robot = labels.get(naming.LABEL_ROBOT)
+    robot = labels.get(names.LABEL_ROBOT)
     if not robot:
         return None
     ready = _condition(status.get("conditions"), "Ready")
@@ -64,10 +65,10 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     waiting_reasons = {w.get("reason") for w in waiting}
     return ObservedPod(
         name=metadata.get("name", ""),
-        component=labels.get(naming.LABEL_COMPONENT, ""),
-        role=labels.get(naming.LABEL_ROLE, ""),
-        revision=labels.get(naming.LABEL_REVISION, ""),
-        pod_hash=(metadata.get("annotations") or {}).get(naming.ANNOTATION_POD_HASH, ""),
+        component=labels.get(names.LABEL_COMPONENT, ""),
+        role=labels.get(names.LABEL_ROLE, ""),
+        revision=labels.get(names.LABEL_REVISION, ""),
+        pod_hash=(metadata.get("annotations") or {}).get(names.ANNOTATION_POD_HASH, ""),
         phase=status.get("phase") or "Pending",
         ready=bool(ready and ready.get("status") == "True"),
         created=parse_time(metadata.get("creationTimestamp")),
@@ -84,7 +85,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
 def observed_pods(body: Mapping[str, Any]) -> tuple[ObservedPod, ...]:
     """The records of a pod: itself for a component pod, one per component for a robot pod."""
     annotations = (body.get("metadata") or {}).get("annotations") or {}
-    if naming.ANNOTATION_COMPONENTS not in annotations:
+    if names.ANNOTATION_COMPONENTS not in annotations:
         return (observed_pod(body),)
     return tuple(_robot_pod_members(body))
 
@@ -133,8 +134,8 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 name=metadata.get("name", ""),
                 component=component,
                 role=role,
-                revision=labels.get(naming.LABEL_REVISION, ""),
-                pod_hash=annotations.get(naming.ANNOTATION_POD_HASH, ""),
+                revision=labels.get(names.LABEL_REVISION, ""),
+                pod_hash=annotations.get(names.ANNOTATION_POD_HASH, ""),
                 phase=phase,
                 ready=ready,
                 created=_waiting_since(container, created),
@@ -145,7 +146,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 if waiting.get("reason") in _IMAGE_PROBLEMS
                 else None,
                 unschedulable=unschedulable,
-                shape_hash=annotations.get(naming.ANNOTATION_SHAPE_HASH, ""),
+                shape_hash=annotations.get(names.ANNOTATION_SHAPE_HASH, ""),
                 images=images,
             )
         )

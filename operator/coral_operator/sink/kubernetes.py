@@ -17,6 +17,8 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api import names
+
 LOG = logging.getLogger(__name__)
 Patcher = Callable[[dict[str, Any]], None]
 
@@ -170,10 +172,10 @@ def build_patcher(api_client: Any, namespace: str, instance: str) -> Patcher:
 
     def patch(body: dict[str, Any]) -> None:
         api.patch_namespaced_custom_object_status(
-            "coral.dev",
-            "v1alpha1",
+            names.GROUP,
+            names.VERSION,
             namespace,
-            "coralinstances",
+            names.INSTANCE_PLURAL,
             instance,
             body,
             _content_type="application/merge-patch+json",
