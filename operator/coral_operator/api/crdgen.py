@@ -13,7 +13,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel
 
-from coral_operator.api import instance, names, system
+from coral_operator.api import instance, keys, names, system
 
 _KEEP = {
     "type",
@@ -127,8 +127,25 @@ def build_schema(model: type[BaseModel]) -> dict[str, Any]:
     return _convert(raw, raw.get("$defs", {}))
 
 
+def _status_path(*wire_names: str) -> str:
+    return ".status." + ".".join(wire_names)
+
+
+def _column(name: str, kind: str, *wire_names: str, wide: bool = False) -> dict[str, Any]:
+    """A printer column over a status field; `wide` ones show only with `-o wide`."""
+    column: dict[str, Any] = {"name": name, "type": kind, "jsonPath": _status_path(*wire_names)}
+    if wide:
+        column["priority"] = 1
+    return column
+
+
 def _condition_column(name: str, ctype: str, field: str = "status", priority: int = 0) -> dict[str, Any]:
-    column = {"name": name, "type": "string", "jsonPath": f'.status.conditions[?(@.type=="{ctype}")].{field}'}
+    conditions = _status_path(keys.SYSTEM_STATUS.conditions)
+    column = {
+        "name": name,
+        "type": "string",
+        "jsonPath": f'{conditions}[?(@.{keys.CONDITION.type}=="{ctype}")].{field}',
+    }
     if priority:
         column["priority"] = priority
     return column
@@ -200,14 +217,14 @@ def build_crds() -> dict[str, dict[str, Any]]:
         spec_model=system.CoralSystemSpec,
         status_model=system.CoralSystemStatus,
         columns=[
-            {"name": "Robots", "type": "integer", "jsonPath": ".status.robots.matched"},
-            {"name": "Ready", "type": "integer", "jsonPath": ".status.robots.ready"},
-            {"name": "Updated", "type": "integer", "jsonPath": ".status.robots.updated"},
-            {"name": "Unreachable", "type": "integer", "jsonPath": ".status.robots.unreachable"},
+            _column("Robots", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.matched),
+            _column("Ready", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.ready),
+            _column("Updated", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.updated),
+            _column("Unreachable", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.unreachable),
             _condition_column("Status", "Ready", "reason"),
-            {"name": "Running", "type": "integer", "jsonPath": ".status.trees.running", "priority": 1},
-            {"name": "Failed", "type": "integer", "jsonPath": ".status.trees.failure", "priority": 1},
-            {"name": "Revision", "type": "string", "jsonPath": ".status.revision", "priority": 1},
+            _column("Running", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.running, wide=True),
+            _column("Failed", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.failure, wide=True),
+            _column("Revision", "string", keys.SYSTEM_STATUS.revision, wide=True),
         ],
     )
     instances = _crd(
@@ -221,9 +238,9 @@ def build_crds() -> dict[str, dict[str, Any]]:
             {"name": "Robot", "type": "string", "jsonPath": ".spec.robot"},
             _condition_column("Ready", "Ready"),
             _condition_column("Reachable", "RobotReachable"),
-            {"name": "Tree", "type": "string", "jsonPath": ".status.tree.rootStatus"},
-            {"name": "Active", "type": "string", "jsonPath": ".status.tree.activePath", "priority": 1},
-            {"name": "Ticks", "type": "integer", "jsonPath": ".status.tree.tickCount", "priority": 1},
+            _column("Tree", "string", keys.INSTANCE_STATUS.tree, keys.TREE.root_status),
+            _column("Active", "string", keys.INSTANCE_STATUS.tree, keys.TREE.active_path, wide=True),
+            _column("Ticks", "integer", keys.INSTANCE_STATUS.tree, keys.TREE.tick_count, wide=True),
             {"name": "Revision", "type": "string", "jsonPath": ".spec.revision", "priority": 1},
             {"name": "Node", "type": "string", "jsonPath": ".spec.nodeName", "priority": 1},
         ],

@@ -23,7 +23,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
-from coral_operator.api import names
+from coral_operator.api import keys, names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
@@ -184,7 +184,7 @@ async def robot_node_changed(
 def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, Any]) -> dict[str, Any]:
     message = "; ".join(f"spec.{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
     conditions = merge_conditions(
-        list(status.get("conditions") or []),
+        list(status.get(keys.INSTANCE_STATUS.conditions) or []),
         [
             Verdict(ConditionType.READY, False, Reason.INVALID_SPEC, message),
             Verdict(ConditionType.RECONCILING, False, Reason.INVALID_SPEC),
@@ -193,7 +193,10 @@ def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, A
         generation=record.generation,
         now=datetime.now(UTC),
     )
-    return {"conditions": conditions, "observedGeneration": record.generation}
+    return {
+        keys.INSTANCE_STATUS.conditions: conditions,
+        keys.INSTANCE_STATUS.observed_generation: record.generation,
+    }
 
 
 def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> dict[str, str]:
@@ -275,8 +278,9 @@ def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool
 
 def _verdicts(status: dict[str, Any]) -> tuple[Any, ...]:
     """What the system's rollout reads of an instance's status: written the moment it changes."""
-    states = {c.get("type"): c.get("status") for c in status.get("conditions") or []}
-    return status.get("observedGeneration"), states.get("Ready"), states.get("Stalled")
+    conditions = status.get(keys.INSTANCE_STATUS.conditions) or []
+    states = {c.get(keys.CONDITION.type): c.get(keys.CONDITION.status) for c in conditions}
+    return status.get(keys.INSTANCE_STATUS.observed_generation), states.get("Ready"), states.get("Stalled")
 
 
 def _patch_value(old: Any, new: Any) -> Any:
@@ -307,7 +311,9 @@ def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str
             _last_write[record.uid] = now
         # After the write, so a deferred or failed one cannot post the same transition twice.
         events.on_condition_changes(
-            record.reference, list(current.get("conditions") or []), list(new.get("conditions") or [])
+            record.reference,
+            list(current.get(keys.INSTANCE_STATUS.conditions) or []),
+            list(new.get(keys.INSTANCE_STATUS.conditions) or []),
         )
 
 
@@ -370,11 +376,11 @@ def _reconcile(record: InstanceRecord) -> None:
         pods=observed,
         plan=plan,
         transient=transient,
-        tree=status.get("tree"),
-        plugins=status.get("plugins"),
+        tree=status.get(keys.INSTANCE_STATUS.tree),
+        plugins=status.get(keys.INSTANCE_STATUS.plugins),
         refused=refused,
     )
-    old_conditions = list(status.get("conditions") or [])
+    old_conditions = list(status.get(keys.INSTANCE_STATUS.conditions) or [])
     new = instance_status.build_instance_status(
         view, old_conditions=old_conditions, generation=record.generation, now=now
     )

@@ -19,7 +19,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
-from coral_operator.api import names
+from coral_operator.api import keys, names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.handlers import triggers
@@ -121,7 +121,7 @@ def _views(
                 revision=revision,
                 ready=ready,
                 online=robot.ready,
-                tree_root=instance.tree_root if instance else None,
+                root_status=instance.root_status if instance else None,
                 stalled=bool(getattr(instance, "stalled", False)),
                 canary=canary is not None and selection.matches(canary.robots, robot.labels),
             )
@@ -135,7 +135,8 @@ def _previous(uid: str, status: kopf.Status) -> RolloutStatus | None:
     if written is not None:
         return written
     try:
-        return RolloutStatus.model_validate(status.get("rollout")) if status.get("rollout") else None
+        written = status.get(keys.SYSTEM_STATUS.rollout)
+        return RolloutStatus.model_validate(written) if written else None
     except ValidationError:
         return None
 
@@ -205,9 +206,9 @@ def plan_fleet(
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
     wire = decision.status.to_wire()
-    for key in ("failure", "rolledBack", "canary"):
+    for key in (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary):
         # Status is merge-patched: a field that went away must be written as null to be removed.
-        if key not in wire and key in (status.get("rollout") or {}):
+        if key not in wire and key in (status.get(keys.SYSTEM_STATUS.rollout) or {}):
             wire[key] = None
     return FleetPlan(
         desired=desired,

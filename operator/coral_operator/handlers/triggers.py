@@ -110,7 +110,7 @@ def _instances_digest(instances: list[ObservedInstance]) -> str:
                 i.ready,
                 i.reachable,
                 i.node_ready,
-                i.tree_root,
+                i.root_status,
                 i.stalled,
                 bool(i.spec.get("retiring")),
             )

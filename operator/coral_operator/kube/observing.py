@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
 
-from coral_operator.api import names
+from coral_operator.api import keys, names
 from coral_operator.planning import naming
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
 from coral_operator.status import transitions
@@ -196,9 +196,9 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
     metadata = body.get("metadata", {})
     spec = dict(body.get("spec") or {})
     status = body.get("status") or {}
-    ready = _condition(status.get("conditions"), "Ready")
-    stalled = _condition(status.get("conditions"), "Stalled")
-    robot = status.get("robot") or {}
+    ready = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Ready")
+    stalled = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Stalled")
+    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
     return ObservedInstance(
         name=metadata.get("name", ""),
         robot=spec.get("robot", ""),
@@ -206,20 +206,20 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
         revision=spec.get("revision", ""),
         ready=bool(
             ready
-            and ready.get("status") == "True"
-            and ready.get("observedGeneration") == metadata.get("generation")
+            and ready.get(keys.CONDITION.status) == "True"
+            and ready.get(keys.CONDITION.observed_generation) == metadata.get("generation")
         ),
-        reachable=robot.get("reachable"),
-        node_ready=robot.get("nodeReady"),
-        tree_root=(status.get("tree") or {}).get("rootStatus"),
+        reachable=robot.get(keys.ROBOT.reachable),
+        node_ready=robot.get(keys.ROBOT.node_ready),
+        root_status=(status.get(keys.INSTANCE_STATUS.tree) or {}).get(keys.TREE.root_status),
         labels=dict(metadata.get("labels") or {}),
         # An instance Stalled only because its robot is away is not a failed robot: `reachable`
         # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
             stalled
-            and stalled.get("status") == "True"
-            and stalled.get("observedGeneration") == metadata.get("generation")
-            and stalled.get("reason") != "NodeUnreachable"
+            and stalled.get(keys.CONDITION.status) == "True"
+            and stalled.get(keys.CONDITION.observed_generation) == metadata.get("generation")
+            and stalled.get(keys.CONDITION.reason) != "NodeUnreachable"
         ),
     )
 

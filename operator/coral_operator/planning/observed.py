@@ -68,7 +68,7 @@ class ObservedInstance:
     reachable: bool | None = None
     node_ready: bool | None = None
     """The robot's Node is Ready (None before the instance's first status)."""
-    tree_root: str | None = None
+    root_status: str | None = None
     labels: dict[str, str] = field(default_factory=dict)
     stalled: bool = False
     """The instance is Stalled at its current generation (a component failed, or startup timed out)."""

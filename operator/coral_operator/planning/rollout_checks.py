@@ -42,7 +42,7 @@ class RobotView:
     """The instance is Ready at its current generation."""
     online: bool = True
     """The robot's Node is Ready."""
-    tree_root: str | None = None
+    root_status: str | None = None
     """Root status the executor reported (RUNNING, SUCCESS, FAILURE, ...)."""
     stalled: bool = False
     """The instance is Stalled (a component failed, or startup timed out with `Block`)."""
@@ -121,8 +121,8 @@ def check_gate(robot: RobotView, target: str) -> Gate:
     offline robot is never failed: its status is stale."""
     if robot.revision != target:
         return Gate(False, False, "NotOnTarget")
-    tree_failed = robot.ready and robot.tree_root == FAILURE
-    passed = robot.ready and robot.tree_root != FAILURE
+    tree_failed = robot.ready and robot.root_status == FAILURE
+    passed = robot.ready and robot.root_status != FAILURE
     failed = robot.online and (robot.stalled or tree_failed)
     if failed:
         return Gate(passed, True, "TreeFailed" if tree_failed else "Stalled")
@@ -307,7 +307,7 @@ def check_lock(robot: RobotView, interrupt_running_trees: bool) -> Lock:
     """A robot whose tree is RUNNING is not moved unless `interruptRunningTrees` is set."""
     if not robot.online:
         return Lock(False, "Offline")
-    if robot.tree_root != RUNNING:
+    if robot.root_status != RUNNING:
         return Lock(False, "TreeNotRunning")
     if interrupt_running_trees:
         return Lock(False, "InterruptAllowed")

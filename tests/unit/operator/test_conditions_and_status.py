@@ -145,7 +145,7 @@ def _instance(
         revision=revision,
         ready=ready,
         reachable=reachable,
-        tree_root=tree,
+        root_status=tree,
         stalled=stalled,
     )
 

@@ -91,13 +91,13 @@ def test_target(
     ("view", "passed", "failed", "reason"),
     [
         row("a robot on another revision is not judged", robot(revision=B), False, False, "NotOnTarget"),
-        row("Ready with a running tree passes", robot(tree_root="RUNNING"), True, False, "Healthy"),
+        row("Ready with a running tree passes", robot(root_status="RUNNING"), True, False, "Healthy"),
         row("Ready before any tree report passes", robot(), True, False, "Healthy"),
-        row("Ready with a failed tree fails", robot(tree_root="FAILURE"), False, True, "TreeFailed"),
+        row("Ready with a failed tree fails", robot(root_status="FAILURE"), False, True, "TreeFailed"),
         row("a Stalled instance fails", robot(ready=False, stalled=True), False, True, "Stalled"),
         row("not Ready yet is neither", robot(ready=False), False, False, "NotReady"),
         row("an offline robot's failed tree is stale and not failed",
-            robot(online=False, tree_root="FAILURE"), False, False, "Offline"),
+            robot(online=False, root_status="FAILURE"), False, False, "Offline"),
     ],
 )
 def test_health_gate(view: RobotView, passed: bool, failed: bool, reason: str) -> None:
@@ -113,11 +113,12 @@ FAILED_C = RolloutFailure(revision=C, robots=["r1"], message="m", time="2026-01-
     [
         row("healthy robots mid-rollout: carry on", [robot(), robot("r2", B)], None, None, "Pause",
             C, False, None, "NoRobotFailing"),
-        row("a failing robot mid-rollout pauses", [robot(tree_root="FAILURE"), robot("r2", B)], None, None,
+        row("a failing robot mid-rollout pauses", [robot(root_status="FAILURE"), robot("r2", B)], None, None,
             "Pause", C, True, "RolloutFailed", "FailedPause"),
-        row("a failing robot mid-rollout rolls back when asked", [robot(tree_root="FAILURE"), robot("r2", B)],
-            None, None, "Rollback", B, False, "RolloutRolledBack", "FailedRollBack"),
-        row("a failure after the rollout completed is no rollout failure", [robot(tree_root="FAILURE")],
+        row("a failing robot mid-rollout rolls back when asked",
+            [robot(root_status="FAILURE"), robot("r2", B)], None, None, "Rollback", B, False,
+            "RolloutRolledBack", "FailedRollBack"),
+        row("a failure after the rollout completed is no rollout failure", [robot(root_status="FAILURE")],
             RolloutStatus(revision=C, complete=True), None, "Rollback", C, False, None, "NotUnderWay"),
         row("a recorded failure keeps the rollout paused", [robot(), robot("r2", B)],
             RolloutStatus(revision=C, failure=FAILED_C), None, "Pause", C, True, None, "FailureRecorded"),
@@ -161,7 +162,7 @@ def test_failure(
 def test_a_first_revision_has_nowhere_to_go_back_to() -> None:
     verdict = checks.check_failure(
         target=checks.check_target(A, (A,), None, None),
-        robots=[robot(revision=A, tree_root="FAILURE"), robot("r2", revision=None)],
+        robots=[robot(revision=A, root_status="FAILURE"), robot("r2", revision=None)],
         history=(A,),
         previous=None,
         resumed=None,
@@ -249,13 +250,13 @@ def test_canary(
 @pytest.mark.parametrize(
     ("view", "interrupt", "held", "reason"),
     [
-        row("a running tree holds its robot", robot(tree_root="RUNNING"), False, True, "TreeRunning"),
-        row("unless running trees may be interrupted", robot(tree_root="RUNNING"), True, False,
+        row("a running tree holds its robot", robot(root_status="RUNNING"), False, True, "TreeRunning"),
+        row("unless running trees may be interrupted", robot(root_status="RUNNING"), True, False,
             "InterruptAllowed"),
-        row("a finished tree does not hold", robot(tree_root="SUCCESS"), False, False, "TreeNotRunning"),
-        row("a failed tree does not hold", robot(tree_root="FAILURE"), False, False, "TreeNotRunning"),
+        row("a finished tree does not hold", robot(root_status="SUCCESS"), False, False, "TreeNotRunning"),
+        row("a failed tree does not hold", robot(root_status="FAILURE"), False, False, "TreeNotRunning"),
         row("no tree report does not hold", robot(), False, False, "TreeNotRunning"),
-        row("an offline robot is left to the offline rule", robot(online=False, tree_root="RUNNING"), False,
+        row("an offline robot is left to the offline rule", robot(online=False, root_status="RUNNING"), False,
             False, "Offline"),
     ],
 )
@@ -337,7 +338,7 @@ def test_wave(
         row("every robot healthy on the target", [robot(), robot("r2")], {}, True, "Complete"),
         row("a robot still moving", [robot()], {"r2": C}, False, "RobotsMoving"),
         row("a robot on the old revision", [robot(), robot("r2", B)], {}, False, "NotAllHealthy"),
-        row("a robot with a failed tree", [robot(tree_root="FAILURE")], {}, False, "NotAllHealthy"),
+        row("a robot with a failed tree", [robot(root_status="FAILURE")], {}, False, "NotAllHealthy"),
         row("no robot at all", [], {}, True, "Complete"),
     ],
 )
