@@ -39,7 +39,7 @@ def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
     plugins = dict(state.get(keys.INSTANCE_STATUS.plugins) or {})
     event = record.get("event")
     if event == "status":
-        tree[keys.TREE.root_status] = str(record.get("root", tree.get(keys.TREE.root_status, "IDLE")))
+        tree[keys.TREE.root_status] = str(record.get("root_status", tree.get(keys.TREE.root_status, "IDLE")))
         tree[keys.TREE.tick_count] = int(record.get("tick_count", tree.get(keys.TREE.tick_count, 0)))
         tree[keys.TREE.active_path] = str(record.get("active_path") or "")
         if record.get("last_transition_time") is not None:
