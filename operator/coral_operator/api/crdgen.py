@@ -139,7 +139,10 @@ def _column(name: str, kind: str, *wire_names: str, wide: bool = False) -> dict[
     return column
 
 
-def _condition_column(name: str, ctype: str, field: str = "status", priority: int = 0) -> dict[str, Any]:
+def _condition_column(
+    name: str, ctype: str, field: str = keys.CONDITION.status, priority: int = 0
+) -> dict[str, Any]:
+    # Both kinds' status call their condition list alike.
     conditions = _status_path(keys.SYSTEM_STATUS.conditions)
     column = {
         "name": name,
@@ -221,7 +224,7 @@ def build_crds() -> dict[str, dict[str, Any]]:
             _column("Ready", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.ready),
             _column("Updated", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.updated),
             _column("Unreachable", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.unreachable),
-            _condition_column("Status", "Ready", "reason"),
+            _condition_column("Status", "Ready", keys.CONDITION.reason),
             _column("Running", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.running, wide=True),
             _column("Failed", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.failure, wide=True),
             _column("Revision", "string", keys.SYSTEM_STATUS.revision, wide=True),
