@@ -20,6 +20,7 @@ from rich.padding import Padding
 from rich.text import Text
 
 from coral_operator import rollout_control
+from coral_operator.api import keys
 
 TONE_STYLE = {"ok": "green", "warn": "yellow", "bad": "red", "": ""}
 """How a terminal colours the tone of a line of `rollout_control.Report`."""
@@ -83,7 +84,7 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
         """Shows the rollout if it changed; True once it completed (or at once without --watch)."""
         body = control.read(system)
         if output == "json":
-            text = json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
+            text = json.dumps((body.get("status") or {}).get(keys.SYSTEM_STATUS.rollout) or {}, indent=2)
             if shown[-1:] != [text]:
                 click.echo(text)
         else:

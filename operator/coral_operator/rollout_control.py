@@ -18,9 +18,7 @@ from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 from kubernetes.client.exceptions import ApiException
 
-GROUP, VERSION, PLURAL = "coral.dev", "v1alpha1", "coralsystems"
-UNDO_ANNOTATION = "coral.dev/rollout-undo"
-RESUME_ANNOTATION = "coral.dev/rollout-resume"
+from coral_operator.api import keys, names
 
 
 class RolloutError(Exception):
@@ -45,7 +43,9 @@ class RolloutControl:
 
     def read(self, name: str) -> dict[str, Any]:
         try:
-            return self.custom.get_namespaced_custom_object(GROUP, VERSION, self.namespace, PLURAL, name)
+            return self.custom.get_namespaced_custom_object(
+                names.GROUP, names.VERSION, self.namespace, names.SYSTEM_PLURAL, name
+            )
         except ApiException as error:
             if error.status == 404:
                 raise RolloutError(f"coralsystem/{name} not found in namespace {self.namespace}") from error
@@ -53,7 +53,13 @@ class RolloutControl:
 
     def _patch(self, name: str, body: dict[str, Any]) -> None:
         self.custom.patch_namespaced_custom_object(
-            GROUP, VERSION, self.namespace, PLURAL, name, body, _content_type="application/merge-patch+json"
+            names.GROUP,
+            names.VERSION,
+            self.namespace,
+            names.SYSTEM_PLURAL,
+            name,
+            body,
+            _content_type="application/merge-patch+json",
         )
 
     def pause(self, name: str) -> None:
@@ -63,24 +69,25 @@ class RolloutControl:
     def resume(self, name: str) -> None:
         body = self.read(name)
         patch: dict[str, Any] = {"spec": {"rollout": {"paused": False}}}
-        failure = ((body.get("status") or {}).get("rollout") or {}).get("failure")
-        if failure and failure.get("time"):
-            patch["metadata"] = {"annotations": {RESUME_ANNOTATION: failure["time"]}}
+        rollout = (body.get("status") or {}).get(keys.SYSTEM_STATUS.rollout) or {}
+        failed_at = (rollout.get(keys.ROLLOUT.failure) or {}).get(keys.ROLLOUT_FAILURE.time)
+        if failed_at:
+            patch["metadata"] = {"annotations": {names.ANNOTATION_ROLLOUT_RESUME: failed_at}}
         self._patch(name, patch)
 
     def undo(self, name: str) -> str:
         """Roll back from the spec's newest revision; returns that revision."""
         body = self.read(name)
-        rollout = (body.get("status") or {}).get("rollout") or {}
-        history = rollout.get("history") or []
+        rollout = (body.get("status") or {}).get(keys.SYSTEM_STATUS.rollout) or {}
+        history = rollout.get(keys.ROLLOUT.history) or []
         if not history:
             raise RolloutError(f"coralsystem/{name} has no revision yet; nothing to undo")
         newest = history[-1]
         if len(history) < 2:
             raise RolloutError(f"coralsystem/{name} has no revision before {newest} to return to")
-        if (rollout.get("rolledBack") or {}).get("fromRevision") == newest:
+        if (rollout.get(keys.ROLLOUT.rolled_back) or {}).get(keys.ROLLED_BACK.from_revision) == newest:
             raise RolloutError(f"coralsystem/{name} is already rolled back from revision {newest}")
-        self._patch(name, {"metadata": {"annotations": {UNDO_ANNOTATION: newest}}})
+        self._patch(name, {"metadata": {"annotations": {names.ANNOTATION_ROLLOUT_UNDO: newest}}})
         return str(newest)
 
 
@@ -98,7 +105,7 @@ class Progress:
 
 def _generations(body: dict[str, Any]) -> tuple[int | None, int | None]:
     generation = (body.get("metadata") or {}).get("generation")
-    observed = (body.get("status") or {}).get("observedGeneration")
+    observed = (body.get("status") or {}).get(keys.SYSTEM_STATUS.observed_generation)
     return generation, observed
 
 
@@ -108,14 +115,25 @@ def _stalled(body: dict[str, Any]) -> str | None:
     A Stalled system cannot complete its rollout without a change, so waiting longer cannot help.
     """
     generation, _ = _generations(body)
-    for condition in (body.get("status") or {}).get("conditions") or []:
+    for condition in (body.get("status") or {}).get(keys.SYSTEM_STATUS.conditions) or []:
         if (
-            condition.get("type") == "Stalled"
-            and condition.get("status") == "True"
-            and condition.get("observedGeneration") == generation
+            condition.get(keys.CONDITION.type) == "Stalled"
+            and condition.get(keys.CONDITION.status) == "True"
+            and condition.get(keys.CONDITION.observed_generation) == generation
         ):
-            return f"{condition.get('reason')}: {condition.get('message') or 'Stalled'}"
+            message = condition.get(keys.CONDITION.message) or "Stalled"
+            return f"{condition.get(keys.CONDITION.reason)}: {message}"
     return None
+
+
+def _counts(rollout: dict[str, Any]) -> dict[str, int]:
+    """`status.rollout.counts` by wire name, every count present; an absent count is 0."""
+    counts = rollout.get(keys.ROLLOUT.counts) or {}
+    return {key: int(counts.get(key, 0)) for key in keys.ROLLOUT_COUNTS}
+
+
+def _failure_message(rollout: dict[str, Any]) -> str:
+    return str(rollout[keys.ROLLOUT.failure].get(keys.ROLLOUT_FAILURE.message, ""))
 
 
 def evaluate_progress(body: dict[str, Any]) -> Progress:
@@ -123,36 +141,38 @@ def evaluate_progress(body: dict[str, Any]) -> Progress:
     generation, observed = _generations(body)
     if generation is not None and (observed is None or observed < generation):
         return Progress(False, None, f"the operator to observe generation {generation}")
-    rollout = (body.get("status") or {}).get("rollout") or {}
+    rollout = (body.get("status") or {}).get(keys.SYSTEM_STATUS.rollout) or {}
     if not rollout:
         stalled = _stalled(body)
         if stalled:
             return Progress(False, f"the system is Stalled ({stalled})", "")
         return Progress(False, None, "the operator's first rollout report")
-    if rollout.get("failure"):
-        return Progress(False, f"health gate failed: {rollout['failure'].get('message', '')}", "")
-    back = rollout.get("rolledBack")
+    if rollout.get(keys.ROLLOUT.failure):
+        return Progress(False, f"health gate failed: {_failure_message(rollout)}", "")
+    back = rollout.get(keys.ROLLOUT.rolled_back)
     if back:
+        left, right = back.get(keys.ROLLED_BACK.from_revision), back.get(keys.ROLLED_BACK.to_revision)
         return Progress(
             False,
-            f"rolled back from revision {back.get('fromRevision')} to {back.get('toRevision')} "
-            f"({back.get('reason', 'Undo')}); the spec's revision does not run until the spec changes",
+            f"rolled back from revision {left} to {right} ({back.get(keys.ROLLED_BACK.reason, 'Undo')}); "
+            "the spec's revision does not run until the spec changes",
             "",
         )
     stalled = _stalled(body)
     if stalled:
         return Progress(False, f"the system is Stalled ({stalled})", "")
-    if rollout.get("complete"):
+    if rollout.get(keys.ROLLOUT.complete):
         return Progress(True, None, "")
-    if rollout.get("paused"):
+    if rollout.get(keys.ROLLOUT.paused):
         return Progress(False, None, "the rollout to be resumed (coral rollout resume)")
-    counts = rollout.get("counts") or {}
+    counts = _counts(rollout)
     waiting = (
-        f"{counts.get('total', 0) - counts.get('healthy', 0)} of {counts.get('total', 0)} robots "
-        f"to run revision {rollout.get('revision')} and pass the health gate"
+        f"{counts[keys.ROLLOUT_COUNTS.total] - counts[keys.ROLLOUT_COUNTS.healthy]} of "
+        f"{counts[keys.ROLLOUT_COUNTS.total]} robots "
+        f"to run revision {rollout.get(keys.ROLLOUT.revision)} and pass the health gate"
     )
-    if rollout.get("waitingFor"):
-        waiting += f" ({', '.join(rollout['waitingFor'])})"
+    if rollout.get(keys.ROLLOUT.waiting_for):
+        waiting += f" ({', '.join(rollout[keys.ROLLOUT.waiting_for])})"
     return Progress(False, None, waiting)
 
 
@@ -163,13 +183,13 @@ def finished(body: dict[str, Any]) -> bool:
 
 
 COUNT_COLUMNS = (
-    ("total", "ROBOTS"),
-    ("updated", "UPDATED"),
-    ("healthy", "HEALTHY"),
-    ("unavailable", "UNAVAILABLE"),
-    ("maxUnavailable", "MAX UNAVAILABLE"),
-    ("locked", "LOCKED"),
-    ("offline", "OFFLINE"),
+    (keys.ROLLOUT_COUNTS.total, "ROBOTS"),
+    (keys.ROLLOUT_COUNTS.updated, "UPDATED"),
+    (keys.ROLLOUT_COUNTS.healthy, "HEALTHY"),
+    (keys.ROLLOUT_COUNTS.unavailable, "UNAVAILABLE"),
+    (keys.ROLLOUT_COUNTS.max_unavailable, "MAX UNAVAILABLE"),
+    (keys.ROLLOUT_COUNTS.locked, "LOCKED"),
+    (keys.ROLLOUT_COUNTS.offline, "OFFLINE"),
 )
 """The robot counts of `status.rollout.counts` and their column headers in `coral rollout status`."""
 
@@ -196,11 +216,11 @@ def report(body: dict[str, Any]) -> Report:
     waits for, and whether it is complete, failed or in progress."""
     name = body["metadata"]["name"]
     status = body.get("status") or {}
-    rollout = status.get("rollout")
+    rollout = status.get(keys.SYSTEM_STATUS.rollout)
     generation, observed = _generations(body)
     progress = evaluate_progress(body)
     if not rollout:
-        revision = status.get("revision", "unknown")
+        revision = status.get(keys.SYSTEM_STATUS.revision, "unknown")
         return Report(
             title=f"coralsystem/{name}: no rollout reported yet (revision {revision})",
             spec="",
@@ -208,45 +228,44 @@ def report(body: dict[str, Any]) -> Report:
             notes=[],
             verdict=(f"waiting for {progress.waiting_for}", "bad" if progress.failure else "warn"),
         )
-    counts = {key: int((rollout.get("counts") or {}).get(key, 0)) for key, _header in COUNT_COLUMNS}
-    history = rollout.get("history") or []
-    target = rollout.get("revision")
+    every_count = _counts(rollout)
+    counts = {key: every_count[key] for key, _header in COUNT_COLUMNS}
+    history = rollout.get(keys.ROLLOUT.history) or []
+    target = rollout.get(keys.ROLLOUT.revision)
+    previous = rollout.get(keys.ROLLOUT.previous_revision)
     notes: list[tuple[str, str]] = []
-    canary = rollout.get("canary")
+    canary = rollout.get(keys.ROLLOUT.canary)
     if canary:
+        healthy, robots = canary.get(keys.CANARY.healthy, 0), canary.get(keys.CANARY.robots, 0)
         notes.append(
             (
-                f"canary: {canary.get('healthy', 0)} of {canary.get('robots', 0)} healthy"
-                + (", promoted" if canary.get("promoted") else "")
-                + (f", healthy since {canary['healthySince']}" if canary.get("healthySince") else ""),
+                f"canary: {healthy} of {robots} healthy"
+                + (", promoted" if canary.get(keys.CANARY.promoted) else "")
+                + (f", healthy since {since}" if (since := canary.get(keys.CANARY.healthy_since)) else ""),
                 "",
             )
         )
-    if rollout.get("rolledBack"):
-        back = rollout["rolledBack"]
-        notes.append(
-            (
-                f"rolled back from {back.get('fromRevision')} to {back.get('toRevision')} "
-                f"({back.get('reason')})",
-                "warn",
-            )
-        )
-    if rollout.get("failure"):
-        notes.append((f"failure: {rollout['failure'].get('message', '')}", "bad"))
-    if rollout.get("waitingFor"):
-        notes.append((f"waiting for: {', '.join(rollout['waitingFor'])}", ""))
+    if rollout.get(keys.ROLLOUT.rolled_back):
+        back = rollout[keys.ROLLOUT.rolled_back]
+        left, right = back.get(keys.ROLLED_BACK.from_revision), back.get(keys.ROLLED_BACK.to_revision)
+        notes.append((f"rolled back from {left} to {right} ({back.get(keys.ROLLED_BACK.reason)})", "warn"))
+    if rollout.get(keys.ROLLOUT.failure):
+        notes.append((f"failure: {_failure_message(rollout)}", "bad"))
+    if rollout.get(keys.ROLLOUT.waiting_for):
+        notes.append((f"waiting for: {', '.join(rollout[keys.ROLLOUT.waiting_for])}", ""))
     if progress.done:
-        verdict = (f"complete: {rollout.get('message', '')}", "ok")
+        verdict = (f"complete: {rollout.get(keys.ROLLOUT.message, '')}", "ok")
     elif progress.failure:
         verdict = (f"failed: {progress.failure}", "bad")
     else:
-        verdict = (f"in progress, waiting for {progress.waiting_for}: {rollout.get('message', '')}", "warn")
+        message = rollout.get(keys.ROLLOUT.message, "")
+        verdict = (f"in progress, waiting for {progress.waiting_for}: {message}", "warn")
     return Report(
-        title=f"coralsystem/{name} revision {target} (previous {rollout.get('previousRevision') or 'none'})",
+        title=f"coralsystem/{name} revision {target} (previous {previous or 'none'})",
         spec=(
             f"spec revision {history[-1] if history else target}, generation {generation} "
-            f"(observed {observed}); target revision {target}; {counts['updated']} of {counts['total']} "
-            "robots run it"
+            f"(observed {observed}); target revision {target}; {counts[keys.ROLLOUT_COUNTS.updated]} of "
+            f"{counts[keys.ROLLOUT_COUNTS.total]} robots run it"
         ),
         counts=counts,
         notes=notes,
@@ -259,12 +278,23 @@ def describe(body: dict[str, Any]) -> str:
     said = report(body)
     lines = [said.title]
     if said.spec:
-        counts = said.counts
+        healthy, updated, total, unavailable, most, locked, offline = (
+            said.counts[key]
+            for key in (
+                keys.ROLLOUT_COUNTS.healthy,
+                keys.ROLLOUT_COUNTS.updated,
+                keys.ROLLOUT_COUNTS.total,
+                keys.ROLLOUT_COUNTS.unavailable,
+                keys.ROLLOUT_COUNTS.max_unavailable,
+                keys.ROLLOUT_COUNTS.locked,
+                keys.ROLLOUT_COUNTS.offline,
+            )
+        )
         lines += [
             f"  {said.spec}",
-            f"  robots: {counts['healthy']} healthy, {counts['updated']} updated of {counts['total']}; "
-            f"{counts['unavailable']} unavailable (max {counts['maxUnavailable']}), {counts['locked']} "
-            f"locked by running trees, {counts['offline']} offline",
+            f"  robots: {healthy} healthy, {updated} updated of {total}; "
+            f"{unavailable} unavailable (max {most}), {locked} "
+            f"locked by running trees, {offline} offline",
         ]
     lines += [f"  {text}" for text, _tone in [*said.notes, said.verdict]]
     return "\n".join(lines)

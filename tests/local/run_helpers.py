@@ -62,5 +62,6 @@ def node_successes(env: dict[str, str], node_id: str) -> int:
 def tree_running(env: dict[str, str]) -> bool:
     """True once an executor of a recorded run reported its tree RUNNING."""
     return any(
-        record.get("event") == "status" and record.get("root") == "RUNNING" for record in _status_records(env)
+        record.get("event") == "status" and record.get("root_status") == "RUNNING"
+        for record in _status_records(env)
     )

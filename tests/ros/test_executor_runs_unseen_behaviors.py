@@ -46,9 +46,9 @@ def test_a_tree_of_exported_sync_async_and_condition_behaviors_succeeds(
     count_runs = [t for t in transitions if t["node_id"] == "Count" and t["status"] == "RUNNING"]
     assert len(count_runs) == 2, "Count is asynchronous: it went through RUNNING on each call"
     [finished] = records_of(status, "finished")
-    assert (finished["root"], finished["exit_code"]) == ("SUCCESS", 0)
+    assert (finished["root_status"], finished["exit_code"]) == ("SUCCESS", 0)
     final = records_of(status, "status")[-1]
-    assert final["root"] == "SUCCESS" and final["last_failure"] is None
+    assert final["root_status"] == "SUCCESS" and final["last_failure"] is None
     assert {(c["type"], c["status"]) for c in final["conditions"]} == {
         ("PluginsReady", "True"),
         ("LibraryDegraded", "False"),

@@ -64,7 +64,7 @@ def test_stopping_the_executor_halts_count_and_cancels_its_request_in_the_skills
     count = [t["status"] for t in records_of(status, "transition") if t["node_id"] == "Count"]
     assert count == ["RUNNING", "IDLE"], "Count was halted, not failed"
     [finished] = records_of(status, "finished")
-    assert finished["root"] == "HALTED"
+    assert finished["root_status"] == "HALTED"
 
 
 def test_killing_the_skillset_mid_call_fails_the_behavior_within_its_timeout_and_reports_degraded(

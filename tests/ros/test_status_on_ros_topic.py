@@ -55,7 +55,7 @@ def test_status_and_the_final_halt_are_published_on_the_status_topic(
     executor = start_executor(spawned, ros_env, tree, plugins, tmp_path / "status.jsonl", log)
 
     def running_seen() -> bool:
-        return any(r["event"] == "status" and r["root"] == "RUNNING" for r in list(status_listener))
+        return any(r["event"] == "status" and r["root_status"] == "RUNNING" for r in list(status_listener))
 
     wait_until(running_seen, 60, "a RUNNING status on /coral/tree_status")
     executor.send_signal(signal.SIGINT)
@@ -64,5 +64,5 @@ def test_status_and_the_final_halt_are_published_on_the_status_topic(
         lambda: any(r["event"] == "finished" for r in list(status_listener)), 10, "the finished record"
     )
     finished = [r for r in status_listener if r["event"] == "finished"]
-    assert finished[-1]["root"] == "HALTED"
+    assert finished[-1]["root_status"] == "HALTED"
     assert not any(r["event"] == "transition" for r in status_listener), "transitions stay off the topic"

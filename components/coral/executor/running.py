@@ -105,14 +105,14 @@ def run_executor(options: ExecutorOptions) -> int:
         document = bt.load_tree_file(options.tree, None, main_tree=options.main_tree)
     except (bt.BTError, params.ParamsError) as err:
         _emit(fanout, "error", message=str(err))
-        _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+        _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
         fanout.close()
         return EXIT_BAD_INPUT
     try:
         return _run_with_ros(options, document, fanout, stop)
     except Exception as err:  # noqa: BLE001 - must not read as a tree FAILURE (exit 1)
         _emit(fanout, "error", message=f"{type(err).__name__}: {err}")
-        _emit(fanout, "finished", root="ERROR", exit_code=EXIT_INTERNAL, tick_count=0)
+        _emit(fanout, "finished", root_status="ERROR", exit_code=EXIT_INTERNAL, tick_count=0)
         traceback.print_exc()
         return EXIT_INTERNAL
     finally:
@@ -151,7 +151,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             options, document, registry, state, fanout, stop, wake, compat.current_ros_distro()
         )
         if stop.event.is_set():
-            _emit(fanout, "finished", root="IDLE", exit_code=128 + stop.signum, tick_count=0)
+            _emit(fanout, "finished", root_status="IDLE", exit_code=128 + stop.signum, tick_count=0)
             return 128 + stop.signum
         if missing:
             _emit(
@@ -159,19 +159,19 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
                 "error",
                 message="Node types still missing after the wait timeout: " + ", ".join(missing),
             )
-            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_WAIT_TIMEOUT, tick_count=0)
+            _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_WAIT_TIMEOUT, tick_count=0)
             return EXIT_WAIT_TIMEOUT
         problems = document.validate(registry)
         if problems:
             for problem in problems:
                 _emit(fanout, "error", message=str(problem))
-            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+            _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
             return EXIT_BAD_INPUT
         try:
             tree = document.build(registry, context=context)
         except bt.BTError as err:
             _emit(fanout, "error", message=str(err))
-            _emit(fanout, "finished", root="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
+            _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
             return EXIT_BAD_INPUT
         waker["tree"] = tree
         loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)

@@ -43,7 +43,7 @@ class TerminalSink:
                 f" last failure at {failure['path']}: {failure['message']}" if failure.get("message") else ""
             )
             self._line(
-                f"tree {record['root']} tick {record['tick_count']} "
+                f"tree {record['root_status']} tick {record['tick_count']} "
                 f"active {record['active_path'] or '-'}{tail}"
             )
         elif event == "waiting":

@@ -106,7 +106,7 @@ class TickLoop:
         snapshot = self.tree.snapshot()
         conditions = [c.as_dict() for c in (self.plugins.plugins_ready, self._degraded) if c is not None]
         return {
-            "root": records.status_name(root),
+            "root_status": records.status_name(root),
             "tick_count": self.tree.tick_count,
             "active_path": records.active_path(snapshot.nodes),
             "last_transition_time": self.last_transition_time,
@@ -123,7 +123,7 @@ class TickLoop:
             previous = {
                 k: v for k, v in self._last_status.items() if k not in ("tick_count", "last_transition_time")
             }
-        root_changed = self._last_status is None or self._last_status["root"] != record["root"]
+        root_changed = self._last_status is None or self._last_status["root_status"] != record["root_status"]
         due = (comparable != previous and now - self._last_status_at >= STATUS_MIN_INTERVAL_S) or (
             now - self._last_status_at >= STATUS_HEARTBEAT_S
         )
@@ -150,18 +150,18 @@ class TickLoop:
             self._emit("error", message=str(err))
             self._halt()
             self._report(bt.Status.FAILURE, force=True)
-            self._emit("finished", root="ERROR", exit_code=3, tick_count=self.tree.tick_count)
+            self._emit("finished", root_status="ERROR", exit_code=3, tick_count=self.tree.tick_count)
             return 3
         if stop.is_set() and root not in (bt.Status.SUCCESS, bt.Status.FAILURE):
             self._halt()
             code = stop_code()
             self._report(bt.Status.IDLE, force=True)
-            self._emit("finished", root="HALTED", exit_code=code, tick_count=self.tree.tick_count)
+            self._emit("finished", root_status="HALTED", exit_code=code, tick_count=self.tree.tick_count)
             return code
         self._report(root, force=True)
         code = 0 if root == bt.Status.SUCCESS else 1
         self._emit(
-            "finished", root=records.status_name(root), exit_code=code, tick_count=self.tree.tick_count
+            "finished", root_status=records.status_name(root), exit_code=code, tick_count=self.tree.tick_count
         )
         return code
 

@@ -102,7 +102,7 @@ class TreeView:
             if status in ("SUCCESS", "FAILURE", "SKIPPED"):
                 self.results[path] = status
         elif event == "status":
-            self.root = str(record.get("root", self.root))
+            self.root = str(record.get("root_status", self.root))
             self.ticks = int(record.get("tick_count", self.ticks) or 0)
             self.active = str(record.get("active_path", "") or "")
             self.waiting = []
@@ -112,7 +112,7 @@ class TreeView:
             self.errors.append(str(record.get("message")))
         elif event == "finished":
             self.finished = record
-            self.root = str(record.get("root", self.root))
+            self.root = str(record.get("root_status", self.root))
             self.ticks = int(record.get("tick_count", self.ticks) or self.ticks)
 
     def rows(self, max_lines: int = MAX_VIEW_LINES) -> list[tuple[bool, int, str, Text]]:

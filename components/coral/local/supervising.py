@@ -222,7 +222,7 @@ class Supervisor:
                 codes = [c.process.returncode for c in executors]
                 for child, code in zip(executors, codes, strict=True):
                     child.record.state, child.record.exit_code = "exited", code
-                    result = child.view.finished.get("root") if child.view.finished else "unknown"
+                    result = child.view.finished.get("root_status") if child.view.finished else "unknown"
                     self.out.note(f"Executor {child.service.name} finished: tree {result}, exit code {code}")
                 return next((code for code in codes if code != 0), 0)
             self.stopping.wait(POLL_S)

@@ -1,7 +1,7 @@
 """The coral.dev/v1alpha1 API: pydantic models of CoralSystem and CoralInstance (the contract, the
 CRD schema and its documentation). Other packages import the models from here."""
 
-from coral_operator.api.base import API_VERSION, GROUP, VERSION, CamelModel
+from coral_operator.api.base import CamelModel
 from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector, LabelSelectorRequirement
 from coral_operator.api.components import Component, DeviceMount, EnvVar, HostPathMount, Readiness, Resources
 from coral_operator.api.instance import (
@@ -15,6 +15,7 @@ from coral_operator.api.instance import (
     TreeFailure,
     TreeState,
 )
+from coral_operator.api.names import API_VERSION, GROUP, VERSION
 from coral_operator.api.rollout import (
     CanaryStatus,
     RolledBack,

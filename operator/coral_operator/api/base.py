@@ -11,10 +11,6 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict
 from pydantic.alias_generators import to_camel
 
-GROUP = "coral.dev"
-VERSION = "v1alpha1"
-API_VERSION = f"{GROUP}/{VERSION}"
-
 
 class CamelModel(BaseModel):
     """Base for every CRD model: camelCase aliases, unknown fields refused, docstrings kept."""

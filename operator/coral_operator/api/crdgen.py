@@ -13,8 +13,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel
 
-from coral_operator.api import instance, system
-from coral_operator.api.base import GROUP, VERSION
+from coral_operator.api import instance, keys, names, system
 
 _KEEP = {
     "type",
@@ -128,8 +127,28 @@ def build_schema(model: type[BaseModel]) -> dict[str, Any]:
     return _convert(raw, raw.get("$defs", {}))
 
 
-def _condition_column(name: str, ctype: str, field: str = "status", priority: int = 0) -> dict[str, Any]:
-    column = {"name": name, "type": "string", "jsonPath": f'.status.conditions[?(@.type=="{ctype}")].{field}'}
+def _status_path(*wire_names: str) -> str:
+    return ".status." + ".".join(wire_names)
+
+
+def _column(name: str, kind: str, *wire_names: str, wide: bool = False) -> dict[str, Any]:
+    """A printer column over a status field; `wide` ones show only with `-o wide`."""
+    column: dict[str, Any] = {"name": name, "type": kind, "jsonPath": _status_path(*wire_names)}
+    if wide:
+        column["priority"] = 1
+    return column
+
+
+def _condition_column(
+    name: str, ctype: str, field: str = keys.CONDITION.status, priority: int = 0
+) -> dict[str, Any]:
+    # Both kinds' status call their condition list alike.
+    conditions = _status_path(keys.SYSTEM_STATUS.conditions)
+    column = {
+        "name": name,
+        "type": "string",
+        "jsonPath": f'{conditions}[?(@.{keys.CONDITION.type}=="{ctype}")].{field}',
+    }
     if priority:
         column["priority"] = priority
     return column
@@ -162,9 +181,9 @@ def _crd(
     return {
         "apiVersion": "apiextensions.k8s.io/v1",
         "kind": "CustomResourceDefinition",
-        "metadata": {"name": f"{plural}.{GROUP}"},
+        "metadata": {"name": f"{plural}.{names.GROUP}"},
         "spec": {
-            "group": GROUP,
+            "group": names.GROUP,
             "scope": "Namespaced",
             "names": {
                 "kind": kind,
@@ -176,7 +195,7 @@ def _crd(
             },
             "versions": [
                 {
-                    "name": VERSION,
+                    "name": names.VERSION,
                     "served": True,
                     "storage": True,
                     "subresources": {"status": {}},
@@ -194,26 +213,26 @@ def _crd(
 def build_crds() -> dict[str, dict[str, Any]]:
     """File name -> CRD manifest, for every kind of `coral.dev`."""
     systems = _crd(
-        kind="CoralSystem",
-        plural="coralsystems",
+        kind=names.SYSTEM_KIND,
+        plural=names.SYSTEM_PLURAL,
         short_names=["csys", "coralsys"],
         description="A Coral system (behavior tree, components, ROS parameters) and the robots it runs on.",
         spec_model=system.CoralSystemSpec,
         status_model=system.CoralSystemStatus,
         columns=[
-            {"name": "Robots", "type": "integer", "jsonPath": ".status.robots.matched"},
-            {"name": "Ready", "type": "integer", "jsonPath": ".status.robots.ready"},
-            {"name": "Updated", "type": "integer", "jsonPath": ".status.robots.updated"},
-            {"name": "Unreachable", "type": "integer", "jsonPath": ".status.robots.unreachable"},
-            _condition_column("Status", "Ready", "reason"),
-            {"name": "Running", "type": "integer", "jsonPath": ".status.trees.running", "priority": 1},
-            {"name": "Failed", "type": "integer", "jsonPath": ".status.trees.failure", "priority": 1},
-            {"name": "Revision", "type": "string", "jsonPath": ".status.revision", "priority": 1},
+            _column("Robots", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.matched),
+            _column("Ready", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.ready),
+            _column("Updated", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.updated),
+            _column("Unreachable", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.unreachable),
+            _condition_column("Status", "Ready", keys.CONDITION.reason),
+            _column("Running", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.running, wide=True),
+            _column("Failed", "integer", keys.SYSTEM_STATUS.trees, keys.TREE_COUNTS.failure, wide=True),
+            _column("Revision", "string", keys.SYSTEM_STATUS.revision, wide=True),
         ],
     )
     instances = _crd(
-        kind="CoralInstance",
-        plural="coralinstances",
+        kind=names.INSTANCE_KIND,
+        plural=names.INSTANCE_PLURAL,
         short_names=["cinst", "coralinst"],
         description="One robot's share of a CoralSystem: its component pods and its behavior-tree status.",
         spec_model=instance.CoralInstanceSpec,
@@ -222,16 +241,16 @@ def build_crds() -> dict[str, dict[str, Any]]:
             {"name": "Robot", "type": "string", "jsonPath": ".spec.robot"},
             _condition_column("Ready", "Ready"),
             _condition_column("Reachable", "RobotReachable"),
-            {"name": "Tree", "type": "string", "jsonPath": ".status.tree.rootStatus"},
-            {"name": "Active", "type": "string", "jsonPath": ".status.tree.activePath", "priority": 1},
-            {"name": "Ticks", "type": "integer", "jsonPath": ".status.tree.tickCount", "priority": 1},
+            _column("Tree", "string", keys.INSTANCE_STATUS.tree, keys.TREE.root_status),
+            _column("Active", "string", keys.INSTANCE_STATUS.tree, keys.TREE.active_path, wide=True),
+            _column("Ticks", "integer", keys.INSTANCE_STATUS.tree, keys.TREE.tick_count, wide=True),
             {"name": "Revision", "type": "string", "jsonPath": ".spec.revision", "priority": 1},
             {"name": "Node", "type": "string", "jsonPath": ".spec.nodeName", "priority": 1},
         ],
     )
     return {
-        f"{GROUP}_coralsystems.yaml": systems,
-        f"{GROUP}_coralinstances.yaml": instances,
+        f"{names.GROUP}_{names.SYSTEM_PLURAL}.yaml": systems,
+        f"{names.GROUP}_{names.INSTANCE_PLURAL}.yaml": instances,
     }
 
 

@@ -6,7 +6,9 @@ Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
 
 from __future__ import annotations
 
+import math
 import re
+from dataclasses import dataclass
 from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -42,6 +44,7 @@ TREE_FILE_NAMES = (
     "other than tree.xml and params.yaml"
 )
 MAX_UNAVAILABLE_SYNTAX = "rollout.maxUnavailable must be a count of at least 0 or a percentage like '10%'"
+MAX_UNAVAILABLE_FIELD = "spec.rollout.maxUnavailable"
 
 
 def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
@@ -168,6 +171,42 @@ class PluginsSpec(CamelModel):
     images export to)."""
 
 
+@dataclass(frozen=True)
+class UnavailableBudget:
+    """`spec.rollout.maxUnavailable` parsed: a count of robots, or a percentage of the matched ones."""
+
+    count: int = 0
+    percent: int | None = None
+    """Set for a percentage; `count` is then unused."""
+
+    def resolve(self, total: int) -> int:
+        """The budget as a count of robots out of `total`: at least 1; a percentage rounds up, as
+        for DaemonSets."""
+        if self.percent is not None:
+            return max(1, math.ceil(total * self.percent / 100))
+        return max(1, self.count)
+
+
+def parse_max_unavailable(value: int | str) -> UnavailableBudget:
+    """The one parser of `maxUnavailable`: a count of at least 0, or a percentage from 0% to 100%.
+
+    Raises:
+        ValueError: anything else; the message names the field.
+    """
+    malformed = f"{MAX_UNAVAILABLE_FIELD}: expected a count or a percentage like '10%', got {value!r}"
+    if isinstance(value, bool):
+        raise ValueError(malformed)
+    if isinstance(value, int):
+        if value < 0:
+            raise ValueError(f"{MAX_UNAVAILABLE_FIELD}: must be a count of at least 0, got {value}")
+        return UnavailableBudget(count=value)
+    if not re.fullmatch(MAX_UNAVAILABLE, value):
+        raise ValueError(malformed)
+    if value.endswith("%"):
+        return UnavailableBudget(percent=int(value[:-1]))
+    return UnavailableBudget(count=int(value))
+
+
 class CanarySpec(CamelModel):
     """Robots updated first; they must stay healthy for the hold time before the rest follow."""
 
@@ -204,13 +243,12 @@ class RolloutSpec(CamelModel):
     @field_validator("max_unavailable")
     @classmethod
     def _count_or_percent(cls, value: int | str) -> int | str:
-        if isinstance(value, int):
-            if value < 0:
-                raise ValueError("must be a count of at least 0 or a percentage like '10%'")
-            return value
-        if not re.fullmatch(MAX_UNAVAILABLE, value):
-            raise ValueError(f"must be a count or a percentage like '10%', got {value!r}")
+        parse_max_unavailable(value)
         return value
+
+    def unavailable_budget(self) -> UnavailableBudget:
+        """`max_unavailable` parsed (already checked when the spec was read)."""
+        return parse_max_unavailable(self.max_unavailable)
 
     canary: CanarySpec | None = None
     """Robots updated first, as a health check for the rest."""

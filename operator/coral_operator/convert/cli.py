@@ -44,10 +44,11 @@ def convert_command(
     output: Path | None,
 ) -> None:
     """Turn a folder of Coral files (compose, tree XML, parameters YAML) into a CoralSystem."""
+    from coral_operator.api import names
     from coral_operator.convert import converting
     from coral_operator.convert.compose import ConvertError
 
-    selector = _selector(robots) or {"coral.dev/robot": "robot-1"}
+    selector = _selector(robots) or {names.LABEL_ROBOT: "robot-1"}
     try:
         manifest, warnings = converting.convert(
             folder=folder, selector=selector, name=name, namespace=namespace, tree=tree, params=params

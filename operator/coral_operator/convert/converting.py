@@ -13,7 +13,8 @@ from typing import Any
 import yaml
 from coral import bt
 
-from coral_operator.api.base import API_VERSION
+from coral_operator.api import names
+from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.convert.compose import ConvertError, component_name, kubernetes_fields
 from coral_operator.planning import naming, validation
@@ -108,7 +109,8 @@ def convert(
     metadata: dict[str, Any] = {"name": naming.dns_label(name or project.name)}
     if namespace:
         metadata["namespace"] = namespace
-    return {"apiVersion": API_VERSION, "kind": "CoralSystem", "metadata": metadata, "spec": spec}, warnings
+    manifest = {"apiVersion": API_VERSION, "kind": names.SYSTEM_KIND, "metadata": metadata, "spec": spec}
+    return manifest, warnings
 
 
 def _included_files(tree_file: Path) -> dict[str, str]:

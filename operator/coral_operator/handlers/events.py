@@ -8,6 +8,8 @@ from typing import Any
 
 import kopf
 
+from coral_operator.api import keys
+
 # Transitions worth an Event: (type, new status) -> (is a warning, reason).
 _NOTABLE = {
     ("Ready", "True"): (False, "Ready"),
@@ -30,28 +32,30 @@ def info(body: kopf.Body, reason: str, message: str) -> None:
 
 def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[dict[str, Any]]) -> None:
     """Post one Event per notable condition whose status or message changed."""
-    before = {c.get("type"): c for c in old}
+    before = {c.get(keys.CONDITION.type): c for c in old}
     for condition in new:
-        previous = before.get(condition["type"])
-        if condition["type"] == "ComponentsReady" and condition["reason"] in _DELIVERY_FAILURES:
-            if not previous or (previous.get("reason"), previous.get("message")) != (
-                condition["reason"],
-                condition["message"],
-            ):
-                kopf.event(body, type="Warning", reason=condition["reason"], message=condition["message"])
+        ctype, status = condition[keys.CONDITION.type], condition[keys.CONDITION.status]
+        why, text = condition[keys.CONDITION.reason], condition[keys.CONDITION.message]
+        previous = before.get(ctype)
+        if ctype == "ComponentsReady" and why in _DELIVERY_FAILURES:
+            if not previous or (
+                previous.get(keys.CONDITION.reason),
+                previous.get(keys.CONDITION.message),
+            ) != (why, text):
+                kopf.event(body, type="Warning", reason=why, message=text)
             continue
-        key = (condition["type"], condition["status"])
+        key = (ctype, status)
         if key not in _NOTABLE:
             continue
         warning, reason = _NOTABLE[key]
-        if previous is None and not warning and condition["type"] != "Ready":
+        if previous is None and not warning and ctype != "Ready":
             # Good news is news only as a recovery: a robot reachable from the start says nothing.
             continue
         if (
             previous
-            and previous.get("status") == condition["status"]
-            and previous.get("message") == condition["message"]
+            and previous.get(keys.CONDITION.status) == status
+            and previous.get(keys.CONDITION.message) == text
         ):
             continue
-        message = condition["message"] or condition["reason"]
+        message = text or why
         kopf.event(body, type="Warning" if warning else "Normal", reason=reason, message=message)

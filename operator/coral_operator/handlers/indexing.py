@@ -10,8 +10,8 @@ from typing import Any
 
 import kopf
 
+from coral_operator.api import names
 from coral_operator.kube import observing
-from coral_operator.planning import naming
 
 ALL_ROBOTS = "all"
 
@@ -30,7 +30,7 @@ def read_index(index: kopf.Index | None, key: Any) -> list[Any]:
             continue
 
 
-@kopf.index("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+@kopf.index("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
 def robot_nodes(
     name: str, labels: kopf.Labels, spec: kopf.Spec, status: kopf.Status, **_: Any
 ) -> dict[Any, Any]:
@@ -40,27 +40,27 @@ def robot_nodes(
     return {ALL_ROBOTS: robot, ("node", name): robot}
 
 
-@kopf.index("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+@kopf.index("pods", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT})
 def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     # A robot pod (`PodPerRobot`) gives one record per component; readers flatten them.
-    return {(namespace, labels[naming.LABEL_INSTANCE]): observing.observed_pods(body)}
+    return {(namespace, labels[names.LABEL_INSTANCE]): observing.observed_pods(body)}
 
 
-@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+@kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 def coral_instances(namespace: str, spec: kopf.Spec, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     return {(namespace, spec.get("system", "")): observing.observed_instance(body)}
 
 
-@kopf.index("coral.dev", "v1alpha1", "coralsystems")
+@kopf.index(names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
 def coral_systems(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
     return {namespace: (name, dict(spec))}
 
 
-@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+@kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 def instances_by_node(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
     return {spec.get("nodeName", ""): (namespace, name)}
 
 
-@kopf.index("coral.dev", "v1alpha1", "coralinstances")
+@kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 def instance_records(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     return {(namespace, name): observing.instance_record(body)}

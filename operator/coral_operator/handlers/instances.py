@@ -23,6 +23,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
+from coral_operator.api import keys, names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
@@ -34,7 +35,7 @@ from coral_operator.status import instance_status, ownership
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.transitions import Verdict, merge_conditions
 
-CORAL = ("coral.dev", "v1alpha1", "coralinstances")
+CORAL = (names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 # Passes of one instance at most this often: a stage's pod is created, scheduled and started in
 # quick succession, and one pass (one status write) after the burst is enough.
 PASS_INTERVAL_S = 0.1
@@ -144,7 +145,7 @@ async def instance_changed(
     QUEUE.add(key)
 
 
-@kopf.on.event("pods", labels={naming.LABEL_MANAGED_BY: naming.MANAGER, naming.LABEL_INSTANCE: kopf.PRESENT})
+@kopf.on.event("pods", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT})
 async def pod_changed(
     namespace: str,
     labels: kopf.Labels,
@@ -154,10 +155,10 @@ async def pod_changed(
     **_: Any,
 ) -> None:
     _remember_indices(records=instance_records, pods=coral_pods, nodes=robot_nodes)
-    QUEUE.add((namespace, labels[naming.LABEL_INSTANCE]))
+    QUEUE.add((namespace, labels[names.LABEL_INSTANCE]))
 
 
-@kopf.on.event("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+@kopf.on.event("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
 async def robot_node_changed(
     type: str | None,
     name: str,
@@ -183,7 +184,7 @@ async def robot_node_changed(
 def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, Any]) -> dict[str, Any]:
     message = "; ".join(f"spec.{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
     conditions = merge_conditions(
-        list(status.get("conditions") or []),
+        list(status.get(keys.INSTANCE_STATUS.conditions) or []),
         [
             Verdict(ConditionType.READY, False, Reason.INVALID_SPEC, message),
             Verdict(ConditionType.RECONCILING, False, Reason.INVALID_SPEC),
@@ -192,7 +193,10 @@ def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, A
         generation=record.generation,
         now=datetime.now(UTC),
     )
-    return {"conditions": conditions, "observedGeneration": record.generation}
+    return {
+        keys.INSTANCE_STATUS.conditions: conditions,
+        keys.INSTANCE_STATUS.observed_generation: record.generation,
+    }
 
 
 def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> dict[str, str]:
@@ -251,7 +255,7 @@ def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.Startu
 
 def _pod_component(manifest: dict[str, Any]) -> str:
     """What a refusal of this pod is reported under: its component, or the whole robot's pod."""
-    return manifest["metadata"]["labels"].get(naming.LABEL_COMPONENT, naming.ROBOT_POD)
+    return manifest["metadata"]["labels"].get(names.LABEL_COMPONENT, naming.ROBOT_POD)
 
 
 def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool) -> None:
@@ -274,8 +278,9 @@ def _retire(record: InstanceRecord, observed: list[ObservedPod], reachable: bool
 
 def _verdicts(status: dict[str, Any]) -> tuple[Any, ...]:
     """What the system's rollout reads of an instance's status: written the moment it changes."""
-    states = {c.get("type"): c.get("status") for c in status.get("conditions") or []}
-    return status.get("observedGeneration"), states.get("Ready"), states.get("Stalled")
+    conditions = status.get(keys.INSTANCE_STATUS.conditions) or []
+    states = {c.get(keys.CONDITION.type): c.get(keys.CONDITION.status) for c in conditions}
+    return status.get(keys.INSTANCE_STATUS.observed_generation), states.get("Ready"), states.get("Stalled")
 
 
 def _patch_value(old: Any, new: Any) -> Any:
@@ -306,7 +311,9 @@ def _write_status(record: InstanceRecord, current: dict[str, Any], new: dict[str
             _last_write[record.uid] = now
         # After the write, so a deferred or failed one cannot post the same transition twice.
         events.on_condition_changes(
-            record.reference, list(current.get("conditions") or []), list(new.get("conditions") or [])
+            record.reference,
+            list(current.get(keys.INSTANCE_STATUS.conditions) or []),
+            list(new.get(keys.INSTANCE_STATUS.conditions) or []),
         )
 
 
@@ -369,11 +376,11 @@ def _reconcile(record: InstanceRecord) -> None:
         pods=observed,
         plan=plan,
         transient=transient,
-        tree=status.get("tree"),
-        plugins=status.get("plugins"),
+        tree=status.get(keys.INSTANCE_STATUS.tree),
+        plugins=status.get(keys.INSTANCE_STATUS.plugins),
         refused=refused,
     )
-    old_conditions = list(status.get("conditions") or [])
+    old_conditions = list(status.get(keys.INSTANCE_STATUS.conditions) or [])
     new = instance_status.build_instance_status(
         view, old_conditions=old_conditions, generation=record.generation, now=now
     )

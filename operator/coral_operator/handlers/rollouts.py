@@ -19,6 +19,7 @@ from typing import Any
 import kopf
 from pydantic import ValidationError
 
+from coral_operator.api import keys, names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.handlers import triggers
@@ -28,8 +29,6 @@ from coral_operator.planning.observed import ObservedInstance, RobotNode
 from coral_operator.status.rollout import evaluate_rollout
 from coral_operator.status.transitions import Verdict
 
-UNDO_ANNOTATION = "coral.dev/rollout-undo"
-RESUME_ANNOTATION = "coral.dev/rollout-resume"
 # A move not seen in the index after this long is forgotten (the write failed or was replaced).
 _EXPECTATION_SECONDS = 60.0
 
@@ -122,7 +121,7 @@ def _views(
                 revision=revision,
                 ready=ready,
                 online=robot.ready,
-                tree_root=instance.tree_root if instance else None,
+                root_status=instance.root_status if instance else None,
                 stalled=bool(getattr(instance, "stalled", False)),
                 canary=canary is not None and selection.matches(canary.robots, robot.labels),
             )
@@ -136,7 +135,8 @@ def _previous(uid: str, status: kopf.Status) -> RolloutStatus | None:
     if written is not None:
         return written
     try:
-        return RolloutStatus.model_validate(status.get("rollout")) if status.get("rollout") else None
+        written = status.get(keys.SYSTEM_STATUS.rollout)
+        return RolloutStatus.model_validate(written) if written else None
     except ValidationError:
         return None
 
@@ -173,8 +173,8 @@ def plan_fleet(
             policy=spec.rollout,
             previous=_previous(uid, status),
             now=now,
-            undo_from=annotations.get(UNDO_ANNOTATION),
-            resumed=annotations.get(RESUME_ANNOTATION),
+            undo_from=annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+            resumed=annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
     )
     with _lock:
@@ -206,9 +206,9 @@ def plan_fleet(
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
     wire = decision.status.to_wire()
-    for key in ("failure", "rolledBack", "canary"):
+    for key in (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary):
         # Status is merge-patched: a field that went away must be written as null to be removed.
-        if key not in wire and key in (status.get("rollout") or {}):
+        if key not in wire and key in (status.get(keys.SYSTEM_STATUS.rollout) or {}):
             wire[key] = None
     return FleetPlan(
         desired=desired,

@@ -12,6 +12,7 @@ from typing import Any
 
 import kopf
 
+from coral_operator.api import names
 from coral_operator.kube import applying
 
 
@@ -33,9 +34,9 @@ class EssenceFreeDiffBase(kopf.AnnotationsDiffBaseStorage):
 
 @kopf.on.startup()
 def configure_operator(settings: kopf.OperatorSettings, **_: Any) -> None:
-    settings.persistence.progress_storage = kopf.AnnotationsProgressStorage(prefix="coral.dev")
+    settings.persistence.progress_storage = kopf.AnnotationsProgressStorage(prefix=names.GROUP)
     settings.persistence.diffbase_storage = EssenceFreeDiffBase(
-        prefix="coral.dev", key="last-handled-configuration"
+        prefix=names.GROUP, key="last-handled-configuration"
     )
     # Events of one object are handled after this quiet spell; the default 0.1 s adds that much
     # to every hop of a robot's ordered startup, and the work queues do the coalescing anyway.

@@ -16,6 +16,7 @@ import kopf
 from pydantic import ValidationError
 
 from coral_operator import config
+from coral_operator.api import keys, names
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.handlers import events, rollouts, triggers
 from coral_operator.handlers.indexing import ALL_ROBOTS
@@ -26,7 +27,7 @@ from coral_operator.status.conditions import Reason
 
 CONFIG = config.from_environment()
 log = logging.getLogger(__name__)
-CORAL = ("coral.dev", "v1alpha1", "coralsystems")
+CORAL = (names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
 
 
 def _format_validation(error: ValidationError) -> str:
@@ -137,9 +138,9 @@ def reconcile_system(
     # `coral rollout undo` and `resume` (annotations) are inputs too.
     inputs = (
         meta.get("generation"),
-        annotations.get(triggers.ANNOTATION),
-        annotations.get(rollouts.UNDO_ANNOTATION),
-        annotations.get(rollouts.RESUME_ANNOTATION),
+        annotations.get(names.ANNOTATION_OBSERVED),
+        annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+        annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
     )
     if triggers.already_handled(uid, inputs):
         return
@@ -168,7 +169,7 @@ def _reconcile_system(
     observed = list(coral_instances.get((namespace, name), []))
     problem: system_status.Problem | None = None
     matched = len(observed)
-    revision = status.get("revision")
+    revision = status.get(keys.SYSTEM_STATUS.revision)
     fleet: rollouts.FleetPlan | None = None
     try:
         parsed = CoralSystemSpec.model_validate(dict(spec))
@@ -205,7 +206,9 @@ def _reconcile_system(
             if fleet is not None:
                 revision = fleet.target
             if fleet is not None and fleet.failed:
-                problem = system_status.Problem(Reason.HEALTH_GATE_FAILED, fleet.status.get("message", ""))
+                problem = system_status.Problem(
+                    Reason.HEALTH_GATE_FAILED, fleet.status.get(keys.ROLLOUT.message, "")
+                )
     # Instances stopping because their robot left are no longer part of the system's counts.
     counted = [instance for instance in observed if not instance.spec.get("retiring")]
     view = system_status.SystemView(
@@ -216,12 +219,13 @@ def _reconcile_system(
         rollout=fleet.verdict if fleet is not None else None,
         rolled_back=system_status.describe_rollback(fleet.status if fleet is not None else None),
     )
+    old_conditions = list(status.get(keys.SYSTEM_STATUS.conditions) or [])
     new = system_status.build_system_status(
-        view, old_conditions=list(status.get("conditions") or []), generation=meta.get("generation"), now=now
+        view, old_conditions=old_conditions, generation=meta.get("generation"), now=now
     )
-    events.on_condition_changes(body, list(status.get("conditions") or []), new["conditions"])
+    events.on_condition_changes(body, old_conditions, new[keys.SYSTEM_STATUS.conditions])
     if fleet is not None:
-        new["rollout"] = fleet.status
+        new[keys.SYSTEM_STATUS.rollout] = fleet.status
     for key, value in new.items():
         if status.get(key) != value:
             patch.status[key] = value

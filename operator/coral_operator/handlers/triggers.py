@@ -16,6 +16,7 @@ from typing import Any
 
 import kopf
 
+from coral_operator.api import names
 from coral_operator.api.common import LabelSelector
 from coral_operator.handlers.indexing import read_index
 from coral_operator.kube import applying
@@ -23,7 +24,6 @@ from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning import naming, selection
 from coral_operator.planning.observed import ObservedInstance, RobotNode
 
-ANNOTATION = "coral.dev/observed"
 _lock = threading.Lock()
 _poked: dict[tuple[str, str, str], str] = {}
 _nodes: dict[str, tuple[Any, ...]] = {}
@@ -35,7 +35,7 @@ def poke(plural: str, namespace: str, name: str, digest: str) -> None:
     with _lock:
         if _poked.get(key) == digest:
             return
-    applying.annotate(plural, namespace, name, {ANNOTATION: digest})
+    applying.annotate(plural, namespace, name, {names.ANNOTATION_OBSERVED: digest})
     with _lock:
         _poked[key] = digest
 
@@ -77,7 +77,7 @@ def _selected_digest(spec: dict[str, Any], robots: list[RobotNode]) -> str | Non
     return naming.content_hash([(r.robot, r.node_name, r.ready) for r in chosen])
 
 
-@kopf.on.event("nodes", labels={naming.LABEL_ROBOT: kopf.PRESENT})
+@kopf.on.event("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
 def poke_on_robot_change(
     type: str | None,
     name: str,
@@ -110,7 +110,7 @@ def _instances_digest(instances: list[ObservedInstance]) -> str:
                 i.ready,
                 i.reachable,
                 i.node_ready,
-                i.tree_root,
+                i.root_status,
                 i.stalled,
                 bool(i.spec.get("retiring")),
             )
@@ -144,7 +144,7 @@ def stop_system_pokes(**_: Any) -> None:
     SYSTEM_POKES.stop()
 
 
-@kopf.on.event("coral.dev", "v1alpha1", "coralinstances")
+@kopf.on.event(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 async def poke_system_on_instance_change(
     namespace: str, spec: kopf.Spec, coral_instances: kopf.Index, **_: Any
 ) -> None:

@@ -13,7 +13,8 @@ from typing import Any, TypeVar
 
 from kubernetes.client.exceptions import ApiException
 
-from coral_operator.api.base import GROUP, VERSION
+from coral_operator.api import names
+from coral_operator.api.names import GROUP, VERSION
 from coral_operator.kube import client
 from coral_operator.planning import naming
 
@@ -255,7 +256,7 @@ def read_config_map_key(namespace: str, name: str, key: str) -> str | None:
 def list_system_config_maps(namespace: str, system: str) -> list[str]:
     """Names of the revision ConfigMaps the operator made for one system."""
     selector = (
-        f"{naming.LABEL_SYSTEM}={naming.label_value(system)},{naming.LABEL_MANAGED_BY}={naming.MANAGER}"
+        f"{names.LABEL_SYSTEM}={naming.label_value(system)},{names.LABEL_MANAGED_BY}={names.MANAGER}"
     )
     items = client.core().list_namespaced_config_map(namespace, label_selector=selector).items
     return [item.metadata.name for item in items]

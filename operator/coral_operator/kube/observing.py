@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
 
+from coral_operator.api import keys, names
 from coral_operator.planning import naming
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
 from coral_operator.status import transitions
@@ -36,7 +37,7 @@ def robot_node(
     Reachable: the kubelet reports in, so Ready is True or False; the node-lifecycle controller
     turns it Unknown and taints the Node `unreachable` once the kubelet's Lease lapses.
     """
-    robot = labels.get(naming.LABEL_ROBOT)
+    robot = labels.get(names.LABEL_ROBOT)
     if not robot:
         return None
     ready = _condition(status.get("conditions"), "Ready")
@@ -64,10 +65,10 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     waiting_reasons = {w.get("reason") for w in waiting}
     return ObservedPod(
         name=metadata.get("name", ""),
-        component=labels.get(naming.LABEL_COMPONENT, ""),
-        role=labels.get(naming.LABEL_ROLE, ""),
-        revision=labels.get(naming.LABEL_REVISION, ""),
-        pod_hash=(metadata.get("annotations") or {}).get(naming.ANNOTATION_POD_HASH, ""),
+        component=labels.get(names.LABEL_COMPONENT, ""),
+        role=labels.get(names.LABEL_ROLE, ""),
+        revision=labels.get(names.LABEL_REVISION, ""),
+        pod_hash=(metadata.get("annotations") or {}).get(names.ANNOTATION_POD_HASH, ""),
         phase=status.get("phase") or "Pending",
         ready=bool(ready and ready.get("status") == "True"),
         created=parse_time(metadata.get("creationTimestamp")),
@@ -84,7 +85,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
 def observed_pods(body: Mapping[str, Any]) -> tuple[ObservedPod, ...]:
     """The records of a pod: itself for a component pod, one per component for a robot pod."""
     annotations = (body.get("metadata") or {}).get("annotations") or {}
-    if naming.ANNOTATION_COMPONENTS not in annotations:
+    if names.ANNOTATION_COMPONENTS not in annotations:
         return (observed_pod(body),)
     return tuple(_robot_pod_members(body))
 
@@ -133,8 +134,8 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 name=metadata.get("name", ""),
                 component=component,
                 role=role,
-                revision=labels.get(naming.LABEL_REVISION, ""),
-                pod_hash=annotations.get(naming.ANNOTATION_POD_HASH, ""),
+                revision=labels.get(names.LABEL_REVISION, ""),
+                pod_hash=annotations.get(names.ANNOTATION_POD_HASH, ""),
                 phase=phase,
                 ready=ready,
                 created=_waiting_since(container, created),
@@ -145,7 +146,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 if waiting.get("reason") in _IMAGE_PROBLEMS
                 else None,
                 unschedulable=unschedulable,
-                shape_hash=annotations.get(naming.ANNOTATION_SHAPE_HASH, ""),
+                shape_hash=annotations.get(names.ANNOTATION_SHAPE_HASH, ""),
                 images=images,
             )
         )
@@ -195,9 +196,9 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
     metadata = body.get("metadata", {})
     spec = dict(body.get("spec") or {})
     status = body.get("status") or {}
-    ready = _condition(status.get("conditions"), "Ready")
-    stalled = _condition(status.get("conditions"), "Stalled")
-    robot = status.get("robot") or {}
+    ready = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Ready")
+    stalled = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Stalled")
+    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
     return ObservedInstance(
         name=metadata.get("name", ""),
         robot=spec.get("robot", ""),
@@ -205,20 +206,20 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
         revision=spec.get("revision", ""),
         ready=bool(
             ready
-            and ready.get("status") == "True"
-            and ready.get("observedGeneration") == metadata.get("generation")
+            and ready.get(keys.CONDITION.status) == "True"
+            and ready.get(keys.CONDITION.observed_generation) == metadata.get("generation")
         ),
-        reachable=robot.get("reachable"),
-        node_ready=robot.get("nodeReady"),
-        tree_root=(status.get("tree") or {}).get("rootStatus"),
+        reachable=robot.get(keys.ROBOT.reachable),
+        node_ready=robot.get(keys.ROBOT.node_ready),
+        root_status=(status.get(keys.INSTANCE_STATUS.tree) or {}).get(keys.TREE.root_status),
         labels=dict(metadata.get("labels") or {}),
         # An instance Stalled only because its robot is away is not a failed robot: `reachable`
         # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
             stalled
-            and stalled.get("status") == "True"
-            and stalled.get("observedGeneration") == metadata.get("generation")
-            and stalled.get("reason") != "NodeUnreachable"
+            and stalled.get(keys.CONDITION.status) == "True"
+            and stalled.get(keys.CONDITION.observed_generation) == metadata.get("generation")
+            and stalled.get(keys.CONDITION.reason) != "NodeUnreachable"
         ),
     )
 

@@ -11,6 +11,7 @@ from typing import Any
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
+from coral_operator.api import names
 from coral_operator.kube import client
 from coral_operator.planning import naming
 from coral_operator.planning.revisions import StoredRevision
@@ -22,18 +23,18 @@ def _apps() -> k8s.AppsV1Api:
 
 def read_revisions(namespace: str, system: str) -> list[StoredRevision]:
     selector = (
-        f"{naming.LABEL_SYSTEM}={naming.label_value(system)},{naming.LABEL_MANAGED_BY}={naming.MANAGER}"
+        f"{names.LABEL_SYSTEM}={naming.label_value(system)},{names.LABEL_MANAGED_BY}={names.MANAGER}"
     )
     items = _apps().list_namespaced_controller_revision(namespace, label_selector=selector).items
     return [
         StoredRevision(
             name=item.metadata.name,
-            revision=(item.metadata.labels or {}).get(naming.LABEL_REVISION, ""),
+            revision=(item.metadata.labels or {}).get(names.LABEL_REVISION, ""),
             number=int(item.revision or 0),
             template=dict(item.data or {}),
         )
         for item in items
-        if (item.metadata.labels or {}).get(naming.LABEL_REVISION)
+        if (item.metadata.labels or {}).get(names.LABEL_REVISION)
     ]
 
 

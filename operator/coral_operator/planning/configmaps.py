@@ -10,7 +10,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from coral_operator.api.base import API_VERSION
+from coral_operator.api import names
+from coral_operator.api.names import API_VERSION
 from coral_operator.planning import naming
 
 TREE_KEY = "tree.xml"
@@ -38,10 +39,10 @@ def build_config_map(
             "name": naming.config_map_name(system, kind, digest),
             "namespace": namespace,
             "labels": {
-                naming.LABEL_SYSTEM: naming.label_value(system),
-                naming.LABEL_MANAGED_BY: naming.MANAGER,
+                names.LABEL_SYSTEM: naming.label_value(system),
+                names.LABEL_MANAGED_BY: names.MANAGER,
             },
-            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)],
+            "ownerReferences": [naming.owner_reference(API_VERSION, names.SYSTEM_KIND, system, system_uid)],
         },
         "immutable": True,
         "data": data,

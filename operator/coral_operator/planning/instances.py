@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from coral_operator.api.base import API_VERSION
+from coral_operator.api import names
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
+from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedInstance, RobotNode
@@ -66,7 +67,7 @@ class InstanceBuilder:
     def __init__(self, *, system: str, namespace: str, system_uid: str) -> None:
         self.system = system
         self.namespace = namespace
-        self.owner = naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)
+        self.owner = naming.owner_reference(API_VERSION, names.SYSTEM_KIND, system, system_uid)
         # Keyed by the template object, which the entry keeps alive so its id is not reused.
         self._specs: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
 
@@ -81,7 +82,7 @@ class InstanceBuilder:
         """The full CoralInstance manifest of `robot` at `template`'s revision."""
         return {
             "apiVersion": API_VERSION,
-            "kind": "CoralInstance",
+            "kind": names.INSTANCE_KIND,
             "metadata": {
                 "name": naming.instance_name(self.system, robot.robot),
                 "namespace": self.namespace,

@@ -1,6 +1,7 @@
-"""Names, labels and content hashes of everything the operator creates.
+"""Names, label sets and content hashes of everything the operator creates.
 
-One module so the handlers, the planners, the sink and the tests agree on every name. Pure.
+One module so the handlers, the planners and the tests agree on every name; the API's own names
+(group, labels, annotations) are `api.names`. Pure.
 """
 
 from __future__ import annotations
@@ -10,25 +11,10 @@ import json
 import re
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.api.components import Role
 
-GROUP = "coral.dev"
-LABEL_ROBOT = "coral.dev/robot"
-LABEL_SYSTEM = "coral.dev/system"
-LABEL_INSTANCE = "coral.dev/instance"
-LABEL_COMPONENT = "coral.dev/component"
-LABEL_ROLE = "coral.dev/role"
-LABEL_REVISION = "coral.dev/revision"
-LABEL_MANAGED_BY = "app.kubernetes.io/managed-by"
-MANAGER = "coral-operator"
-ANNOTATION_POD_HASH = "coral.dev/pod-hash"
-# On a robot pod (`PodPerRobot`): its containers as `role:name` in startup order, and the hash of
-# its spec without images (equal shapes differ in images only, which a pod can change in place).
-ANNOTATION_COMPONENTS = "coral.dev/components"
-ANNOTATION_SHAPE_HASH = "coral.dev/shape-hash"
-LABEL_LAYOUT = "coral.dev/layout"
 ROBOT_POD = "robot"
-FIELD_MANAGER = "coral-operator"
 
 _MAX_LABEL = 63
 _MAX_SUBDOMAIN = 253
@@ -68,7 +54,7 @@ def pod_name(instance: str, component: str, pod_hash: str) -> str:
 
     A name that changes with the content means a delete sent for a replaced pod can never hit its
     replacement, even when it is acted on late (kwok, for one, can act on it after the replacement
-    exists). A restarted operator finds its pods by their labels and `ANNOTATION_POD_HASH`
+    exists). A restarted operator finds its pods by their labels and `names.ANNOTATION_POD_HASH`
     (`planning.startup`), not by name, so the name only has to be unique and valid.
     """
     suffix = _name_suffix(pod_hash)
@@ -100,9 +86,9 @@ def config_map_name(system: str, kind: str, digest: str) -> str:
 def instance_labels(system: str, robot: str) -> dict[str, str]:
     """Labels of a CoralInstance (curated, never copied from the parent)."""
     return {
-        LABEL_SYSTEM: label_value(system),
-        LABEL_ROBOT: label_value(robot),
-        LABEL_MANAGED_BY: MANAGER,
+        names.LABEL_SYSTEM: label_value(system),
+        names.LABEL_ROBOT: label_value(robot),
+        names.LABEL_MANAGED_BY: names.MANAGER,
     }
 
 
@@ -111,39 +97,39 @@ def pod_labels(
 ) -> dict[str, str]:
     """Labels of a component pod."""
     return {
-        LABEL_SYSTEM: label_value(system),
-        LABEL_ROBOT: label_value(robot),
-        LABEL_INSTANCE: instance,
-        LABEL_COMPONENT: component,
-        LABEL_ROLE: role,
-        LABEL_REVISION: revision,
-        LABEL_MANAGED_BY: MANAGER,
+        names.LABEL_SYSTEM: label_value(system),
+        names.LABEL_ROBOT: label_value(robot),
+        names.LABEL_INSTANCE: instance,
+        names.LABEL_COMPONENT: component,
+        names.LABEL_ROLE: role,
+        names.LABEL_REVISION: revision,
+        names.LABEL_MANAGED_BY: names.MANAGER,
     }
 
 
 def robot_pod_labels(system: str, robot: str, instance: str, revision: str) -> dict[str, str]:
     """Labels of a robot pod: one robot's components in one pod, so no component or role label."""
     return {
-        LABEL_SYSTEM: label_value(system),
-        LABEL_ROBOT: label_value(robot),
-        LABEL_INSTANCE: instance,
-        LABEL_LAYOUT: "PodPerRobot",
-        LABEL_REVISION: revision,
-        LABEL_MANAGED_BY: MANAGER,
+        names.LABEL_SYSTEM: label_value(system),
+        names.LABEL_ROBOT: label_value(robot),
+        names.LABEL_INSTANCE: instance,
+        names.LABEL_LAYOUT: "PodPerRobot",
+        names.LABEL_REVISION: revision,
+        names.LABEL_MANAGED_BY: names.MANAGER,
     }
 
 
 def is_robot_pod(manifest: dict[str, Any]) -> bool:
     """The manifest is a robot pod (`PodPerRobot`), not one component's."""
-    return ANNOTATION_COMPONENTS in (manifest["metadata"].get("annotations") or {})
+    return names.ANNOTATION_COMPONENTS in (manifest["metadata"].get("annotations") or {})
 
 
 def pod_members(manifest: dict[str, Any]) -> list[tuple[str, str]]:
     """(component, role) of every component the pod runs, in startup order."""
     metadata = manifest["metadata"]
-    members = (metadata.get("annotations") or {}).get(ANNOTATION_COMPONENTS)
+    members = (metadata.get("annotations") or {}).get(names.ANNOTATION_COMPONENTS)
     if members is None:
-        return [(metadata["labels"][LABEL_COMPONENT], metadata["labels"][LABEL_ROLE])]
+        return [(metadata["labels"][names.LABEL_COMPONENT], metadata["labels"][names.LABEL_ROLE])]
     pairs = [member.split(":", 1) for member in members.split(",") if member]
     return [(name, role) for role, name in pairs]
 

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from coral_operator.api import names
+
 
 @dataclass(frozen=True)
 class RobotNode:
@@ -49,7 +51,7 @@ class ObservedPod:
     unschedulable: str | None = None
     """Why the robot cannot run the pod (the scheduler's or the kubelet's admission message)."""
     shape_hash: str = ""
-    """A robot pod's hash without images (`naming.ANNOTATION_SHAPE_HASH`); empty for component pods."""
+    """A robot pod's hash without images (`api.names.ANNOTATION_SHAPE_HASH`); empty for component pods."""
     images: tuple[tuple[str, str], ...] = ()
     """A robot pod's (container, image) pairs, so an image-only change can be patched in place."""
 
@@ -66,7 +68,7 @@ class ObservedInstance:
     reachable: bool | None = None
     node_ready: bool | None = None
     """The robot's Node is Ready (None before the instance's first status)."""
-    tree_root: str | None = None
+    root_status: str | None = None
     labels: dict[str, str] = field(default_factory=dict)
     stalled: bool = False
     """The instance is Stalled at its current generation (a component failed, or startup timed out)."""
@@ -88,7 +90,7 @@ class InstanceRecord:
     def reference(self) -> dict[str, Any]:
         """Enough of a body for an Event to name its object."""
         return {
-            "apiVersion": "coral.dev/v1alpha1",
-            "kind": "CoralInstance",
+            "apiVersion": names.API_VERSION,
+            "kind": names.INSTANCE_KIND,
             "metadata": {"name": self.name, "namespace": self.namespace, "uid": self.uid},
         }

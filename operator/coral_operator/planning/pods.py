@@ -11,9 +11,10 @@ from __future__ import annotations
 import posixpath
 from typing import Any
 
-from coral_operator.api.base import API_VERSION
+from coral_operator.api import names
 from coral_operator.api.components import Component, Role
 from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.api.names import API_VERSION
 from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
 
@@ -91,7 +92,7 @@ def _env(spec: CoralInstanceSpec, instance: str, component: Component, role: Rol
     env.append(
         {
             "name": "CORAL_REVISION",
-            "valueFrom": {"fieldRef": {"fieldPath": f"metadata.labels['{naming.LABEL_REVISION}']"}},
+            "valueFrom": {"fieldRef": {"fieldPath": f"metadata.labels['{names.LABEL_REVISION}']"}},
         }
     )
     # The user's variables come last so they can override ours deliberately.
@@ -230,7 +231,7 @@ def _pod(
     instance_uid: str,
     annotations: dict[str, str] | None = None,
 ) -> dict[str, Any]:
-    unhashed = {k: v for k, v in labels.items() if k != naming.LABEL_REVISION}
+    unhashed = {k: v for k, v in labels.items() if k != names.LABEL_REVISION}
     # The name is derived from the hash, so the hash must not cover the name.
     pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
     return {
@@ -240,8 +241,10 @@ def _pod(
             "name": naming.pod_name(instance, name_part, pod_hash),
             "namespace": namespace,
             "labels": labels,
-            "annotations": {naming.ANNOTATION_POD_HASH: pod_hash, **(annotations or {})},
-            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralInstance", instance, instance_uid)],
+            "annotations": {names.ANNOTATION_POD_HASH: pod_hash, **(annotations or {})},
+            "ownerReferences": [
+                naming.owner_reference(API_VERSION, names.INSTANCE_KIND, instance, instance_uid)
+            ],
         },
         "spec": pod_spec,
     }
@@ -400,7 +403,7 @@ def build_robot_pod(
         instance=instance,
         namespace=namespace,
         instance_uid=instance_uid,
-        annotations={naming.ANNOTATION_COMPONENTS: ",".join(members), naming.ANNOTATION_SHAPE_HASH: shape},
+        annotations={names.ANNOTATION_COMPONENTS: ",".join(members), names.ANNOTATION_SHAPE_HASH: shape},
     )
 
 

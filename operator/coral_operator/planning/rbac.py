@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral_operator.api.base import API_VERSION, GROUP
+from coral_operator.api import names
+from coral_operator.api.names import API_VERSION, GROUP
 from coral_operator.planning import naming
 
 
@@ -21,8 +22,8 @@ def build_executor_rbac(
     metadata = {
         "name": name,
         "namespace": namespace,
-        "labels": {**naming.instance_labels(system, robot), naming.LABEL_INSTANCE: instance},
-        "ownerReferences": [naming.owner_reference(API_VERSION, "CoralInstance", instance, instance_uid)],
+        "labels": {**naming.instance_labels(system, robot), names.LABEL_INSTANCE: instance},
+        "ownerReferences": [naming.owner_reference(API_VERSION, names.INSTANCE_KIND, instance, instance_uid)],
     }
     return [
         {"apiVersion": "v1", "kind": "ServiceAccount", "metadata": dict(metadata)},

@@ -11,7 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from coral_operator.api.base import API_VERSION
+from coral_operator.api import names
+from coral_operator.api.names import API_VERSION
 from coral_operator.planning import naming
 
 HISTORY_LIMIT = 10
@@ -64,11 +65,11 @@ def build_revision(
             "name": revision_name(system, revision),
             "namespace": namespace,
             "labels": {
-                naming.LABEL_SYSTEM: naming.label_value(system),
-                naming.LABEL_REVISION: revision,
-                naming.LABEL_MANAGED_BY: naming.MANAGER,
+                names.LABEL_SYSTEM: naming.label_value(system),
+                names.LABEL_REVISION: revision,
+                names.LABEL_MANAGED_BY: names.MANAGER,
             },
-            "ownerReferences": [naming.owner_reference(API_VERSION, "CoralSystem", system, system_uid)],
+            "ownerReferences": [naming.owner_reference(API_VERSION, names.SYSTEM_KIND, system, system_uid)],
         },
         "data": template,
         "revision": number,

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.api.system import StartupSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedPod
@@ -73,11 +74,11 @@ def counts_as_ready(pod: ObservedPod | None, transient: bool) -> bool:
 
 
 def _component(manifest: dict[str, Any]) -> str:
-    return manifest["metadata"]["labels"][naming.LABEL_COMPONENT]
+    return manifest["metadata"]["labels"][names.LABEL_COMPONENT]
 
 
 def _pod_hash(manifest: dict[str, Any]) -> str:
-    return manifest["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
+    return manifest["metadata"]["annotations"][names.ANNOTATION_POD_HASH]
 
 
 @dataclass(frozen=True)
@@ -179,14 +180,14 @@ def plan_startup(
     present = {pod.component for pod in observed}
     gate_open = True
     for stage in STAGES:
-        members = [m for m in desired if m["metadata"]["labels"][naming.LABEL_ROLE] == stage]
+        members = [m for m in desired if m["metadata"]["labels"][names.LABEL_ROLE] == stage]
         current = {_component(m): current_pod(m, observed) for m in members}
         for manifest in members:
             pod = current[_component(manifest)]
-            revision = manifest["metadata"]["labels"][naming.LABEL_REVISION]
+            revision = manifest["metadata"]["labels"][names.LABEL_REVISION]
             if pod is not None:
                 if pod.revision != revision:
-                    plan.relabel.append((pod.name, {naming.LABEL_REVISION: revision}))
+                    plan.relabel.append((pod.name, {names.LABEL_REVISION: revision}))
             elif gate_open and _component(manifest) not in present:
                 plan.create.append(manifest)
         if not gate_open or stage == "executor":
@@ -217,7 +218,7 @@ def _plan_robot_pod(
     """
     plan = StartupPlan()
     wanted = _pod_hash(manifest)
-    revision = manifest["metadata"]["labels"][naming.LABEL_REVISION]
+    revision = manifest["metadata"]["labels"][names.LABEL_REVISION]
     stale = sorted({pod.name for pod in observed if not pod.deleting and pod.pod_hash != wanted})
     live = [pod for pod in observed if pod.pod_hash == wanted and not pod.deleting]
     for name in stale:
@@ -228,7 +229,7 @@ def _plan_robot_pod(
         else:
             plan.set_images.append((name, patch))
     for name in sorted({pod.name for pod in live if pod.revision != revision}):
-        plan.relabel.append((name, {naming.LABEL_REVISION: revision}))
+        plan.relabel.append((name, {names.LABEL_REVISION: revision}))
     # Terminating pods count too: the new pod's drivers must not run beside the old ones.
     if not live and not plan.set_images and not observed:
         plan.create.append(manifest)
@@ -249,7 +250,7 @@ def _plan_robot_pod(
 def image_patch(manifest: dict[str, Any], pod: ObservedPod) -> dict[str, Any] | None:
     """The patch turning the robot pod `pod` into `manifest` when they differ in images only, else None."""
     annotations = manifest["metadata"]["annotations"]
-    if not pod.shape_hash or pod.shape_hash != annotations.get(naming.ANNOTATION_SHAPE_HASH):
+    if not pod.shape_hash or pod.shape_hash != annotations.get(names.ANNOTATION_SHAPE_HASH):
         return None
     running = dict(pod.images)
     spec: dict[str, Any] = {}
@@ -263,8 +264,8 @@ def image_patch(manifest: dict[str, Any], pod: ObservedPod) -> dict[str, Any] | 
             spec[group] = changed
     return {
         "metadata": {
-            "labels": {naming.LABEL_REVISION: manifest["metadata"]["labels"][naming.LABEL_REVISION]},
-            "annotations": {naming.ANNOTATION_POD_HASH: _pod_hash(manifest)},
+            "labels": {names.LABEL_REVISION: manifest["metadata"]["labels"][names.LABEL_REVISION]},
+            "annotations": {names.ANNOTATION_POD_HASH: _pod_hash(manifest)},
         },
         "spec": spec,
     }

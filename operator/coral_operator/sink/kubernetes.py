@@ -17,6 +17,8 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api import keys, names
+
 LOG = logging.getLogger(__name__)
 Patcher = Callable[[dict[str, Any]], None]
 
@@ -30,58 +32,62 @@ def _rfc3339(seconds: float | None) -> str | None:
 def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
     """The status summary after one executor record (pure; unknown events change nothing).
 
-    `state` and the result hold `tree` and `plugins` in the CoralInstance's wire format.
+    `state` and the result hold `tree` and `plugins` in the CoralInstance's wire format, keyed by
+    the wire names of `api.instance.TreeState` and `PluginState`.
     """
-    tree = dict(state.get("tree") or {})
-    plugins = dict(state.get("plugins") or {})
+    tree = dict(state.get(keys.INSTANCE_STATUS.tree) or {})
+    plugins = dict(state.get(keys.INSTANCE_STATUS.plugins) or {})
     event = record.get("event")
     if event == "status":
-        tree["rootStatus"] = str(record.get("root", tree.get("rootStatus", "IDLE")))
-        tree["tickCount"] = int(record.get("tick_count", tree.get("tickCount", 0)))
-        tree["activePath"] = str(record.get("active_path") or "")
+        tree[keys.TREE.root_status] = str(record.get("root_status", tree.get(keys.TREE.root_status, "IDLE")))
+        tree[keys.TREE.tick_count] = int(record.get("tick_count", tree.get(keys.TREE.tick_count, 0)))
+        tree[keys.TREE.active_path] = str(record.get("active_path") or "")
         if record.get("last_transition_time") is not None:
-            tree["lastTransitionTime"] = _rfc3339(record["last_transition_time"])
+            tree[keys.TREE.last_transition_time] = _rfc3339(record["last_transition_time"])
         failure = record.get("last_failure") or {}
         if failure.get("path") or failure.get("message"):
-            tree["lastFailure"] = {
-                "path": str(failure.get("path", "")),
-                "message": str(failure.get("message", "")),
-                **({"time": _rfc3339(failure["time"])} if failure.get("time") is not None else {}),
+            last_failure = {
+                keys.TREE_FAILURE.path: str(failure.get("path", "")),
+                keys.TREE_FAILURE.message: str(failure.get("message", "")),
             }
+            if failure.get("time") is not None:
+                last_failure[keys.TREE_FAILURE.time] = _rfc3339(failure["time"])
+            tree[keys.TREE.last_failure] = last_failure
         for condition in record.get("conditions") or []:
             if condition.get("type") == "LibraryDegraded":
-                plugins["degraded"] = (
+                plugins[keys.PLUGINS.degraded] = (
                     [str(condition.get("message", ""))] if condition.get("status") == "True" else []
                 )
-        tree["message"] = ""
+        tree[keys.TREE.message] = ""
     elif event == "waiting":
         missing = [str(m) for m in record.get("missing", [])]
-        plugins["missing"] = missing
-        tree.setdefault("rootStatus", "IDLE")
-        tree["message"] = "Waiting for node types: " + ", ".join(missing)
+        plugins[keys.PLUGINS.missing] = missing
+        tree.setdefault(keys.TREE.root_status, "IDLE")
+        tree[keys.TREE.message] = "Waiting for node types: " + ", ".join(missing)
     elif event == "plugins":
-        plugins["loaded"] = sorted(str(p.get("component", "")) for p in record.get("loaded", []))
-        plugins["conflicts"] = [str(c.get("message", "")) for c in record.get("conflicts", [])] + [
+        plugins[keys.PLUGINS.loaded] = sorted(str(p.get("component", "")) for p in record.get("loaded", []))
+        plugins[keys.PLUGINS.conflicts] = [str(c.get("message", "")) for c in record.get("conflicts", [])] + [
             f"{r.get('plugin')} refused: {r.get('reason')}" for r in record.get("refused", [])
         ]
     elif event == "condition" and record.get("type") == "PluginsReady" and record.get("status") == "True":
-        plugins["missing"] = []
+        plugins[keys.PLUGINS.missing] = []
     elif event == "condition" and record.get("type") == "LibraryDegraded":
-        plugins["degraded"] = [str(record.get("message", ""))] if record.get("status") == "True" else []
+        degraded = record.get("status") == "True"
+        plugins[keys.PLUGINS.degraded] = [str(record.get("message", ""))] if degraded else []
     elif event in ("finished", "error"):
         if record.get("status"):
-            tree["rootStatus"] = str(record["status"])
+            tree[keys.TREE.root_status] = str(record["status"])
         if record.get("message") or record.get("error"):
-            tree["message"] = str(record.get("message") or record.get("error"))
+            tree[keys.TREE.message] = str(record.get("message") or record.get("error"))
     else:
         return state
     result = dict(state)
     if tree:
-        result["tree"] = tree
+        result[keys.INSTANCE_STATUS.tree] = tree
     if plugins:
-        plugins.setdefault("loaded", [])
-        plugins.setdefault("missing", [])
-        result["plugins"] = plugins
+        plugins.setdefault(keys.PLUGINS.loaded, [])
+        plugins.setdefault(keys.PLUGINS.missing, [])
+        result[keys.INSTANCE_STATUS.plugins] = plugins
     return result
 
 
@@ -129,8 +135,8 @@ class KubernetesStatusSink:
                 return False
             state = {key: dict(value) for key, value in self._state.items()}
             self._last_write = self._clock()
-        if "tree" in state:
-            state["tree"]["updatedAt"] = _rfc3339(self._wall())
+        if keys.INSTANCE_STATUS.tree in state:
+            state[keys.INSTANCE_STATUS.tree][keys.TREE.updated_at] = _rfc3339(self._wall())
         try:
             self._patcher({"status": state})
         except Exception as error:  # noqa: BLE001 - a sink must never stop the mission
@@ -141,7 +147,7 @@ class KubernetesStatusSink:
             return False
         with self._lock:
             for key in state:
-                self._written[key] = {k: v for k, v in state[key].items() if k != "updatedAt"}
+                self._written[key] = {k: v for k, v in state[key].items() if k != keys.TREE.updated_at}
             self.patches += 1
         return True
 
@@ -170,10 +176,10 @@ def build_patcher(api_client: Any, namespace: str, instance: str) -> Patcher:
 
     def patch(body: dict[str, Any]) -> None:
         api.patch_namespaced_custom_object_status(
-            "coral.dev",
-            "v1alpha1",
+            names.GROUP,
+            names.VERSION,
             namespace,
-            "coralinstances",
+            names.INSTANCE_PLURAL,
             instance,
             body,
             _content_type="application/merge-patch+json",

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from coral_operator.api import keys
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
@@ -143,7 +144,7 @@ def _components_verdict(view: InstanceView) -> Verdict:
 def _plugins_verdict(view: InstanceView) -> Verdict:
     if not view.plugins:
         return Verdict(C.PLUGINS_READY, None, R.NO_REPORT, "The executor has not reported plugins yet.")
-    missing = view.plugins.get("missing") or []
+    missing = view.plugins.get(keys.PLUGINS.missing) or []
     if missing:
         return Verdict(
             C.PLUGINS_READY, False, R.PLUGINS_MISSING, f"No plugin provides: {', '.join(missing)}."
@@ -152,7 +153,7 @@ def _plugins_verdict(view: InstanceView) -> Verdict:
 
 
 def _library_verdict(view: InstanceView) -> Verdict:
-    degraded = (view.plugins or {}).get("degraded") or []
+    degraded = (view.plugins or {}).get(keys.PLUGINS.degraded) or []
     if degraded:
         return Verdict(
             C.LIBRARY_DEGRADED,
@@ -168,7 +169,7 @@ def _tree_is_stale(view: InstanceView) -> bool:
 
     Without this, a FAILURE from the previous revision would fail the robot on the new one.
     """
-    written = parse_rfc3339((view.tree or {}).get("updatedAt"))
+    written = parse_rfc3339((view.tree or {}).get(keys.TREE.updated_at))
     if written is None:
         return False
     live = [p for p in view.pods if not p.deleting and p.created is not None]
@@ -184,11 +185,13 @@ def _tree_verdict(view: InstanceView) -> Verdict:
         return Verdict(
             C.TREE_HEALTHY, None, R.NO_REPORT, "The restarted executor has not reported tree status yet."
         )
-    if view.tree.get("rootStatus") == "FAILURE":
-        failure = view.tree.get("lastFailure") or {}
-        detail = f" at {failure.get('path')}: {failure.get('message')}" if failure else ""
+    root = view.tree.get(keys.TREE.root_status, "IDLE")
+    if root == "FAILURE":
+        failure = view.tree.get(keys.TREE.last_failure) or {}
+        where, what = failure.get(keys.TREE_FAILURE.path), failure.get(keys.TREE_FAILURE.message)
+        detail = f" at {where}: {what}" if failure else ""
         return Verdict(C.TREE_HEALTHY, False, R.TREE_FAILED, f"The tree failed{detail}.")
-    return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {view.tree.get('rootStatus', 'IDLE')}.")
+    return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {root}.")
 
 
 def _tree_not_failed(view: InstanceView) -> Verdict:
@@ -224,17 +227,21 @@ def build_components(view: InstanceView) -> list[dict[str, Any]]:
         pod = current_record(slot, view.pods) or next(
             (p for p in view.pods if p.component == slot.component), None
         )
-        entry: dict[str, Any] = {"name": slot.component, "role": slot.role}
+        entry: dict[str, Any] = {keys.COMPONENT.name: slot.component, keys.COMPONENT.role: slot.role}
         if pod is not None:
             entry |= {
-                "pod": pod.name,
-                "phase": "Terminating" if pod.deleting else pod.phase,
-                "ready": counts_as_ready(pod, entry["name"] in view.transient),
-                "restarts": pod.restarts,
-                "revision": pod.revision,
+                keys.COMPONENT.pod: pod.name,
+                keys.COMPONENT.phase: "Terminating" if pod.deleting else pod.phase,
+                keys.COMPONENT.ready: counts_as_ready(pod, slot.component in view.transient),
+                keys.COMPONENT.restarts: pod.restarts,
+                keys.COMPONENT.revision: pod.revision,
             }
         else:
-            entry |= {"phase": "Waiting", "ready": False, "restarts": 0}
+            entry |= {
+                keys.COMPONENT.phase: "Waiting",
+                keys.COMPONENT.ready: False,
+                keys.COMPONENT.restarts: 0,
+            }
         entries.append(entry)
     return entries
 
@@ -291,22 +298,24 @@ def build_instance_status(
     revisions = {p.revision for p in view.pods if not p.deleting}
     node = view.node
     return {
-        "observedGeneration": generation,
-        "conditions": merge_conditions(old_conditions, verdicts, generation=generation, now=now),
-        "revision": revisions.pop()
+        keys.INSTANCE_STATUS.observed_generation: generation,
+        keys.INSTANCE_STATUS.conditions: merge_conditions(
+            old_conditions, verdicts, generation=generation, now=now
+        ),
+        keys.INSTANCE_STATUS.revision: revisions.pop()
         if len(revisions) == 1 and not view.plan.create and not view.plan.delete and not view.plan.set_images
         else None,
-        "robot": {
-            "nodeName": view.spec.node_name,
-            "reachable": bool(node and node.reachable),
-            "nodeReady": bool(node and node.ready),
+        keys.INSTANCE_STATUS.robot: {
+            keys.ROBOT.node_name: view.spec.node_name,
+            keys.ROBOT.reachable: bool(node and node.reachable),
+            keys.ROBOT.node_ready: bool(node and node.ready),
             # Written while the robot is away (from its Node Lease, then fixed); a reachable
             # robot was seen just now, and a moving timestamp would cost a write per heartbeat.
             **(
-                {"lastSeen": rfc3339(node.last_seen)}
+                {keys.ROBOT.last_seen: rfc3339(node.last_seen)}
                 if node and node.last_seen and not node.reachable
                 else {}
             ),
         },
-        "components": build_components(view),
+        keys.INSTANCE_STATUS.components: build_components(view),
     }

@@ -11,7 +11,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-EXECUTOR_KEYS = frozenset({"tree", "plugins"})
+from coral_operator.api import keys
+
+EXECUTOR_KEYS = frozenset({keys.INSTANCE_STATUS.tree, keys.INSTANCE_STATUS.plugins})
 
 
 def operator_part(status: Mapping[str, Any]) -> dict[str, Any]:

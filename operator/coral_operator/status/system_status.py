@@ -10,12 +10,17 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
+from coral_operator.api import keys
 from coral_operator.planning.observed import ObservedInstance
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
 from coral_operator.status.transitions import Verdict, merge_conditions
 
-_TREE_STATES = {"RUNNING": "running", "SUCCESS": "success", "FAILURE": "failure"}
+_TREE_STATES = {
+    "RUNNING": keys.TREE_COUNTS.running,
+    "SUCCESS": keys.TREE_COUNTS.success,
+    "FAILURE": keys.TREE_COUNTS.failure,
+}
 
 
 @dataclass(frozen=True)
@@ -42,31 +47,34 @@ class SystemView:
 
 def describe_rollback(rollout: dict[str, Any] | None) -> str | None:
     """A sentence for a rolled-back fleet, from `status.rollout` (wire format); None if not rolled back."""
-    back = (rollout or {}).get("rolledBack")
+    back = (rollout or {}).get(keys.ROLLOUT.rolled_back)
     if not back:
         return None
+    left = back.get(keys.ROLLED_BACK.from_revision)
     return (
-        f"Rolled back from revision {back.get('fromRevision')} to {back.get('toRevision')} "
-        f"({back.get('reason', 'Undo')}); robots do not run the spec's revision "
-        f"{back.get('fromRevision')} until the spec changes."
+        f"Rolled back from revision {left} to {back.get(keys.ROLLED_BACK.to_revision)} "
+        f"({back.get(keys.ROLLED_BACK.reason, 'Undo')}); robots do not run the spec's revision "
+        f"{left} until the spec changes."
     )
 
 
 def count_robots(view: SystemView) -> dict[str, int]:
     """Robot counts over the instances."""
     return {
-        "matched": view.matched,
-        "ready": sum(1 for i in view.instances if i.ready),
-        "updated": sum(1 for i in view.instances if view.revision and i.revision == view.revision),
-        "unreachable": sum(1 for i in view.instances if i.reachable is False),
+        keys.ROBOT_COUNTS.matched: view.matched,
+        keys.ROBOT_COUNTS.ready: sum(1 for i in view.instances if i.ready),
+        keys.ROBOT_COUNTS.updated: sum(
+            1 for i in view.instances if view.revision and i.revision == view.revision
+        ),
+        keys.ROBOT_COUNTS.unreachable: sum(1 for i in view.instances if i.reachable is False),
     }
 
 
 def count_trees(view: SystemView) -> dict[str, int]:
     """Tree root states over the instances; no report counts as idle."""
-    counts = {"running": 0, "success": 0, "failure": 0, "idle": 0}
+    counts = dict.fromkeys(keys.TREE_COUNTS, 0)
     for instance in view.instances:
-        counts[_TREE_STATES.get(instance.tree_root or "", "idle")] += 1
+        counts[_TREE_STATES.get(instance.root_status or "", keys.TREE_COUNTS.idle)] += 1
     return counts
 
 
@@ -96,18 +104,19 @@ def evaluate_ready(view: SystemView, robots: dict[str, int]) -> Verdict:
             C.READY,
             False,
             R.UPDATING,
-            f"{robots['updated']} of {view.matched} robots run revision {view.revision}.",
+            f"{robots[keys.ROBOT_COUNTS.updated]} of {view.matched} robots run revision {view.revision}.",
         )
     not_ready = sorted(i.robot for i in online if not i.ready)
     if not_ready:
         shown = ", ".join(not_ready[:10]) + (" ..." if len(not_ready) > 10 else "")
         return Verdict(C.READY, False, R.INSTANCES_NOT_READY, f"{len(not_ready)} robots not ready: {shown}.")
+    unreachable = robots[keys.ROBOT_COUNTS.unreachable]
     return Verdict(
         C.READY,
         True,
         R.READY,
-        f"{robots['ready']} of {view.matched} robots ready at revision {view.revision}"
-        + (f" ({robots['unreachable']} unreachable)." if robots["unreachable"] else "."),
+        f"{robots[keys.ROBOT_COUNTS.ready]} of {view.matched} robots ready at revision {view.revision}"
+        + (f" ({unreachable} unreachable)." if unreachable else "."),
     )
 
 
@@ -175,11 +184,13 @@ def build_system_status(
         *([view.rollout] if view.rollout is not None else []),
     ]
     status: dict[str, Any] = {
-        "observedGeneration": generation,
-        "conditions": merge_conditions(old_conditions, verdicts, generation=generation, now=now),
-        "robots": robots,
-        "trees": count_trees(view),
+        keys.SYSTEM_STATUS.observed_generation: generation,
+        keys.SYSTEM_STATUS.conditions: merge_conditions(
+            old_conditions, verdicts, generation=generation, now=now
+        ),
+        keys.SYSTEM_STATUS.robots: robots,
+        keys.SYSTEM_STATUS.trees: count_trees(view),
     }
     if view.revision:
-        status["revision"] = view.revision
+        status[keys.SYSTEM_STATUS.revision] = view.revision
     return status

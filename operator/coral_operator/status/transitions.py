@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api import keys
 from coral_operator.status.conditions import ConditionType, Reason
 
 
@@ -69,20 +70,22 @@ def merge_conditions(
     Returns:
         Conditions in wire format (camelCase keys).
     """
-    previous = {c.get("type"): c for c in old}
+    previous = {c.get(keys.CONDITION.type): c for c in old}
     result: list[dict[str, Any]] = []
     for verdict in verdicts:
         before = previous.get(verdict.type.value)
-        flipped = before is None or before.get("status") != verdict.status_text
+        flipped = before is None or before.get(keys.CONDITION.status) != verdict.status_text
         entry = {
-            "type": verdict.type.value,
-            "status": verdict.status_text,
-            "reason": verdict.reason.value,
-            "message": _bounded(verdict.message),
-            "lastTransitionTime": rfc3339(now) if flipped else before["lastTransitionTime"],
+            keys.CONDITION.type: verdict.type.value,
+            keys.CONDITION.status: verdict.status_text,
+            keys.CONDITION.reason: verdict.reason.value,
+            keys.CONDITION.message: _bounded(verdict.message),
+            keys.CONDITION.last_transition_time: rfc3339(now)
+            if flipped
+            else before[keys.CONDITION.last_transition_time],
         }
         if generation is not None:
-            entry["observedGeneration"] = generation
+            entry[keys.CONDITION.observed_generation] = generation
         result.append(entry)
     return result
 
@@ -90,7 +93,7 @@ def merge_conditions(
 def find(conditions: Iterable[dict[str, Any]], ctype: ConditionType) -> dict[str, Any] | None:
     """The condition of that type, if present."""
     for condition in conditions:
-        if condition.get("type") == ctype.value:
+        if condition.get(keys.CONDITION.type) == ctype.value:
             return condition
     return None
 
@@ -98,4 +101,4 @@ def find(conditions: Iterable[dict[str, Any]], ctype: ConditionType) -> dict[str
 def is_true(conditions: Iterable[dict[str, Any]], ctype: ConditionType) -> bool:
     """Whether the condition is present and True."""
     found = find(conditions, ctype)
-    return bool(found and found.get("status") == "True")
+    return bool(found and found.get(keys.CONDITION.status) == "True")

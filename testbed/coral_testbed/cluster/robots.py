@@ -13,13 +13,13 @@ import re
 from importlib import resources
 from typing import Any
 
+from coral_operator.api.names import LABEL_ROBOT as ROBOT_LABEL
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
 from coral_testbed.cluster import components
 from coral_testbed.waiting import wait_for
 
-ROBOT_LABEL = "coral.dev/robot"
 NOT_READY_ANNOTATION = "coral.dev/simulate-not-ready"
 
 # A robot name is both a Node name and a label value: the intersection of the two syntaxes.

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from coral_operator.api.names import GROUP, VERSION
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
@@ -26,7 +27,6 @@ from coral_testbed.waiting import wait_for
 
 ROOT = Path(__file__).resolve().parents[3]
 CRDS = ROOT / "crds"
-GROUP, VERSION = "coral.dev", "v1alpha1"
 _ESTABLISHED = 'jsonpath={.status.conditions[?(@.type=="Established")].status}'
 
 

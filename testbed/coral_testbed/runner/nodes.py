@@ -14,13 +14,13 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api.names import LABEL_ROBOT as ROBOT_LABEL
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
 from coral_testbed.cluster import components
 from coral_testbed.waiting import wait_for
 
-ROBOT_LABEL = "coral.dev/robot"
 RUNNER_ANNOTATION = "coral.dev/robot-runner"
 KWOK_ANNOTATION = "kwok.x-k8s.io/node"
 SIMULATION_LABEL = components.KWOK_LABEL

@@ -88,7 +88,7 @@ def test_the_executor_image_runs_a_tree_to_success(built_images: dict[str, image
         " && tail -n 1 /var/lib/coral/status/status.jsonl"
     )
     output = _run(built_images["executor"], script)
-    assert '"event": "finished", "exit_code": 0, "root": "SUCCESS"' in output.splitlines()[-1], output
+    assert '"event": "finished", "exit_code": 0, "root_status": "SUCCESS"' in output.splitlines()[-1], output
 
 
 def test_the_bag_player_image_plays_a_bag_to_its_end(built_images: dict[str, images.Built]) -> None:

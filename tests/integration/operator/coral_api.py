@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from coral_operator.api.names import GROUP, VERSION
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
 ROOT = Path(__file__).resolve().parents[3]
-GROUP, VERSION = "coral.dev", "v1alpha1"
 
 
 def fleet_mission(name: str, fleet: str) -> dict[str, Any]:

@@ -24,7 +24,7 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(scenario: 
     status_sink.emit(
         {
             "event": "status",
-            "root": "RUNNING",
+            "root_status": "RUNNING",
             "tick_count": 42,
             "active_path": "Patrol/patrol/RetryUntilSuccessful/EstimatePose",
             "last_failure": None,

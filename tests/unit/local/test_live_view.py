@@ -21,9 +21,9 @@ def _records() -> list[dict[str, object]]:
     return [
         {"event": "transition", "path": "Main", "node_id": "Sequence", "status": "RUNNING"},
         {"event": "transition", "path": "Main/ProcessScan", "node_id": "ProcessScan", "status": "RUNNING"},
-        {"event": "status", "root": "RUNNING", "tick_count": 7, "active_path": "Main/ProcessScan"},
+        {"event": "status", "root_status": "RUNNING", "tick_count": 7, "active_path": "Main/ProcessScan"},
         {"event": "transition", "path": "Main/ProcessScan", "node_id": "ProcessScan", "status": "SUCCESS"},
-        {"event": "finished", "root": "SUCCESS", "exit_code": 0, "tick_count": 9},
+        {"event": "finished", "root_status": "SUCCESS", "exit_code": 0, "tick_count": 9},
     ]
 
 

@@ -24,14 +24,14 @@ view = TreeView()
 for record in [
     {"event": "transition", "path": "Main::1", "node_id": "Sequence", "status": "RUNNING"},
     {"event": "transition", "path": "Main::1/Map::2", "node_id": "ProcessScan", "status": "RUNNING"},
-    {"event": "status", "root": "RUNNING", "tick_count": 7, "active_path": "Main::1/Map::2"},
+    {"event": "status", "root_status": "RUNNING", "tick_count": 7, "active_path": "Main::1/Map::2"},
 ]:
     view.apply(record)
     console.show(view)
 console.log("executor", "tick 7")
 for record in [
     {"event": "transition", "path": "Main::1/Map::2", "node_id": "ProcessScan", "status": "FAILURE"},
-    {"event": "finished", "root": "FAILURE", "exit_code": 1, "tick_count": 9},
+    {"event": "finished", "root_status": "FAILURE", "exit_code": 1, "tick_count": 9},
 ]:
     view.apply(record)
     console.show(view)

@@ -6,9 +6,10 @@ from collections.abc import Callable
 from datetime import timedelta
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
-from coral_operator.planning import instances, naming, pods
+from coral_operator.planning import instances, pods
 from coral_operator.planning.observed import ObservedInstance, ObservedPod
 from coral_operator.status import instance_status, system_status
 from coral_operator.status.conditions import ConditionType, Reason
@@ -49,10 +50,10 @@ def _view(
     observed = [
         ObservedPod(
             name=m["metadata"]["name"],
-            component=m["metadata"]["labels"][naming.LABEL_COMPONENT],
-            role=m["metadata"]["labels"][naming.LABEL_ROLE],
-            revision=m["metadata"]["labels"][naming.LABEL_REVISION],
-            pod_hash=m["metadata"]["annotations"][naming.ANNOTATION_POD_HASH],
+            component=m["metadata"]["labels"][names.LABEL_COMPONENT],
+            role=m["metadata"]["labels"][names.LABEL_ROLE],
+            revision=m["metadata"]["labels"][names.LABEL_REVISION],
+            pod_hash=m["metadata"]["annotations"][names.ANNOTATION_POD_HASH],
             phase="Running",
             ready=ready,
             created=NOW,
@@ -144,7 +145,7 @@ def _instance(
         revision=revision,
         ready=ready,
         reachable=reachable,
-        tree_root=tree,
+        root_status=tree,
         stalled=stalled,
     )
 

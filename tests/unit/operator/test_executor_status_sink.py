@@ -16,7 +16,7 @@ class Clock:
 
 
 def _status(root: str, tick: int, active: str = "") -> dict[str, Any]:
-    return {"event": "status", "root": root, "tick_count": tick, "active_path": active}
+    return {"event": "status", "root_status": root, "tick_count": tick, "active_path": active}
 
 
 def _sink(patches: list[dict[str, Any]], clock: Clock) -> sink.KubernetesStatusSink:
@@ -30,7 +30,7 @@ def test_a_status_record_becomes_the_tree_summary() -> None:
         {},
         {
             "event": "status",
-            "root": "RUNNING",
+            "root_status": "RUNNING",
             "tick_count": 12,
             "active_path": "Main/Seq/Move",
             "last_failure": {"path": "Main/Seq/Check", "message": "no scan", "time": 0.0},

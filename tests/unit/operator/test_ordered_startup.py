@@ -7,9 +7,10 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
-from coral_operator.planning import instances, naming, pods, startup
+from coral_operator.planning import instances, pods, startup
 from coral_operator.planning.observed import ObservedPod
 from operator_specs import NOW, robot
 
@@ -26,10 +27,10 @@ def _observed(
     labels = manifest["metadata"]["labels"]
     return ObservedPod(
         name=manifest["metadata"]["name"],
-        component=labels[naming.LABEL_COMPONENT],
-        role=labels[naming.LABEL_ROLE],
-        revision=kw.pop("revision", labels[naming.LABEL_REVISION]),
-        pod_hash=kw.pop("pod_hash", manifest["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]),
+        component=labels[names.LABEL_COMPONENT],
+        role=labels[names.LABEL_ROLE],
+        revision=kw.pop("revision", labels[names.LABEL_REVISION]),
+        pod_hash=kw.pop("pod_hash", manifest["metadata"]["annotations"][names.ANNOTATION_POD_HASH]),
         phase=phase,
         ready=ready,
         created=NOW - timedelta(seconds=age_s),
@@ -53,7 +54,7 @@ def _plan(
 
 
 def _components(manifests: list[dict[str, Any]]) -> list[str]:
-    return [m["metadata"]["labels"][naming.LABEL_COMPONENT] for m in manifests]
+    return [m["metadata"]["labels"][names.LABEL_COMPONENT] for m in manifests]
 
 
 def test_a_new_robot_starts_with_its_drivers_only(spec_dict: Callable[..., dict[str, Any]]) -> None:

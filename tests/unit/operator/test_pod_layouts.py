@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 import yaml
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import ROBOT_POD_BLOCKS, CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing
@@ -85,7 +86,7 @@ def test_a_skillset_is_gated_by_the_same_check_as_its_readiness_gate(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     spec = spec_dict(startup={"healthTimeoutSeconds": 60})
-    (slam_pod,) = [m for m in _pods(spec) if m["metadata"]["labels"][naming.LABEL_COMPONENT] == "slam"]
+    (slam_pod,) = [m for m in _pods(spec) if m["metadata"]["labels"][names.LABEL_COMPONENT] == "slam"]
     readiness = slam_pod["spec"]["containers"][0]["readinessProbe"]
     slam = next(c for c in _robot_pod(spec)["spec"]["initContainers"] if c["name"] == "slam")
     assert slam["startupProbe"]["exec"] == readiness["exec"]
@@ -259,8 +260,8 @@ def test_an_image_only_change_is_patched_into_the_running_pod(
     assert name == old[0]["metadata"]["name"]
     assert patch["spec"] == {"initContainers": [{"name": "slam", "image": "example/slam:2"}]}
     assert (
-        patch["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
-        == new[0]["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
+        patch["metadata"]["annotations"][names.ANNOTATION_POD_HASH]
+        == new[0]["metadata"]["annotations"][names.ANNOTATION_POD_HASH]
     )
 
 
@@ -329,9 +330,9 @@ def test_the_instance_status_reads_the_same_in_both_layouts(
         {"lidar"} | ({"slam"} if "lidar" in ready else set()) | ({"executor"} if "slam" in ready else set())
     )
     bodies = [
-        _component_body(m, m["metadata"]["labels"][naming.LABEL_COMPONENT] in ready)
+        _component_body(m, m["metadata"]["labels"][names.LABEL_COMPONENT] in ready)
         for m in per_component
-        if m["metadata"]["labels"][naming.LABEL_COMPONENT] in started
+        if m["metadata"]["labels"][names.LABEL_COMPONENT] in started
     ]
     robot_spec = {**spec, "layout": "PodPerRobot"}
     robot_body = _robot_pod_body(_pods(robot_spec)[0], ready=ready, started=started)
@@ -369,7 +370,7 @@ def _golden(name: str, manifest: dict[str, Any]) -> None:
 
 
 def test_golden_pod_per_component_skillset_pod() -> None:
-    (slam,) = [m for m in _pods(_example_spec()) if m["metadata"]["labels"][naming.LABEL_COMPONENT] == "slam"]
+    (slam,) = [m for m in _pods(_example_spec()) if m["metadata"]["labels"][names.LABEL_COMPONENT] == "slam"]
     _golden("lidar-slam-pod-per-component-slam.json", slam)
 
 
@@ -382,7 +383,7 @@ def test_a_finished_mission_reads_the_same_in_both_layouts(spec_dict: Callable[.
     finished = {"state": {"terminated": {"exitCode": 0, "startedAt": START, "finishedAt": START}}}
     bodies = []
     for manifest in _pods(spec):
-        executor = manifest["metadata"]["labels"][naming.LABEL_ROLE] == "executor"
+        executor = manifest["metadata"]["labels"][names.LABEL_ROLE] == "executor"
         body = _component_body(manifest, not executor, **(finished if executor else {}))
         if executor:
             body["status"]["phase"] = "Succeeded"

@@ -7,6 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import instances, naming, pods
@@ -24,7 +25,7 @@ def _pods(spec: dict[str, Any]) -> dict[str, dict[str, Any]]:
     built = pods.build_pods(
         spec=_instance_spec(spec), instance="sys-r1", namespace="ns", instance_uid="uid-1"
     )
-    return {p["metadata"]["labels"][naming.LABEL_COMPONENT]: p for p in built}
+    return {p["metadata"]["labels"][names.LABEL_COMPONENT]: p for p in built}
 
 
 def _env(pod: dict[str, Any]) -> dict[str, Any]:
@@ -35,9 +36,9 @@ def test_one_pod_per_component_in_startup_order(spec_dict: Callable[..., dict[st
     built = pods.build_pods(
         spec=_instance_spec(spec_dict()), instance="sys-r1", namespace="ns", instance_uid="u"
     )
-    assert [p["metadata"]["labels"][naming.LABEL_COMPONENT] for p in built] == ["lidar", "slam", "executor"]
+    assert [p["metadata"]["labels"][names.LABEL_COMPONENT] for p in built] == ["lidar", "slam", "executor"]
     for pod in built:
-        component = pod["metadata"]["labels"][naming.LABEL_COMPONENT]
+        component = pod["metadata"]["labels"][names.LABEL_COMPONENT]
         assert re.fullmatch(rf"sys-r1-{component}-[a-z0-9]{{5}}", pod["metadata"]["name"])
 
 
@@ -57,7 +58,7 @@ def test_pod_names_follow_the_content(spec_dict: Callable[..., dict[str, Any]]) 
 def test_the_pod_hash_does_not_cover_the_name(spec_dict: Callable[..., dict[str, Any]]) -> None:
     pod = _pods(spec_dict())["slam"]
     assert pod["metadata"]["name"] == naming.pod_name(
-        "sys-r1", "slam", pod["metadata"]["annotations"][naming.ANNOTATION_POD_HASH]
+        "sys-r1", "slam", pod["metadata"]["annotations"][names.ANNOTATION_POD_HASH]
     )
 
 
@@ -171,19 +172,19 @@ def test_a_new_revision_changes_only_the_pods_whose_component_changed(
 ) -> None:
     before = _pods(spec_dict())
     after = _pods(spec_dict(executors=[{"name": "executor", "image": "example/executor:2"}]))
-    hash_of = {k: v["metadata"]["annotations"][naming.ANNOTATION_POD_HASH] for k, v in before.items()}
-    assert after["lidar"]["metadata"]["annotations"][naming.ANNOTATION_POD_HASH] == hash_of["lidar"]
-    assert after["slam"]["metadata"]["annotations"][naming.ANNOTATION_POD_HASH] == hash_of["slam"]
-    assert after["executor"]["metadata"]["annotations"][naming.ANNOTATION_POD_HASH] != hash_of["executor"]
+    hash_of = {k: v["metadata"]["annotations"][names.ANNOTATION_POD_HASH] for k, v in before.items()}
+    assert after["lidar"]["metadata"]["annotations"][names.ANNOTATION_POD_HASH] == hash_of["lidar"]
+    assert after["slam"]["metadata"]["annotations"][names.ANNOTATION_POD_HASH] == hash_of["slam"]
+    assert after["executor"]["metadata"]["annotations"][names.ANNOTATION_POD_HASH] != hash_of["executor"]
     assert (
-        after["lidar"]["metadata"]["labels"][naming.LABEL_REVISION]
-        != before["lidar"]["metadata"]["labels"][naming.LABEL_REVISION]
+        after["lidar"]["metadata"]["labels"][names.LABEL_REVISION]
+        != before["lidar"]["metadata"]["labels"][names.LABEL_REVISION]
     )
 
 
 def test_pod_labels_are_curated(spec_dict: Callable[..., dict[str, Any]]) -> None:
     labels = _pods(spec_dict())["slam"]["metadata"]["labels"]
-    assert labels[naming.LABEL_SYSTEM] == "sys"
-    assert labels[naming.LABEL_ROBOT] == "r1"
-    assert labels[naming.LABEL_ROLE] == "skillset"
+    assert labels[names.LABEL_SYSTEM] == "sys"
+    assert labels[names.LABEL_ROBOT] == "r1"
+    assert labels[names.LABEL_ROLE] == "skillset"
     assert "fleet" not in labels

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from coral_operator.api import names
 from coral_operator.handlers import triggers
 
 
@@ -24,7 +25,7 @@ def test_a_poke_writes_each_digest_once(monkeypatch: pytest.MonkeyPatch) -> None
     triggers.poke("coralinstances", "ns", "sys-r1", "pods-1")
     triggers.poke("coralinstances", "ns", "sys-r1", "pods-1")
     triggers.poke("coralinstances", "ns", "sys-r1", "pods-2")
-    assert [w[3][triggers.ANNOTATION] for w in writes] == ["pods-1", "pods-2"]
+    assert [w[3][names.ANNOTATION_OBSERVED] for w in writes] == ["pods-1", "pods-2"]
 
 
 def test_a_failed_write_is_not_remembered(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -32,7 +33,7 @@ def test_a_failed_write_is_not_remembered(monkeypatch: pytest.MonkeyPatch) -> No
     calls: list[str] = []
 
     def refuse(*args: Any) -> None:
-        calls.append(args[3][triggers.ANNOTATION])
+        calls.append(args[3][names.ANNOTATION_OBSERVED])
         raise RuntimeError("API unavailable")
 
     monkeypatch.setattr(triggers.applying, "annotate", refuse)

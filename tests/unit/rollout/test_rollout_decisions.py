@@ -173,7 +173,7 @@ def test_a_canary_that_stops_being_ready_restarts_the_hold() -> None:
 @pytest.mark.parametrize("how", ["tree failure", "stalled instance"])
 def test_an_unhealthy_canary_pauses_the_rollout_and_no_other_robot_moves(how: str) -> None:
     robots = fleet(5)
-    change = {"tree_root": "FAILURE"} if how == "tree failure" else {"stalled": True, "ready": False}
+    change = {"root_status": "FAILURE"} if how == "tree failure" else {"stalled": True, "ready": False}
     replace(robots, 0, canary=True, revision=NEW, **change)
     policy = {"canary": {"robots": {"matchLabels": {"c": "y"}}, "holdSeconds": 10}, "onFailure": "Pause"}
     decision = decide(robots, **policy)
@@ -183,7 +183,7 @@ def test_an_unhealthy_canary_pauses_the_rollout_and_no_other_robot_moves(how: st
     assert [e.reason for e in decision.events] == ["RolloutFailed"]
     assert all(e.warning for e in decision.events)
     # The failure is remembered: the next pass, even with the canary recovered, still moves nobody.
-    replace(robots, 0, tree_root="SUCCESS", stalled=False, ready=True)
+    replace(robots, 0, root_status="SUCCESS", stalled=False, ready=True)
     later = decide(robots, previous=decision.status, now=NOW + timedelta(minutes=5), **policy)
     assert later.moves == {} and later.status.failure is not None
     assert later.create_revision == OLD
@@ -191,7 +191,7 @@ def test_an_unhealthy_canary_pauses_the_rollout_and_no_other_robot_moves(how: st
 
 def test_an_unhealthy_canary_rolls_back_when_the_policy_says_so() -> None:
     robots = fleet(5)
-    replace(robots, 0, canary=True, revision=NEW, tree_root="FAILURE")
+    replace(robots, 0, canary=True, revision=NEW, root_status="FAILURE")
     policy = {"canary": {"robots": {"matchLabels": {"c": "y"}}}, "onFailure": "Rollback"}
     decision = decide(robots, **policy)
     assert decision.target == OLD
@@ -200,7 +200,7 @@ def test_an_unhealthy_canary_rolls_back_when_the_policy_says_so() -> None:
     assert decision.status.rolled_back.from_revision == NEW
     assert "RolloutRolledBack" in [e.reason for e in decision.events]
     # The rollback holds while the spec still asks for the failed revision.
-    replace(robots, 0, revision=OLD, tree_root=None, ready=True)
+    replace(robots, 0, revision=OLD, root_status=None, ready=True)
     later = decide(robots, previous=decision.status, **policy)
     assert later.target == OLD and later.moves == {} and later.status.complete
 
@@ -209,7 +209,7 @@ def test_a_failure_after_the_rollout_completed_is_not_a_rollout_failure() -> Non
     robots = fleet(3, revision=NEW)
     done = decide(robots)
     assert done.status.complete
-    replace(robots, 1, tree_root="FAILURE")
+    replace(robots, 1, root_status="FAILURE")
     after = decide(robots, previous=done.status, onFailure="Rollback")
     assert after.target == NEW and after.moves == {} and after.status.rolled_back is None
 
@@ -228,7 +228,7 @@ def test_the_update_lock_keeps_a_robot_with_a_running_tree(
     interrupt: bool, tree: str | None, moved: bool
 ) -> None:
     robots = fleet(3)
-    replace(robots, 1, tree_root=tree)
+    replace(robots, 1, root_status=tree)
     decision = decide(robots, maxUnavailable=3, interruptRunningTrees=interrupt)
     assert ("r001" in decision.moves) is moved
     assert {"r000", "r002"} <= set(decision.moves)
@@ -241,11 +241,11 @@ def test_the_update_lock_keeps_a_robot_with_a_running_tree(
 
 def test_a_locked_robot_updates_once_its_tree_finishes() -> None:
     robots = fleet(2)
-    replace(robots, 0, tree_root="RUNNING")
+    replace(robots, 0, root_status="RUNNING")
     replace(robots, 1, revision=NEW)
     held = decide(robots)
     assert held.moves == {}
-    replace(robots, 0, tree_root="SUCCESS")
+    replace(robots, 0, root_status="SUCCESS")
     assert decide(robots, previous=held.status).moves == {"r000": NEW}
 
 
@@ -325,11 +325,11 @@ def test_a_first_deployment_has_nothing_to_roll_out_and_no_events_until_ready() 
 
 def test_resuming_clears_the_recorded_failure_and_judges_the_robots_afresh() -> None:
     robots = fleet(4)
-    replace(robots, 0, canary=True, revision=NEW, tree_root="FAILURE")
+    replace(robots, 0, canary=True, revision=NEW, root_status="FAILURE")
     policy = {"canary": {"robots": {"matchLabels": {"c": "y"}}, "holdSeconds": 0}}
     failed = decide(robots, **policy)
     stamp = failed.status.failure.time
-    replace(robots, 0, tree_root="SUCCESS")
+    replace(robots, 0, root_status="SUCCESS")
     # Another failure time than the recorded one does not count as acknowledging it.
     assert decide(robots, previous=failed.status, resumed="2020-01-01T00:00:00Z", **policy).moves == {}
     resumed = plan_rollout(

@@ -43,8 +43,8 @@ def test_the_active_path_is_the_deepest_running_node() -> None:
 def test_json_lines_sink_writes_one_parsable_record_per_line(tmp_path: Path) -> None:
     path = tmp_path / "deep" / "status.jsonl"
     sink = sinks.JsonLinesSink(path)
-    sink.emit({"ts": 1.0, "event": "status", "root": "RUNNING"})
-    sink.emit({"ts": 2.0, "event": "finished", "root": "SUCCESS", "exit_code": 0})
+    sink.emit({"ts": 1.0, "event": "status", "root_status": "RUNNING"})
+    sink.emit({"ts": 2.0, "event": "finished", "root_status": "SUCCESS", "exit_code": 0})
     sink.close()
     lines = [json.loads(line) for line in path.read_text().splitlines()]
     assert [line["event"] for line in lines] == ["status", "finished"]
@@ -63,8 +63,8 @@ def test_a_failing_sink_is_dropped_and_the_others_keep_receiving(
 ) -> None:
     good = sinks.JsonLinesSink(tmp_path / "s.jsonl")
     fanout = sinks.SinkFanout([BrokenSink(), good])
-    fanout.emit({"ts": 1.0, "event": "status", "root": "RUNNING"})
-    fanout.emit({"ts": 2.0, "event": "status", "root": "RUNNING"})
+    fanout.emit({"ts": 1.0, "event": "status", "root_status": "RUNNING"})
+    fanout.emit({"ts": 2.0, "event": "status", "root_status": "RUNNING"})
     fanout.close()
     assert len((tmp_path / "s.jsonl").read_text().splitlines()) == 2
     assert capsys.readouterr().err.count("BrokenSink failed and was dropped: disk full") == 1

@@ -96,8 +96,8 @@ def test_wake_ups_tick_at_once_instead_of_waiting_for_the_period() -> None:
         loop.tree.wake_up()
         raise AssertionError("the loop waited for its period instead of ticking on wake-ups")
     assert codes == [0]
-    assert collect.records[-1]["event"] == "finished" and collect.records[-1]["root"] == "SUCCESS"
-    assert collect.records[-2]["event"] == "status" and collect.records[-2]["root"] == "SUCCESS"
+    assert collect.records[-1]["event"] == "finished" and collect.records[-1]["root_status"] == "SUCCESS"
+    assert collect.records[-2]["event"] == "status" and collect.records[-2]["root_status"] == "SUCCESS"
 
 
 def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
@@ -122,6 +122,6 @@ def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
     assert collect.records[-1] == {
         **collect.records[-1],
         "event": "finished",
-        "root": "HALTED",
+        "root_status": "HALTED",
         "exit_code": 143,
     }
