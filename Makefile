@@ -37,7 +37,7 @@ images: venv node-runtime
 verdict-tools:
 	@bash hack/build-verdict-tools.sh >/dev/null
 
-# The SLAM mission on a real local control plane: operator, robot runner, kubectl apply.
+# The SLAM mission on a real local control plane: images, a real robot, the operator by Helm, kubectl apply.
 demo: venv control-plane node-runtime
 	@$(VENV)/bin/coral demo
 

@@ -27,7 +27,6 @@ VERBS: dict[str, str] = {
     "executor": "coral.executor.cli:executor_command",
     "skillset": "coral.sdk.cli:skillset_command",
     "plugins": "coral.plugins.cli:plugins_command",
-    "robot-runner": "coral_testbed.runner.cli:robot_runner",
     "operator": "coral_operator.cli:operator_command",
     "convert": "coral_operator.convert.cli:convert_command",
     "crds": "coral_operator.crds_cli:crds_command",

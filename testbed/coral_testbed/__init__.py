@@ -1,1 +1,2 @@
-"""Test and demo tooling: a local Kubernetes control plane with kwok robots, and the robot runner."""
+"""Test and demo tooling: a local Kubernetes control plane with real robots (an upstream kubelet and
+containerd each) and kwok robots, images built from the repository's Dockerfiles, and missions on it."""

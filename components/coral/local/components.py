@@ -26,7 +26,7 @@ REFERENCE_COMPONENTS = {
     "coral/bag-player": "coral_drivers.bag_player.driver:BagPlayer",
     "coral/slam-skillset": "coral_skillsets.slam.skillset:SlamSkillset",
     "coral/snapshot-skillset": "coral_skillsets.snapshot.skillset:SnapshotSkillset",
-    "coral/example-skillset": "coral_skillsets.examples.skillset:ExampleSkillset",
+    "coral/examples-skillset": "coral_skillsets.examples.skillset:ExampleSkillset",
 }
 
 

@@ -5,7 +5,8 @@ is itself a private mount (a namespace file may not sit on a shared mount), so t
 containerd can join it with `nsenter --mount=FILE` at any time. Inside it, each path in `PRIVATE`
 is a bind mount of a folder in the robot's state folder; every mount the kubelet and containerd
 make later (volumes, rootfs, pod network namespaces) stays inside the namespace and vanishes
-with it. The UTS namespace beside it carries the robot's name as host name, which host-network
+with it, and so does a folder another robot shares into it (`bind_into`, an NFS mount on a real
+site). The UTS namespace beside it carries the robot's name as host name, which host-network
 pods see, as on a real robot.
 """
 
@@ -17,9 +18,11 @@ from pathlib import Path
 
 import psutil
 
-# Paths a node owns: the plugin root, pod logs, and the kubelet's and containerd's state.
+# Paths a node owns: the plugin root, pod logs, the kubelet's and containerd's state, and /srv, the
+# robot's own site data (a share another robot exports is mounted below it).
 PRIVATE = (
     "/var/lib/coral",
+    "/srv",
     "/var/log/pods",
     "/var/log/containers",
     "/var/lib/kubelet",
@@ -61,13 +64,36 @@ def release_private_folder(folder: Path) -> None:
         _run("umount", "--lazy", str(folder))
 
 
+def _normal(path: str) -> str:
+    return os.path.normpath("/" + path.lstrip("/"))
+
+
+def is_private(path: str) -> bool:
+    """True when `path` is the robot's own (under one of `PRIVATE`), not the host's."""
+    normal = _normal(path)
+    return any(normal == private or normal.startswith(private + "/") for private in PRIVATE)
+
+
 def host_path(root: Path, path: str) -> Path:
     """Where the robot's `path` is on the host: inside `root` for private paths, else the path itself."""
-    normal = os.path.normpath("/" + path.lstrip("/"))
-    for private in PRIVATE:
-        if normal == private or normal.startswith(private + "/"):
-            return root / normal.lstrip("/")
-    return Path(normal)
+    normal = _normal(path)
+    return root / normal.lstrip("/") if is_private(normal) else Path(normal)
+
+
+def bind_into(ns_file: Path, root: Path, source: Path, path: str) -> None:
+    """Mounts the host folder `source` at the robot's private `path`, in the robot's view only.
+
+    The robot's containers see it at once (their hostPath volumes resolve in this view) and it
+    goes with the robot's namespace; the host never sees the mount.
+
+    Raises:
+        MountError: `path` is not a private path of the robot (the mount would hide a host folder
+            from every robot), or `mount` failed.
+    """
+    if not is_private(path):
+        raise MountError(f"{path} is not a robot's own path (one of {', '.join(PRIVATE)}); nothing mounted")
+    host_path(root, path).mkdir(parents=True, exist_ok=True)
+    _run("nsenter", f"--mount={ns_file}", "--", "mount", "--bind", str(source), _normal(path))
 
 
 def uts_file(ns_file: Path) -> Path:

@@ -289,9 +289,7 @@ class RealRobots:
         kubelet = self._spawn(
             layout, "kubelet", nodeconfig.build_kubelet(layout, labels), in_runtime_cgroup=True
         )
-        self._await(
-            kubelet, lambda: kubelet_healthy(layout), f"the kubelet of {layout.name} to be healthy"
-        )
+        self._await(kubelet, lambda: kubelet_healthy(layout), f"the kubelet of {layout.name} to be healthy")
 
     def wait_ready(self, names: list[str], ready: str = "True", timeout: float = 180) -> None:
         """Waits until each robot's Node reports Ready=`ready` ("True", "False" or "Unknown")."""
@@ -364,6 +362,30 @@ class RealRobots:
     def host_path(self, name: str, path: str) -> Path:
         """Where `path` of the robot (a hostPath volume, say) is on this machine."""
         return mountview.host_path(self.layout(name).root, path)
+
+    def share_folder(self, server: str, clients: list[str], path: str, owner: int | None = None) -> Path:
+        """`server`'s folder `path`, mounted at the same path on each of `clients`: one folder all
+        of them see, as an NFS export of a site share would be. `owner` (a uid, also the gid)
+        is given the folder, as a site administrator would for the components' user. Returns
+        where the folder is on this machine.
+
+        Raises:
+            RobotError: a robot is unknown, or `path` is not a path robots own (mountview.PRIVATE).
+        """
+        exported = self.host_path(server, path)
+        if not mountview.is_private(path):
+            owned = ", ".join(mountview.PRIVATE)
+            raise RobotError(f"{path} is not a path robots own ({owned}): cannot share it")
+        exported.mkdir(parents=True, exist_ok=True)
+        if owner is not None:
+            os.chown(exported, owner, owner)
+        for client in clients:
+            layout = self.layout(client)
+            try:
+                mountview.bind_into(layout.ns_file, layout.root, exported, path)
+            except mountview.MountError as error:
+                raise RobotError(f"sharing {server}:{path} with {client}: {error}") from error
+        return exported
 
     def enter(self, name: str) -> list[str]:
         """The command prefix that runs a command inside the robot's network and mount view."""
@@ -501,26 +523,52 @@ def remove_all(state_dir: Path, progress: Progress = lambda _: None) -> list[str
     return leftovers(state_dir, data["slot"])
 
 
-def leftovers(state_dir: Path, slot: int | None) -> list[str]:
-    """What real robots of this cluster left behind: node processes, mounts, namespaces, links, cgroups."""
-    state_dir = state_dir.resolve()
+def _processes_naming(marks: list[str]) -> list[str]:
+    """Processes (other than this one) whose command line contains one of `marks`."""
     found = []
-    folder = str(state_dir / ROBOTS_DIR)
     for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
             continue
         try:
             cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        ours = folder in cmdline or (
-            slot is not None and f"/run/netns/{robotnet.netns_name(slot, '')}" in cmdline
-        )
-        if ours and int(entry.name) != os.getpid():
+        if any(mark in cmdline for mark in marks):
             found.append(f"process {entry.name}: {cmdline[:120]}")
+    return found
+
+
+def leftovers(state_dir: Path, slot: int | None) -> list[str]:
+    """What real robots of this cluster left behind: node processes, mounts, namespaces, links, cgroups."""
+    state_dir = state_dir.resolve()
+    marks = [str(state_dir / ROBOTS_DIR)]
+    if slot is not None:
+        marks.append(f"/run/netns/{robotnet.netns_name(slot, '')}")
+    found = _processes_naming(marks)
     found += [f"mount {point}" for point in mountview.mounts_under(state_dir / ROBOTS_DIR)]
     if slot is not None:
         found += [f"network {name}" for name in robotnet.slot_resources(slot)]
         for hierarchy in cgroups.hierarchies():
             found += [f"cgroup {p}" for p in hierarchy.glob(f"coral-{slot}-*")]
+    return found
+
+
+def robot_leftovers(layouts: list[nodeconfig.RobotLayout]) -> list[str]:
+    """What these removed robots left behind (the cluster's other robots aside): their processes,
+    mounts, namespace files, network namespaces and links, and cgroups."""
+    marks = [str(layout.dir) for layout in layouts]
+    marks += [f"/run/netns/{layout.link.netns}" for layout in layouts]
+    found = _processes_naming(marks)
+    for layout in layouts:
+        found += [f"mount {point}" for point in mountview.mounts_under(layout.dir)]
+        found += [
+            f"namespace file {pinned}"
+            for pinned in (layout.ns_file, mountview.uts_file(layout.ns_file))
+            if pinned.exists()
+        ]
+        found += [f"network {name}" for name in robotnet.robot_resources(layout.link)]
+        for hierarchy in cgroups.hierarchies():
+            cgroup = hierarchy / layout.cgroup_root.lstrip("/")
+            if cgroup.exists():
+                found.append(f"cgroup {cgroup}")
     return found

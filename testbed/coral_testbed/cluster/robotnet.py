@@ -93,6 +93,14 @@ def slot_resources(slot: int) -> list[str]:
     return found
 
 
+def robot_resources(link: RobotLink) -> list[str]:
+    """The robot's namespace and bridge-side link, those that exist now (empty once removed)."""
+    found = [name for name in _namespaces() if name == link.netns]
+    if re.search(rf"^\d+: {link.host_veth}[@:]", _links(), flags=re.MULTILINE):
+        found.append(link.host_veth)
+    return found
+
+
 def claim_slot() -> int:
     """A slot with no bridge yet, whose bridge is created before the lock is released."""
     _LOCK.parent.mkdir(parents=True, exist_ok=True)

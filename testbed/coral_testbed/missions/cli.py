@@ -26,15 +26,18 @@ from coral.local.cli import TREE_PNG, output_option
 def demo_command(
     mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
 ) -> None:
-    """Start a control plane, the operator and the robot runner, kubectl apply a mission, follow it live."""
+    """Start a control plane, real robots and the operator by Helm; kubectl apply a mission, follow it."""
     from coral_testbed.missions import demo
 
-    outcome = demo.run(
-        mission,
-        scans or (300 if mission == "slam" else 60),
-        timeout,
-        echo=click.echo,
-        tree_png=tree_png,
-        output_dir=output_dir,
-    )
+    try:
+        outcome = demo.run(
+            mission,
+            scans or (300 if mission == "slam" else 60),
+            timeout,
+            echo=click.echo,
+            tree_png=tree_png,
+            output_dir=output_dir,
+        )
+    except demo.DemoUnsupported as error:
+        raise click.ClickException(str(error)) from error
     sys.exit(0 if outcome.success else 1)

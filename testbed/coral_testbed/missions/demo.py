@@ -1,7 +1,8 @@
 """`coral demo` (what `make demo` runs): a mission on a real local control plane, end to end.
 
-Starts a throwaway control plane, the operator and the robot runner, links the synthetic LiDAR bag
-into the robot's files, `kubectl apply`s the committed example mission, prints every robot's tree
+Starts a throwaway control plane, builds the mission's images into a local registry, starts real
+robots (a kubelet and a containerd each) and installs the operator with Helm, copies the synthetic
+LiDAR bag into the robot's files, `kubectl apply`s the committed example mission, prints every robot's tree
 as it moves until the mission ends, shows `kubectl get coralinstances`, scores the map and the
 trajectory against ground truth, and stops everything it started, also on error or Ctrl-C.
 """
@@ -24,11 +25,10 @@ from coral.lidar import generating
 from coral.local.console import outline_of
 from rich.live import Live
 
-from coral_testbed.cluster import controlplane, realrobots
+from coral_testbed.cluster import binaries, controlplane, realrobots
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.missions import domains, following, manifests
-from coral_testbed.missions.realstack import RealMissionStack
-from coral_testbed.missions.stack import MissionStack
+from coral_testbed.missions.stack import MissionStack, MissionView
 from coral_testbed.waiting import wait_for
 
 NAMESPACE = "coral-demo"
@@ -142,7 +142,7 @@ def keep_outputs(evaluation: slam_demo.Evaluation, folder: Path) -> slam_demo.Ev
     )
 
 
-def draw_trees(stack: MissionStack, robots: list[str], target: Path, echo: Echo) -> None:
+def draw_trees(stack: MissionView, robots: list[str], target: Path, echo: Echo) -> None:
     """Draws each robot's deployed tree (from its instance's ConfigMap) coloured by what the
     instance reports; one robot gets `target`, several `<stem>-<robot>.png` beside it."""
     for robot in robots:
@@ -167,10 +167,9 @@ def _relay(
     stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
 ) -> dict[str, str]:
     """The three-robot relay; its results stay on the site share, so `kept` is not used."""
-    assert stack.runner is not None
     survey, server, worker = manifests.RELAY_ROBOTS
-    manifests.place_bag(stack.runner, survey, dataset / "bag", manifests.SURVEY_BAG)
-    share = manifests.share_folder(stack.runner, server, [survey, worker])
+    stack.place_bag(survey, dataset / "bag", manifests.SURVEY_BAG)
+    share = stack.share_folder(server, [survey, worker])
     echo(f"==> {server} exports {manifests.SITE_SHARE} ({share}); {survey} and {worker} mount it")
     _apply(stack, manifests.RELAY_MISSION, domain, echo)
     roots = _follow(stack, list(manifests.RELAY_ROBOTS), timeout, echo)
@@ -184,9 +183,13 @@ def _relay(
     return roots
 
 
-def real_robots_missing(cluster: Cluster) -> str | None:
-    """Why the SLAM mission cannot run on real robots here (it then runs on the robot runner)."""
-    reason = realrobots.unsupported_reason(cluster.bin_dir)
+class DemoUnsupported(RuntimeError):
+    """This machine cannot host the demo's real robots; the message says why and what to install."""
+
+
+def real_robots_missing(bin_dir: Path | None) -> str | None:
+    """Why missions cannot run on real robots here, or None when they can."""
+    reason = realrobots.unsupported_reason(bin_dir)
     if reason:
         return reason
     if os.geteuid() != 0 or shutil.which("buildah") is None:
@@ -194,15 +197,16 @@ def real_robots_missing(cluster: Cluster) -> str | None:
     return None
 
 
-def _stack(mission: str, cluster: Cluster, robots: list[str], root: Path, echo: Echo) -> MissionStack:
-    missing = real_robots_missing(cluster) if mission == "slam" else "the relay runs on the robot runner"
-    if missing is None:
-        echo(f"==> The operator by Helm and real robots ({', '.join(robots)}), namespace {NAMESPACE}")
-        return RealMissionStack(cluster, NAMESPACE, robots, root, echo=echo)
-    echo(f"==> Starting the Coral operator (namespace {NAMESPACE})")
-    echo(f"    and the robot runner ({', '.join(robots)})")
-    echo(f"    (not real robots: {missing})")
-    return MissionStack(cluster, NAMESPACE, robots, root)
+def _check_machine() -> None:
+    """Raises DemoUnsupported before anything starts when this machine cannot host real robots."""
+    missing = real_robots_missing(binaries.optional_bin_dir((*binaries.REQUIRED, "kubelet", "coral-cri")))
+    if missing is not None:
+        raise DemoUnsupported(f"the demo runs on real robots, which this machine cannot host: {missing}")
+
+
+def _stack(cluster: Cluster, robots: list[str], root: Path, echo: Echo) -> MissionStack:
+    echo(f"==> The operator by Helm and real robots ({', '.join(robots)}), namespace {NAMESPACE}")
+    return MissionStack(cluster, NAMESPACE, robots, root, echo=echo)
 
 
 def run(
@@ -213,7 +217,12 @@ def run(
     tree_png: Path | None = None,
     output_dir: Path = DEFAULT_OUTPUT,
 ) -> Outcome:
-    """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring."""
+    """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring.
+
+    Raises:
+        DemoUnsupported: this machine cannot host real robots (checked before anything starts).
+    """
+    _check_machine()
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
     echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
@@ -236,7 +245,7 @@ def run(
                 cluster = Cluster(
                     state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir
                 )
-                with _stack(mission, cluster, robots, Path(folder) / "mission", echo) as stack:
+                with _stack(cluster, robots, Path(folder) / "mission", echo) as stack:
                     _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
                     roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
                     if tree_png is not None:

@@ -1,8 +1,8 @@
-"""Prepares an example mission for a given cluster: robot names, ROS domain, trees' timeouts, and
-the robot files a mission expects (the bag, the site share).
+"""Prepares an example mission for a given cluster: robot names, ROS domain and trees' timeouts, and
+names the robot files a mission expects (the bag, the site share).
 
-Pure text/YAML functions plus two file helpers over a `RobotRunner`'s folders. Used by `coral demo`
-and the mission tests, which run the committed examples with their own robot names.
+Pure text/YAML functions. Used by `coral demo` and the mission tests, which run the committed
+examples with their own robot names; `stack.MissionView` puts the files on the robots.
 """
 
 from __future__ import annotations
@@ -12,8 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
-from coral_testbed.runner import RobotRunner
 
 ROOT = Path(__file__).resolve().parents[3]
 SLAM_MISSION = ROOT / "examples" / "lidar-slam" / "mission.yaml"
@@ -74,27 +72,3 @@ def with_timeout(text: str, process: str, timeout_ms: int) -> str:
 def only_systems(text: str, names: set[str]) -> str:
     """The manifest restricted to the CoralSystems named in `names`."""
     return _dump([d for d in documents(text) if d["metadata"]["name"] in names])
-
-
-def place_bag(runner: RobotRunner, robot: str, bag: Path, robot_path: str) -> Path:
-    """Links the bag folder `bag` into `robot`'s hostPath `robot_path`; returns the link."""
-    link = runner.host_path(robot, robot_path)
-    link.parent.mkdir(parents=True, exist_ok=True)
-    if link.is_symlink() or link.exists():
-        link.unlink()
-    link.symlink_to(bag.resolve(), target_is_directory=True)
-    return link
-
-
-def share_folder(runner: RobotRunner, server: str, clients: list[str], robot_path: str = SITE_SHARE) -> Path:
-    """`server`'s folder `robot_path`, mounted at the same path on `clients` (what NFS would do on a
-    real site: the robots see one folder); returns the server's folder."""
-    exported = runner.host_path(server, robot_path)
-    exported.mkdir(parents=True, exist_ok=True)
-    for client in clients:
-        mount = runner.host_path(client, robot_path)
-        mount.parent.mkdir(parents=True, exist_ok=True)
-        if mount.is_symlink():
-            mount.unlink()
-        mount.symlink_to(exported, target_is_directory=True)
-    return exported

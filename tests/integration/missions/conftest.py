@@ -1,27 +1,18 @@
-"""Fixtures for mission tests: a `MissionStack` (operator + robot runner) per test, left clean."""
+"""Fixtures for mission tests on real robots: the short bag, a `MissionView` of the test's
+namespace, and a bounded wait for every robot's tree to end."""
 
 from __future__ import annotations
 
-import shutil
-import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 from coral.lidar import generating
 from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import MissionStack, following
-from coral_testbed.runner import network
+from coral_testbed.missions import MissionView, following
 
-StartStack = Callable[[list[str]], MissionStack]
 # Short bags keep the tests quick on a shared 2-core machine; the demo plays the full 300 scans.
 TEST_SCANS = 40
-
-
-@pytest.fixture
-def suffix() -> str:
-    """Makes robot names unique: robots created in a session stay for the session."""
-    return uuid.uuid4().hex[:6]
 
 
 @pytest.fixture(scope="session")
@@ -31,50 +22,24 @@ def short_bag() -> Path:
 
 
 @pytest.fixture
-def start_stack(cluster: Cluster, namespace: str, tmp_path: Path) -> Iterator[StartStack]:
-    """Starts the operator and a robot runner for the test's namespace; at teardown stops them and
-    checks that no robot process, namespace or link of the runner's slot survived."""
-    stacks: list[MissionStack] = []
-
-    def start(robots: list[str]) -> MissionStack:
-        stack = MissionStack(cluster, namespace, robots, tmp_path / f"stack-{len(stacks)}")
-        stacks.append(stack)
-        stack.start()
-        return stack
-
-    yield start
-    for stack in stacks:
-        runner = stack.runner
-        slot = runner.network.slot if runner is not None and runner.network is not None else None
-        stack.stop()
-        if slot is not None:
-            assert not network.marked_pids(slot), "robot processes survived the stop"
-            assert not network.slot_resources(slot), "robot namespaces or links survived the stop"
+def mission(cluster: Cluster, namespace: str) -> MissionView:
+    """The test's namespace as a mission sees it: apply, CoralInstances, files on the robots."""
+    return MissionView(cluster, namespace)
 
 
-def wait_finished(stack: MissionStack, robots: list[str], timeout: float) -> dict[str, dict]:
+def wait_finished(
+    view: MissionView, robots: list[str], timeout: float, operator_log: Callable[[], str]
+) -> dict[str, dict]:
     """Every robot's CoralInstance once its tree ended; on timeout the error has each robot's line,
     the operator's log and the executors' logs."""
     try:
         items = following.follow(
-            stack.instances,
-            lambda instances: following.finished(instances, robots),
-            timeout=timeout,
-            check=stack.check_operator,
+            view.instances, lambda instances: following.finished(instances, robots), timeout=timeout
         )
     except TimeoutError as error:
-        logs = "\n".join(f"--- {r} executor:\n{stack.log_tail(r, 'executor')}" for r in robots)
-        raise AssertionError(f"{error}\n--- operator:\n{stack.operator_log_tail()}\n{logs}") from error
+        logs = "\n".join(f"--- {r} executor:\n{view.log_tail(r, 'executor')}" for r in robots)
+        raise AssertionError(f"{error}\n--- operator:\n{operator_log()[-3000:]}\n{logs}") from error
     return {following.robot(i): i for i in items}
-
-
-def place_bag_on_real_robot(fleet: realrobots.RealRobots, robot: str, bag: Path, robot_path: str) -> None:
-    """Copies the bag folder into the real robot's `robot_path` (a link would point outside the
-    robot's mount view, where its containers cannot follow it)."""
-    target = fleet.host_path(robot, robot_path)
-    if target.exists():
-        shutil.rmtree(target)
-    shutil.copytree(bag, target)
 
 
 def first_real_robot(fleet: realrobots.RealRobots) -> str:

@@ -20,12 +20,12 @@ from typing import Any
 import pytest
 import yaml
 from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import manifests
+from coral_testbed.missions import MissionView, manifests
 from coral_testbed.waiting import wait_for
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
-from .conftest import first_real_robot, place_bag_on_real_robot
+from .conftest import first_real_robot
 
 pytestmark = [
     pytest.mark.cluster,
@@ -42,11 +42,11 @@ COMPARED = ("Ready", "Stalled", "RobotReachable", "ComponentsReady", "PluginsRea
 
 @pytest.fixture
 def real_robot_name(
-    helm_operator: HelmOperator, real_robots: realrobots.RealRobots, short_bag: Path
+    helm_operator: HelmOperator, real_robots: realrobots.RealRobots, mission: MissionView, short_bag: Path
 ) -> str:
     """The first real robot of the session, with the short bag where the example's driver reads it."""
     robot = first_real_robot(real_robots)
-    place_bag_on_real_robot(real_robots, robot, short_bag / "bag", manifests.SLAM_BAG)
+    mission.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
     return robot
 
 

@@ -1,7 +1,10 @@
 """The committed SLAM mission on a real robot: the operator installed by Helm, the bag player, both
 skillsets and the executor as containers pulled from the registry, plugins exported through the
 shared host-path folder (owned by the components' non-root user), readiness gating the start, the
-executor writing its tree status with its own token, and `kubectl logs` for every pod."""
+executor writing its tree status with its own token, and `kubectl logs` for every pod. What
+`coral demo` shows of it holds too: `kubectl get coralinstances`, the map and its picture scored
+against the bag's ground truth and kept after the robot is gone, the tree drawn in its result's
+colour, and the finished executor staying Succeeded (no re-run) on an instance still Ready."""
 
 from __future__ import annotations
 
@@ -9,14 +12,19 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from coral import tree_picture
 from coral.lidar import demo as slam_demo
+from coral.lidar import picture
+from coral.local.console import outline_of
 from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import following, manifests
+from coral_testbed.missions import MissionView, following, manifests
+from coral_testbed.missions import demo as mission_demo
 from coral_testbed.waiting import wait_for
+from fixtures import pictures
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
-from .conftest import first_real_robot, place_bag_on_real_robot
+from .conftest import TEST_SCANS, first_real_robot
 
 pytestmark = [
     pytest.mark.cluster,
@@ -45,12 +53,13 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
     namespace: str,
     helm_operator: HelmOperator,
     real_robots: realrobots.RealRobots,
+    mission: MissionView,
     short_bag: Path,
     ros_env: dict[str, str],
     tmp_path: Path,
 ) -> None:
     robot = first_real_robot(real_robots)
-    place_bag_on_real_robot(real_robots, robot, short_bag / "bag", manifests.SLAM_BAG)
+    mission.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
     text = manifests.rename_robots(manifests.SLAM_MISSION.read_text(), {manifests.SLAM_ROBOT: robot})
     text = manifests.with_domain(text, int(ros_env["ROS_DOMAIN_ID"]))
     cluster.kubectl("apply", "-n", namespace, "-f", "-", input=text)
@@ -80,6 +89,9 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
         ) from error
     (instance,) = [i for i in instances if following.robot(i) == robot]
     assert following.tree(instance)["rootStatus"] == "SUCCESS", following.describe(instance)
+    table = cluster.kubectl("get", "coralinstances", "-n", namespace).stdout
+    row = next(line for line in table.splitlines() if robot in line)
+    assert "SUCCESS" in row.split(), table
 
     pods = {
         p.metadata.labels["coral.dev/component"]: p
@@ -105,19 +117,58 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
     # token: no other process of this test writes instance status).
     assert executor.spec.service_account_name not in (None, "default")
     assert following.tree(instance).get("tickCount", 0) > 0, following.tree(instance)
-    wait_for(
-        lambda: core.read_namespaced_pod(executor.metadata.name, namespace).status.phase == "Succeeded",
+    finished = wait_for(
+        lambda: (
+            (p := core.read_namespaced_pod(executor.metadata.name, namespace)).status.phase == "Succeeded"
+            and p
+        ),
         timeout=60,
         message="the executor pod to end Succeeded",
     )
+    # The mission is over: the executor is not started again, and the instance says so while it
+    # stays Ready (a finished mission is not a broken robot).
+    assert finished.status.container_statuses[0].restart_count == 0
+    assert finished.spec.restart_policy == "OnFailure"
+
+    def mission_finished() -> bool:
+        current = mission.instance_of(robot) or {}
+        components = {c["name"]: c for c in (current.get("status") or {}).get("components", [])}
+        return (
+            following.condition(current, "Ready").get("status") == "True"
+            and components.get("executor", {}).get("phase") == "Succeeded"
+        )
+
+    wait_for(mission_finished, timeout=90, message=lambda: f"mission finished: {mission.instance_of(robot)}")
 
     # The map and trajectory are in the SLAM container's output folder; `kubectl cp` brings them
-    # here, and they match the bag's ground truth as on the runner.
+    # here, and they match the bag's ground truth as they do with `coral run`.
     output = tmp_path / "output"
     cluster.kubectl(
         "cp", "-n", namespace, "-c", "slam",
         f"{pods['slam'].metadata.name}:{manifests.CONTAINER_OUTPUT_DIR}", str(output),
     )  # fmt: skip
     evaluation = slam_demo.evaluate(output, short_bag)
+    assert evaluation.ground_truth_scans == TEST_SCANS and evaluation.scans >= TEST_SCANS - 2, evaluation
     assert evaluation.map_points > 1000, evaluation
     assert evaluation.error is not None and evaluation.error.ate_rmse_m < 0.5, evaluation.error
+    # The picture lands beside the map, as `coral demo` prints it.
+    map_file = output / slam_demo.EXAMPLE_MAP_NAME
+    assert evaluation.picture_path == map_file.with_suffix(".png")
+    rgb = pictures.pixels(evaluation.picture_path, picture.SIZE_PX)
+    assert pictures.count_near(rgb, pictures.RED) > 200 and pictures.count_near(rgb, pictures.GREEN) > 200
+
+    # What `coral demo` keeps once the robot is gone: the same files, picture included.
+    kept = mission_demo.keep_outputs(evaluation, tmp_path / "kept")
+    assert kept.map_path == tmp_path / "kept" / "slam_map.ply" and kept.map_path.is_file()
+    assert kept.picture_path is not None
+    assert kept.picture_path.read_bytes() == evaluation.picture_path.read_bytes()
+    assert (tmp_path / "kept" / "slam_map.trajectory.csv").is_file()
+
+    # `coral demo --tree-png`: the deployed tree, its root in the colour of the mission's result.
+    said: list[str] = []
+    mission_demo.draw_trees(mission, [robot], tmp_path / "tree.png", said.append)
+    assert said == [f"Tree picture      : {tmp_path / 'tree.png'}"]
+    outline = outline_of(manifests.ROOT / "examples" / "lidar-slam" / "tree.xml")
+    rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
+    green = tuple(int(tree_picture.FILL["SUCCESS"][i : i + 2], 16) for i in (1, 3, 5))
+    assert pictures.count_near(rgb, green, 6) > 200

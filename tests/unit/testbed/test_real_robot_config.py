@@ -107,13 +107,24 @@ def test_layout_survives_its_json_round_trip(tmp_path: Path) -> None:
         ("/var/log/pods/ns_pod/c/0.log", True),
         ("/var/lib/coral/../../etc/passwd", False),
         ("/var/lib/coralx", False),
-        ("/srv/data", False),
+        ("/srv/maps", True),
+        ("/srvx/data", False),
+        ("/srv/../etc", False),
+        ("/etc/coral", False),
     ],
 )
 def test_host_path_maps_only_the_robots_private_paths(tmp_path: Path, path: str, private: bool) -> None:
     root = tmp_path / "root"
     mapped = mountview.host_path(root, path)
     assert mapped.is_relative_to(root) == private
+    assert mountview.is_private(path) == private
+
+
+def test_a_host_folder_is_never_shared_into_a_robot(tmp_path: Path) -> None:
+    """Mounting over a path the host owns would hide that folder from the robot's node processes."""
+    with pytest.raises(mountview.MountError, match=r"/etc/maps is not a robot's own path"):
+        mountview.bind_into(tmp_path / "ns", tmp_path / "root", tmp_path / "share", "/etc/maps")
+    assert not (tmp_path / "root").exists()
 
 
 def test_local_image_archive_is_a_valid_oci_layout_and_reproducible() -> None:
