@@ -1,4 +1,5 @@
-"""The executor's tick loop: wake-ups tick at once, a stop halts the running behavior, records flow."""
+"""The executor's tick loop: wake-ups tick at once, a tree that signals its wake-ups is not polled,
+booked deadlines tick it, a stop halts the running behavior, records flow."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from coral.bt.leaves import StatefulAction
 from coral.executor import plugins_phase, sinks
 from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
+from coral.executor.wakeups import WakeSchedule
+from coral_testbed.waiting import wait_for
 
 HALTED: list[str] = []
 
@@ -58,6 +61,8 @@ def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
     registry = NodeRegistry.with_builtins()
     registry.register("Work", Work)
     registry.register("Forever", Forever)
+    registry.register("Waits", Waits)
+    registry.register("Deadline", Deadline)
     context = SimpleNamespace(health=HealthMonitor(time.monotonic), failure_message=lambda path: "")
     tree = load_tree_text(xml).build(registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
@@ -122,3 +127,86 @@ def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
         "root": "HALTED",
         "exit_code": 143,
     }
+
+
+class Waits(Forever):
+    """RUNNING until a wake-up that never comes; keeps BT.CPP's wake-up contract."""
+
+    SIGNALS_WAKE_UP = True
+
+
+class Deadline(StatefulAction):
+    """Books a tick 0.1 s ahead with the executor and succeeds on the first tick after it."""
+
+    SIGNALS_WAKE_UP = True
+
+    def on_start(self) -> Status:
+        self.due = time.monotonic() + 0.1
+        self.context.wake_at(self.due)
+        return Status.RUNNING
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS if time.monotonic() >= self.due else Status.RUNNING
+
+
+def _start(loop: TickLoop, stop: threading.Event) -> threading.Event:
+    finished = threading.Event()
+
+    def run() -> None:
+        loop.run(stop, lambda: 143)
+        finished.set()
+
+    threading.Thread(target=run, daemon=True).start()
+    return finished
+
+
+def test_a_tree_whose_running_nodes_signal_wake_ups_is_not_polled_at_the_tick_rate() -> None:
+    polled = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Forever/></BehaviorTree></root>', Collect(), 100.0
+    )
+    waiting = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence><Waits/></Sequence></BehaviorTree></root>',
+        Collect(),
+        100.0,
+    )
+    stop = threading.Event()
+    done = [_start(polled, stop), _start(waiting, stop)]
+    try:
+        wait_for(lambda: polled.tree.tick_count >= 20, timeout=10, message="the polled tree to tick 20 times")
+        assert polled.tree.needs_polling() and not waiting.tree.needs_polling()
+        # Over the same time, the tree waiting for a wake-up ticked once (its first tick) or
+        # twice (the status heartbeat, once a second).
+        assert waiting.tree.tick_count <= 2
+    finally:
+        stop.set()
+        for loop in (polled, waiting):
+            loop.tree.wake_up()
+    assert all(event.wait(5.0) for event in done)
+
+
+def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
+    loop = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>', Collect(), 0.1
+    )
+    schedule = WakeSchedule()
+    loop.context.wakeups = schedule
+    loop.context.wake_at = schedule.add
+    stop = threading.Event()
+    # At 0.1 Hz, and with nothing waking the tree, only the booked time can end it within 5 s.
+    finished = _start(loop, stop)
+    if not finished.wait(5.0):
+        stop.set()
+        loop.tree.wake_up()
+        raise AssertionError("the booked deadline did not tick the tree")
+    assert loop.tree.last_status == Status.SUCCESS
+
+
+def test_the_wake_schedule_returns_the_earliest_live_booking_and_consumes_due_ones() -> None:
+    schedule = WakeSchedule()
+    late, early = schedule.add(20.0), schedule.add(10.0)
+    assert schedule.next_due(now=0.0) == 10.0
+    schedule.cancel(early)
+    assert schedule.next_due(now=0.0) == 20.0
+    assert schedule.next_due(now=25.0) == 20.0  # due: returned once, so the caller ticks now
+    assert schedule.next_due(now=25.0) is None
+    schedule.cancel(late)  # cancelling a consumed booking is harmless
