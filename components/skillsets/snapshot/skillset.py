@@ -10,11 +10,14 @@ Messages are kept as raw CDR, so buffering a LiDAR topic costs no deserialisatio
 a folder with one `.cdr` file per topic and `snapshot.json`.
 
 With `subscribe: always` the topics are buffered from the start and a snapshot holds the newest
-messages at the time of the request. With `subscribe: on_request` the skillset subscribes only
-while a request is being served: the request waits (cancellable) for the first messages that make
-a snapshot, saves them and unsubscribes. A mission that takes a snapshot now and then thus does
-not pay for receiving every LiDAR scan in between; the price is that a snapshot holds the next
-messages after the request, not the last ones before it.
+messages at the time of the request. With `subscribe: on_request` they are buffered from the start
+until the first snapshot is taken (answered at once from them, as with `always`), and after that
+only while a request is being served: such a request waits (cancellable) for the first messages
+that make a snapshot, saves them and unsubscribes. A mission that takes a snapshot now and then
+thus does not pay for receiving every LiDAR scan in between; the price is that a later snapshot
+holds the next messages after its request, not the last ones before it. The first snapshot sees
+what was sent before it was requested, so a source that plays once (a bag) cannot pass unseen
+while the mission starts up, and its tree's retries are not slowed by waits.
 """
 
 from __future__ import annotations
@@ -67,19 +70,31 @@ class SnapshotSkillset(Skillset):
         self.types = dict(zip(self.topics, types, strict=False))
         for name in self.types.values():
             message_class(name)  # a bad type name fails at start, not at the first request
-        if self.mode == "always":
-            self.subscribe_all()
-            self.create_timer(0.5, self.subscribe_discovered)
+        # Until a snapshot was saved, both modes listen from the start: whatever the first snapshot
+        # waits for may be sent only once, before its request arrives.
+        self.listening_from_start = True
+        self.subscribe_all()
+        self.create_timer(0.5, self.keep_listening)
         self.create_cancellable_service(Trigger, "~/latest", self.serve_latest)
         self.create_cancellable_service(Trigger, "~/synchronized", self.serve_synchronized)
 
     def subscribe_all(self) -> None:
         """Subscribes to every configured topic whose type is known (from `types` or the graph)."""
         with self.subscribing:
-            for topic, msgtype in self.types.items():
-                if topic not in self.buffers:
-                    self.subscribe(topic, msgtype)
-            self.subscribe_discovered()
+            self._subscribe_known()
+
+    def _subscribe_known(self) -> None:
+        for topic, msgtype in self.types.items():
+            if topic not in self.buffers:
+                self.subscribe(topic, msgtype)
+        self.subscribe_discovered()
+
+    def keep_listening(self) -> None:
+        """Timer: subscribes to topics whose type the graph now tells, while the skillset listens
+        between requests (always, or with `on_request` until the first snapshot is saved)."""
+        with self.subscribing:
+            if self.mode == "always" or self.listening_from_start:
+                self._subscribe_known()
 
     def subscribe_discovered(self) -> None:
         """Subscribes to configured topics as soon as the graph tells their type."""
@@ -138,8 +153,8 @@ class SnapshotSkillset(Skillset):
     def _wait_and_choose(
         self, synchronized: bool, token: CancelToken
     ) -> tuple[list[buffering.TopicBuffer], list[buffering.Sample] | str]:
-        """`on_request`: subscribes, waits until the messages make a snapshot, then unsubscribes
-        (once no other request still waits)."""
+        """`on_request` after the first snapshot: subscribes, waits until the messages make a
+        snapshot, then unsubscribes (once no other request still waits)."""
         with self.lock:
             self.requests_in_flight += 1
         try:
@@ -160,12 +175,26 @@ class SnapshotSkillset(Skillset):
             if last:
                 self.unsubscribe_all()
 
+    def _stop_listening_from_start(self) -> None:
+        """`on_request`, once the first snapshot is chosen: from now on, listen only on request."""
+        with self.lock:
+            if not self.listening_from_start:
+                return
+            self.listening_from_start = False
+            waiting = self.requests_in_flight > 0
+        if not waiting:  # a waiting request unsubscribes when it ends
+            self.unsubscribe_all()
+
     def _snapshot(self, response: Any, synchronized: bool, token: CancelToken) -> Any:
-        if self.mode == "on_request":
+        # Until the first snapshot, `on_request` answers from what it buffered since the start,
+        # as `always` does: a request then never waits for messages that were already sent.
+        if self.mode == "on_request" and not self.listening_from_start:
             buffers, chosen = self._wait_and_choose(synchronized, token)
         else:
             with self.lock:
                 buffers, chosen = self._choose(synchronized)
+            if self.mode == "on_request" and not isinstance(chosen, str):
+                self._stop_listening_from_start()
         if isinstance(chosen, str):
             response.success, response.message = False, json.dumps({"error": chosen})
             return response
