@@ -8,6 +8,7 @@ import time
 from types import SimpleNamespace
 from typing import Any
 
+import pytest
 from coral.bt import NodeRegistry, Status, load_tree_text
 from coral.bt.leaves import StatefulAction
 from coral.executor import plugins_phase, sinks
@@ -63,6 +64,8 @@ def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
     registry.register("Forever", Forever)
     registry.register("Waits", Waits)
     registry.register("Deadline", Deadline)
+    registry.register("WokenWithinItsTick", WokenWithinItsTick)
+    registry.register("FailsFirstRun", FailsFirstRun)
     context = SimpleNamespace(health=HealthMonitor(time.monotonic), failure_message=lambda path: "")
     tree = load_tree_text(xml).build(registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
@@ -210,3 +213,66 @@ def test_the_wake_schedule_returns_the_earliest_live_booking_and_consumes_due_on
     assert schedule.next_due(now=25.0) == 20.0  # due: returned once, so the caller ticks now
     assert schedule.next_due(now=25.0) is None
     schedule.cancel(late)  # cancelling a consumed booking is harmless
+
+
+class WokenWithinItsTick(StatefulAction):
+    """Its event arrives while the tree is still ticking, before the loop starts to wait."""
+
+    SIGNALS_WAKE_UP = True
+
+    def on_start(self) -> Status:
+        self.wake_up()
+        return Status.RUNNING
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS
+
+
+class FailsFirstRun(StatefulAction):
+    """FAILURE at once on its first run (its parent then returns RUNNING), SUCCESS on the next."""
+
+    SIGNALS_WAKE_UP = True
+    RUNS = [0]
+
+    def on_start(self) -> Status:
+        self.RUNS[0] += 1
+        return Status.FAILURE if self.RUNS[0] == 1 else Status.SUCCESS
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS
+
+
+# Each tree can only progress through one kind of wake-up. The loop runs at 0.1 Hz, and while
+# every running node signals its wake-ups it ticks anyway once a second (the status heartbeat):
+# a wake-up that is missed shows as a run of a second or more.
+WAKE_UP_KINDS = {
+    "a timer (Sleep)": ('<Sleep msec="50"/>', Status.SUCCESS),
+    "a timer that halts a child (Timeout)": ('<Timeout msec="50"><Waits/></Timeout>', Status.FAILURE),
+    "a timer before a child (Delay)": ('<Delay delay_msec="50"><AlwaysSuccess/></Delay>', Status.SUCCESS),
+    "a booked deadline": ("<Deadline/>", Status.SUCCESS),
+    "an event within the tick": ("<WokenWithinItsTick/>", Status.SUCCESS),
+    "a repeat after a child succeeded": ('<Repeat num_cycles="2"><AlwaysSuccess/></Repeat>', Status.SUCCESS),
+    "a retry after a child failed": (
+        '<RetryUntilSuccessful num_attempts="2"><FailsFirstRun/></RetryUntilSuccessful>',
+        Status.SUCCESS,
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", list(WAKE_UP_KINDS))
+def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(kind: str) -> None:
+    body, expected = WAKE_UP_KINDS[kind]
+    FailsFirstRun.RUNS[0] = 0
+    loop = _loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>', Collect(), 0.1)
+    schedule = WakeSchedule()
+    loop.context.wakeups = schedule
+    loop.context.wake_at = schedule.add
+    stop = threading.Event()
+    started = time.monotonic()
+    finished = _start(loop, stop)
+    ended = finished.wait(5.0)
+    took = time.monotonic() - started
+    stop.set()
+    loop.tree.wake_up()
+    assert ended and loop.tree.last_status == expected
+    assert took < 0.75, f"{kind}: the tree ended after {took:.2f} s, as if a wake-up was missed"
