@@ -32,6 +32,7 @@ from typing import Any
 
 from coral.sdk import CancelToken, Skillset
 from coral_skillsets.snapshot import behaviors, buffering
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
@@ -116,6 +117,10 @@ class SnapshotSkillset(Skillset):
             lambda raw, b=buffer: self.receive(b, raw),
             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
             raw=True,
+            # No QoS event handlers (rclpy's default one logs incompatible QoS): `on_request`
+            # destroys subscriptions from a request's thread, and rclpy (Jazzy) aborts the spinning
+            # thread when a subscription's event handler is destroyed while it builds its wait set.
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
         )
         with self.lock:
             self.buffers[topic] = buffer
