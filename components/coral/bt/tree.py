@@ -119,6 +119,11 @@ class Tree:
     def wait_for_wake_up(self, timeout_s: float) -> bool:
         return self.runtime.consume_wake_up(timeout_s)
 
+    def needs_polling(self) -> bool:
+        """True while some RUNNING node could change on a tick without a wake-up (see
+        `TreeNode.SIGNALS_WAKE_UP`); False lets an executor sleep until the next wake-up."""
+        return any(node.polled_while_running for node in self.nodes)
+
     # observability ------------------------------------------------------------------------
     def add_transition_listener(self, fn: Callable[[Transition], None]) -> None:
         self._listeners.append(fn)

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from coral.executor.health import HealthMonitor
+from coral.executor.wakeups import WakeSchedule
 from coral.sdk import topics
 
 
@@ -57,6 +58,7 @@ class ExecutorContext:
         self.hostname = hostname
         self.wake_up = wake_up
         self.health = HealthMonitor(time.monotonic)
+        self.wakeups = WakeSchedule()
         self.failures: dict[str, str] = {}
         self._clients: dict[tuple[Any, str], Any] = {}
         self._caches: dict[tuple[Any, str, bool], _Latest] = {}
@@ -90,8 +92,16 @@ class ExecutorContext:
         heartbeat = topics.Heartbeat.decode(message.data)
         if heartbeat is not None:
             self.health.observe(heartbeat)
+            if heartbeat.state == "stopping":
+                self.wake_up()  # calls into it fail at once, not at the tree's next tick
 
     # coral.sdk.calls.CallContext
+    def wake_at(self, when: float) -> int:
+        return self.wakeups.add(when)
+
+    def cancel_wake(self, token: int) -> None:
+        self.wakeups.cancel(token)
+
     def service_client(self, srv_type: Any, service: str) -> Any:
         key = (srv_type, service)
         with self._lock:

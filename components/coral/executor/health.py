@@ -56,6 +56,19 @@ class HealthMonitor:
             return "unknown"
         return "alive" if self.failure(component) is None else "degraded"
 
+    def next_failure_at(self, components: Iterable[str]) -> float | None:
+        """The earliest clock time at which one of `components`, alive now, turns silent unless
+        it beats again; None when none is alive. The tick loop sleeps no longer than that, so a
+        dead skillset fails its calls on time even when nothing else wakes the tree."""
+        with self._lock:
+            beats = [
+                seen.last_beat
+                for name in set(components)
+                if (seen := self._seen.get(name)) and not seen.stopping
+            ]
+        due = [beat + self._timeout_s for beat in beats if beat + self._timeout_s >= self._clock()]
+        return min(due) if due else None
+
     def degraded(self, components: Iterable[str]) -> dict[str, str]:
         """Component name -> reason, for each of `components` that is currently degraded."""
         reasons: dict[str, str] = {}

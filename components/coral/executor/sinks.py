@@ -1,9 +1,10 @@
 """Where executor status records go: the terminal, a JSON-lines file, a ROS topic, or a plugged-in sink.
 
-A sink is any object with `emit(record)` and `close()`. The executor (`coral.executor.running`)
-builds the ones its options ask for; `--sink MODULE:FACTORY` adds others (the operator's
-Kubernetes sink), where `FACTORY(options: dict) -> sink`. A failing sink is reported once and
-then skipped, so a full disk never stops a robot's mission.
+A sink is any object with `emit(record)` and `close()`, and optionally `end_tick()`, which the
+tick loop calls once after each tick (a sink may hold a tick's transitions until then). The executor
+(`coral.executor.running`) builds the ones its options ask for; `--sink MODULE:FACTORY` adds
+others (the operator's Kubernetes sink), where `FACTORY(options: dict) -> sink`. A failing sink
+is reported once and then skipped, so a full disk never stops a robot's mission.
 """
 
 from __future__ import annotations
@@ -75,7 +76,11 @@ class TerminalSink:
 
 
 class JsonLinesSink:
-    """One JSON object per line, flushed per record so readers (tests, the local runtime) can tail it."""
+    """One JSON object per line, for readers (tests, the local runtime) that tail it.
+
+    Transitions are flushed once per tick (`end_tick`), every other record at once: a tick makes
+    several transitions, and a write to the file per transition was a large part of the tick's cost.
+    """
 
     def __init__(self, path: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -86,7 +91,13 @@ class JsonLinesSink:
         line = json.dumps(record, sort_keys=True, default=str)
         with self._lock:
             self._file.write(line + "\n")
-            self._file.flush()
+            if record.get("event") != "transition":
+                self._file.flush()
+
+    def end_tick(self) -> None:
+        with self._lock:
+            if not self._file.closed:
+                self._file.flush()
 
     def close(self) -> None:
         with self._lock:
@@ -154,6 +165,19 @@ class SinkFanout:
             try:
                 sink.emit(record)
             except Exception as err:  # noqa: BLE001 - one broken sink must not stop the tree
+                print(f"Status sink {type(sink).__name__} failed and was dropped: {err}", file=sys.stderr)
+                with self._lock:
+                    if sink in self._sinks:
+                        self._sinks.remove(sink)
+
+    def end_tick(self) -> None:
+        """Ends a tick: sinks that hold records until then write them out."""
+        with self._lock:
+            sinks = [sink for sink in self._sinks if hasattr(sink, "end_tick")]
+        for sink in sinks:
+            try:
+                sink.end_tick()
+            except Exception as err:  # noqa: BLE001 - same rule as emit
                 print(f"Status sink {type(sink).__name__} failed and was dropped: {err}", file=sys.stderr)
                 with self._lock:
                     if sink in self._sinks:

@@ -1,4 +1,10 @@
-"""The tick loop: ticks at the configured rate and at once on wake-ups, reports status, halts cleanly.
+"""The tick loop: ticks on wake-ups, and at the configured rate only while the tree needs polling.
+
+BT.CPP's model (`emitWakeUpSignal`): a behavior whose RUNNING state changes on an event (a service
+response, a message, a timer) wakes the tree when it happens. While every RUNNING node keeps that
+contract (`Tree.needs_polling()` is False) the loop sleeps until a wake-up, a behavior's booked
+deadline (`ExecutorContext.wakeups`), the moment a component would turn silent, or the status
+heartbeat, whichever comes first; otherwise it ticks at the configured rate as well.
 
 Used by `coral.executor.running` once the tree is built. Status records go to the sinks:
 every node transition, `component` records when a loaded component's liveness changes
@@ -115,15 +121,18 @@ class TickLoop:
         }
 
     def _report(self, root: Any, force: bool = False) -> None:
-        record = self.status_record(root)
         now = time.monotonic()
+        last = self._last_status
+        root_changed = last is None or last["root_status"] != records.status_name(root)
+        if not (force or root_changed or now - self._last_status_at >= STATUS_MIN_INTERVAL_S):
+            return  # nothing could be due: skip building the record (a snapshot of every node)
+        record = self.status_record(root)
         comparable = {k: v for k, v in record.items() if k not in ("tick_count", "last_transition_time")}
         previous = None
         if self._last_status is not None:
             previous = {
                 k: v for k, v in self._last_status.items() if k not in ("tick_count", "last_transition_time")
             }
-        root_changed = self._last_status is None or self._last_status["root_status"] != record["root_status"]
         due = (comparable != previous and now - self._last_status_at >= STATUS_MIN_INTERVAL_S) or (
             now - self._last_status_at >= STATUS_HEARTBEAT_S
         )
@@ -140,12 +149,12 @@ class TickLoop:
             while not stop.is_set():
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
+                self.fanout.end_tick()
                 self._check_degraded()
                 if root in (bt.Status.SUCCESS, bt.Status.FAILURE):
                     break
                 self._report(root)
-                # The period bounds the gap between ticks; a wake-up ticks at once and restarts it.
-                self.tree.wait_for_wake_up(max(0.0, started + self.period_s - time.monotonic()))
+                self.tree.wait_for_wake_up(self._sleep_s(started))
         except bt.BTRuntimeError as err:
             self._emit("error", message=str(err))
             self._halt()
@@ -164,6 +173,20 @@ class TickLoop:
             "finished", root_status=records.status_name(root), exit_code=code, tick_count=self.tree.tick_count
         )
         return code
+
+    def _sleep_s(self, tick_started: float) -> float:
+        """How long to wait for a wake-up before ticking anyway."""
+        now = time.monotonic()
+        if self.tree.needs_polling():
+            return max(0.0, tick_started + self.period_s - now)
+        until = now + STATUS_HEARTBEAT_S
+        wakeups = getattr(self.context, "wakeups", None)
+        booked = wakeups.next_due(now) if wakeups is not None else None
+        silent = self.context.health.next_failure_at(self.plugins.components_in_use())
+        for when in (booked, silent):
+            if when is not None:
+                until = min(until, when)
+        return max(0.0, until - now)
 
     def _halt(self) -> None:
         try:

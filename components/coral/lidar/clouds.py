@@ -1,7 +1,8 @@
 """PointCloud2 payloads <-> numpy, independent of which message library carries them.
 
-The generator writes clouds with rosbags types, the bag player republishes them with rclpy types
-and the SLAM skillset reads rclpy messages: all three agree on the layout through these helpers.
+The generator writes clouds with rosbags types, the bag player republishes their CDR bytes and
+the SLAM skillset reads those bytes with rosbags (`cdr_typestore`): all agree on the layout
+through these helpers.
 Field datatypes follow sensor_msgs/PointField (INT8=1 ... FLOAT64=8).
 """
 
@@ -84,10 +85,21 @@ def decode(
         raise ValueError(f"point cloud data holds {buffer.size} bytes, expected {count * point_step}")
     layout = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
     records = buffer[: count * point_step].view(layout)
-    points = np.column_stack([records["x"], records["y"], records["z"]]).astype(np.float64)
+    # One pass from the message's buffer into the float64 array KISS-ICP takes (no float32 copy).
+    points = np.empty((count, 3), dtype=np.float64)
+    for column, name in enumerate(("x", "y", "z")):
+        points[:, column] = records[name]
     time_name = next((n for n in TIME_FIELDS if n in names), None)
     times = records[time_name].astype(np.float64) if time_name else None
     return points, times
+
+
+def cdr_typestore() -> Any:
+    """rosbags' ROS 2 Jazzy message types, to read CDR bytes taken from a raw subscription: the
+    point data comes back as a numpy view on those bytes, where rclpy would copy it into a message."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 def native_bigendian() -> bool:

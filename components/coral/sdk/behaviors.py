@@ -24,6 +24,7 @@ class ServiceBehavior(StatefulAction):
     `SERVICE_NAME` may start with `~/` to name a service of the exporting skillset's node.
     """
 
+    SIGNALS_WAKE_UP = True  # the response and the call's deadline wake the tree
     SERVICE_TYPE: ClassVar[Any] = None
     SERVICE_NAME: ClassVar[str] = ""
     TIMEOUT_S: ClassVar[float] = 5.0

@@ -33,6 +33,12 @@ class CallContext(Protocol):
 
     def note_failure(self, behavior: Any, message: str) -> None: ...
 
+    def wake_at(self, when: float) -> int:
+        """Books a tick at monotonic time `when` (a deadline no event announces); a token back."""
+        ...
+
+    def cancel_wake(self, token: int) -> None: ...
+
 
 def resolve_name(behavior: Any, name: str) -> str:
     """`~/x` -> `<skillset node FQN>/x` for the skillset that exported `behavior`; others unchanged."""
@@ -66,7 +72,14 @@ class ServiceCall:
     `send` never blocks: when the service is not discovered yet, the request goes out on the
     first `poll` that finds it. `poll` returns RUNNING while waiting, SUCCESS with `response` set,
     or FAILURE with `message` set (timeout, or the skillset behind the service stopped).
+
+    The tree needs no polling meanwhile (a behavior that only waits on a `ServiceCall` may set
+    `SIGNALS_WAKE_UP`): the response wakes the tree, and the call books ticks with the executor
+    for what no event announces, its deadline and, until the service is discovered, a retry
+    every `DISCOVERY_POLL_S`.
     """
+
+    DISCOVERY_POLL_S = 0.05
 
     def __init__(self, behavior: Any, srv_type: Any, service: str, *, timeout_s: float = 5.0) -> None:
         self.behavior = behavior
@@ -81,6 +94,7 @@ class ServiceCall:
         self._request: Any = None
         self._future: Any = None
         self._deadline = 0.0
+        self._booked: list[int] = []
 
     def send(self, request: Any) -> Status:
         self._request = request
@@ -88,7 +102,20 @@ class ServiceCall:
         self.response = None
         self.message = ""
         self._deadline = time.monotonic() + self.timeout_s
+        self._book(self._deadline)
         return self.poll()
+
+    def _book(self, when: float) -> None:
+        wake_at = getattr(self.context, "wake_at", None)
+        if wake_at is not None:
+            self._booked.append(wake_at(when))
+
+    def _cancel_bookings(self) -> None:
+        cancel = getattr(self.context, "cancel_wake", None)
+        if cancel is not None:
+            for token in self._booked:
+                cancel(token)
+        self._booked.clear()
 
     def _dispatch(self) -> None:
         self._future = self.client.call_async(self._request)
@@ -102,6 +129,7 @@ class ServiceCall:
         if self._future is not None and self._future.done():
             self.response = self._future.result()
             self._request = None
+            self._cancel_bookings()
             return Status.SUCCESS if self.response is not None else self._finish_failed("no response")
         if self.component is not None:
             failure = self.context.component_failure(self.component)
@@ -109,6 +137,8 @@ class ServiceCall:
                 return self._finish_failed(f"skillset {self.component} is unavailable: {failure}")
         if self._future is None and self.client.service_is_ready():
             self._dispatch()
+        elif self._future is None:
+            self._book(time.monotonic() + self.DISCOVERY_POLL_S)
         if time.monotonic() >= self._deadline:
             what = "no response" if self._future is not None else "service not available"
             # The skillset may still be working on a timed-out request: tell it to stop.
@@ -123,6 +153,7 @@ class ServiceCall:
         return _fail(self.behavior, self.context, message)
 
     def _abandon(self) -> None:
+        self._cancel_bookings()
         if self._future is not None and not self._future.done():
             self.client.remove_pending_request(self._future)
             self._future.cancel()

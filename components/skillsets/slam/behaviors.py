@@ -92,6 +92,8 @@ class GetMappingDisplacement(StatefulAction):
     """SUCCESS when the sensor moved at least `linear_target` metres or turned `angular_target`
     radians since the last success (which then restarts the count); FAILURE otherwise."""
 
+    SIGNALS_WAKE_UP = True  # RUNNING only while its ServiceCall waits
+
     PORTS = [
         input_port("linear_target", "double", default=10.0, description="Metres"),
         input_port("angular_target", "double", default=3.14, description="Radians"),

@@ -19,6 +19,8 @@ class TakeSnapshot(StatefulAction):
     """SUCCESS with the snapshot folder in `snapshot`; FAILURE while a topic has no data yet (or, in
     `synchronized` mode, no set of messages lies within the skillset's slop)."""
 
+    SIGNALS_WAKE_UP = True  # RUNNING only while its ServiceCall waits
+
     PORTS = [
         input_port("mode", "string", default="latest", description="latest | synchronized"),
         output_port("snapshot", "string", description="Folder holding the saved messages"),

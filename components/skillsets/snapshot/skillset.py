@@ -4,8 +4,20 @@ Run with `python -m coral_skillsets.snapshot --plugins DIR [--params FILE]`. Par
 `snapshot`): topics (list), types (list beside topics, e.g. sensor_msgs/msg/PointCloud2: subscribed
 at start; without it, types are taken from the ROS graph once the topics appear), slop_s
 (synchronisation tolerance), buffer_size (messages kept per topic), output_dir (relative paths
-resolve against $CORAL_OUTPUT_DIR). Messages are kept as raw CDR, so buffering a LiDAR topic costs
-no deserialisation. A snapshot is a folder with one `.cdr` file per topic and `snapshot.json`.
+resolve against $CORAL_OUTPUT_DIR), subscribe (`always`, the default, or `on_request`),
+request_wait_s (with `on_request`: how long a request waits for its messages, default 5).
+Messages are kept as raw CDR, so buffering a LiDAR topic costs no deserialisation. A snapshot is
+a folder with one `.cdr` file per topic and `snapshot.json`.
+
+With `subscribe: always` the topics are buffered from the start and a snapshot holds the newest
+messages at the time of the request. With `subscribe: on_request` they are buffered from the start
+until the first snapshot is taken (answered at once from them, as with `always`), and after that
+only while a request is being served: such a request waits (cancellable) for the first messages
+that make a snapshot, saves them and unsubscribes. A mission that takes a snapshot now and then
+thus does not pay for receiving every LiDAR scan in between; the price is that a later snapshot
+holds the next messages after its request, not the last ones before it. The first snapshot sees
+what was sent before it was requested, so a source that plays once (a bag) cannot pass unseen
+while the mission starts up, and its tree's retries are not slowed by waits.
 """
 
 from __future__ import annotations
@@ -20,8 +32,11 @@ from typing import Any
 
 from coral.sdk import CancelToken, Skillset
 from coral_skillsets.snapshot import behaviors, buffering
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
+
+SUBSCRIBE_MODES = ("always", "on_request")
 
 
 class SnapshotSkillset(Skillset):
@@ -39,16 +54,48 @@ class SnapshotSkillset(Skillset):
             output if output.is_absolute() else Path(os.environ.get("CORAL_OUTPUT_DIR", ".")) / output
         )
         self.buffers: dict[str, buffering.TopicBuffer] = {}
-        self.lock = threading.Lock()
+        self.subscriptions_by_topic: dict[str, Any] = {}
+        self.lock = threading.Condition()
         self.count = 0
+        self.mode = str(self.param("subscribe", "always"))
+        if self.mode not in SUBSCRIBE_MODES:
+            raise ValueError(
+                f"snapshot: 'subscribe' must be one of {list(SUBSCRIBE_MODES)}, not {self.mode!r}"
+            )
+        self.request_wait_s = float(self.param("request_wait_s", 5.0))
+        self.requests_in_flight = 0
+        self.subscribing = threading.Lock()  # one request at a time creates or destroys subscriptions
         types = [t for t in (self.param("types", [""]) or []) if t]
         if types and len(types) != len(self.topics):
             raise ValueError(f"snapshot: 'types' lists {len(types)} type(s) for {len(self.topics)} topic(s)")
-        for topic, msgtype in zip(self.topics, types, strict=False):
-            self.subscribe(topic, msgtype)
-        self.create_timer(0.5, self.subscribe_discovered)
+        self.types = dict(zip(self.topics, types, strict=False))
+        for name in self.types.values():
+            message_class(name)  # a bad type name fails at start, not at the first request
+        # Until a snapshot was saved, both modes listen from the start: whatever the first snapshot
+        # waits for may be sent only once, before its request arrives.
+        self.listening_from_start = True
+        self.subscribe_all()
+        self.create_timer(0.5, self.keep_listening)
         self.create_cancellable_service(Trigger, "~/latest", self.serve_latest)
         self.create_cancellable_service(Trigger, "~/synchronized", self.serve_synchronized)
+
+    def subscribe_all(self) -> None:
+        """Subscribes to every configured topic whose type is known (from `types` or the graph)."""
+        with self.subscribing:
+            self._subscribe_known()
+
+    def _subscribe_known(self) -> None:
+        for topic, msgtype in self.types.items():
+            if topic not in self.buffers:
+                self.subscribe(topic, msgtype)
+        self.subscribe_discovered()
+
+    def keep_listening(self) -> None:
+        """Timer: subscribes to topics whose type the graph now tells, while the skillset listens
+        between requests (always, or with `on_request` until the first snapshot is saved)."""
+        with self.subscribing:
+            if self.mode == "always" or self.listening_from_start:
+                self._subscribe_known()
 
     def subscribe_discovered(self) -> None:
         """Subscribes to configured topics as soon as the graph tells their type."""
@@ -61,39 +108,98 @@ class SnapshotSkillset(Skillset):
 
     def subscribe(self, topic: str, msgtype: str) -> None:
         """A raw subscription buffering `topic`; a bad type name raises ValueError naming it."""
-        try:
-            package, kind, name = msgtype.split("/")
-            cls = getattr(importlib.import_module(f"{package}.{kind}"), name)
-        except (ValueError, ImportError, AttributeError):
-            raise ValueError(f"snapshot: unknown message type {msgtype!r} for {topic}") from None
+        cls = message_class(msgtype, topic)
         has_header = next(iter(cls.get_fields_and_field_types()), "") == "header"
         buffer = buffering.TopicBuffer(topic, msgtype, has_header, self.buffer_size)
-        self.create_subscription(
+        subscription = self.create_subscription(
             cls,
             topic,
             lambda raw, b=buffer: self.receive(b, raw),
             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
             raw=True,
+            # No QoS event handlers (rclpy's default one logs incompatible QoS): `on_request`
+            # destroys subscriptions from a request's thread, and rclpy (Jazzy) aborts the spinning
+            # thread when a subscription's event handler is destroyed while it builds its wait set.
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
         )
         with self.lock:
             self.buffers[topic] = buffer
+            self.subscriptions_by_topic[topic] = subscription
         self.get_logger().info(f"Buffering {topic} ({msgtype})")
+
+    def unsubscribe_all(self) -> None:
+        with self.subscribing:
+            with self.lock:
+                subscriptions = list(self.subscriptions_by_topic.values())
+                self.subscriptions_by_topic.clear()
+                self.buffers.clear()
+            for subscription in subscriptions:
+                self.destroy_subscription(subscription)
+        self.get_logger().info(f"Stopped buffering {', '.join(self.topics)}")
 
     def receive(self, buffer: buffering.TopicBuffer, raw: bytes) -> None:
         with self.lock:
             buffer.add(bytes(raw), time.time_ns())
+            self.lock.notify_all()
 
-    def _snapshot(self, response: Any, synchronized: bool) -> Any:
+    def _choose(self, synchronized: bool) -> tuple[list[buffering.TopicBuffer], list[buffering.Sample] | str]:
+        """The buffers and the samples a snapshot would take now, or why there is none (lock held)."""
+        missing = [t for t in self.topics if t not in self.buffers]
+        buffers = [self.buffers[t] for t in self.topics if t in self.buffers]
+        if missing:
+            return buffers, f"topic(s) not seen yet: {', '.join(missing)}"
+        chosen = (
+            buffering.choose_synchronized(buffers, self.slop_ns)
+            if synchronized
+            else buffering.choose_latest(buffers)
+        )
+        return buffers, chosen
+
+    def _wait_and_choose(
+        self, synchronized: bool, token: CancelToken
+    ) -> tuple[list[buffering.TopicBuffer], list[buffering.Sample] | str]:
+        """`on_request` after the first snapshot: subscribes, waits until the messages make a
+        snapshot, then unsubscribes (once no other request still waits)."""
         with self.lock:
-            missing = [t for t in self.topics if t not in self.buffers]
-            buffers = [self.buffers[t] for t in self.topics if t in self.buffers]
-            chosen = (
-                f"topic(s) not seen yet: {', '.join(missing)}"
-                if missing
-                else buffering.choose_synchronized(buffers, self.slop_ns)
-                if synchronized
-                else buffering.choose_latest(buffers)
-            )
+            self.requests_in_flight += 1
+        try:
+            deadline = time.monotonic() + self.request_wait_s
+            while True:
+                self.subscribe_all()
+                with self.lock:
+                    buffers, chosen = self._choose(synchronized)
+                    remaining = deadline - time.monotonic()
+                    if not isinstance(chosen, str) or remaining <= 0 or token.cancelled:
+                        return buffers, chosen
+                    # Woken by each message; the timeout also retries topics whose type is unknown.
+                    self.lock.wait(min(remaining, 0.1))
+        finally:
+            with self.lock:
+                self.requests_in_flight -= 1
+                last = self.requests_in_flight == 0
+            if last:
+                self.unsubscribe_all()
+
+    def _stop_listening_from_start(self) -> None:
+        """`on_request`, once the first snapshot is chosen: from now on, listen only on request."""
+        with self.lock:
+            if not self.listening_from_start:
+                return
+            self.listening_from_start = False
+            waiting = self.requests_in_flight > 0
+        if not waiting:  # a waiting request unsubscribes when it ends
+            self.unsubscribe_all()
+
+    def _snapshot(self, response: Any, synchronized: bool, token: CancelToken) -> Any:
+        # Until the first snapshot, `on_request` answers from what it buffered since the start,
+        # as `always` does: a request then never waits for messages that were already sent.
+        if self.mode == "on_request" and not self.listening_from_start:
+            buffers, chosen = self._wait_and_choose(synchronized, token)
+        else:
+            with self.lock:
+                buffers, chosen = self._choose(synchronized)
+            if self.mode == "on_request" and not isinstance(chosen, str):
+                self._stop_listening_from_start()
         if isinstance(chosen, str):
             response.success, response.message = False, json.dumps({"error": chosen})
             return response
@@ -123,7 +229,17 @@ class SnapshotSkillset(Skillset):
         return response
 
     def serve_latest(self, request: Any, response: Any, token: CancelToken) -> Any:
-        return self._snapshot(response, synchronized=False)
+        return self._snapshot(response, False, token)
 
     def serve_synchronized(self, request: Any, response: Any, token: CancelToken) -> Any:
-        return self._snapshot(response, synchronized=True)
+        return self._snapshot(response, True, token)
+
+
+def message_class(msgtype: str, topic: str = "") -> Any:
+    """`sensor_msgs/msg/PointCloud2` -> its class; a bad name raises ValueError naming it."""
+    try:
+        package, kind, name = msgtype.split("/")
+        return getattr(importlib.import_module(f"{package}.{kind}"), name)
+    except (ValueError, ImportError, AttributeError):
+        where = f" for {topic}" if topic else ""
+        raise ValueError(f"snapshot: unknown message type {msgtype!r}{where}") from None

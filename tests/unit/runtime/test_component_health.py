@@ -46,3 +46,18 @@ def test_heartbeats_survive_the_wire_and_garbage_is_ignored() -> None:
     assert topics.Heartbeat.decode(beat.encode()) == beat
     assert topics.Heartbeat.decode("not json") is None
     assert topics.CancelRequest.decode('{"service": "/a"}') is None
+
+
+def test_the_next_failure_is_when_the_earliest_live_component_would_turn_silent() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5)
+    assert monitor.next_failure_at(["slam"]) is None  # never seen: nothing to wake up for
+    monitor.observe(_beat("slam"))
+    clock.now += 0.5
+    monitor.observe(_beat("snapshot"))
+    assert monitor.next_failure_at(["slam", "snapshot"]) == 101.5
+    assert monitor.next_failure_at(["snapshot"]) == 102.0
+    clock.now += 1.2  # slam is silent now: only snapshot can still turn silent
+    assert monitor.next_failure_at(["slam", "snapshot"]) == 102.0
+    monitor.observe(_beat("snapshot", "stopping"))
+    assert monitor.next_failure_at(["slam", "snapshot"]) is None

@@ -75,3 +75,18 @@ def test_a_plugged_in_sink_must_be_module_and_factory() -> None:
         sinks.load_sink("nocolon", {})
     with pytest.raises(ValueError, match="cannot be loaded"):
         sinks.load_sink("coral.executor.sinks:NoSuchFactory", {})
+
+
+def test_json_lines_sink_writes_a_ticks_transitions_at_its_end_and_other_records_at_once(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "status.jsonl"
+    sink = sinks.JsonLinesSink(path)
+    fanout = sinks.SinkFanout([sink])
+    fanout.emit({"ts": 1.0, "event": "transition", "path": "Work::1", "status": "RUNNING"})
+    assert path.read_text() == ""  # held until the tick ends
+    fanout.end_tick()
+    assert [json.loads(line)["event"] for line in path.read_text().splitlines()] == ["transition"]
+    fanout.emit({"ts": 2.0, "event": "status", "root_status": "RUNNING"})
+    assert [json.loads(line)["event"] for line in path.read_text().splitlines()] == ["transition", "status"]
+    fanout.close()

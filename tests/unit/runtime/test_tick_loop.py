@@ -1,4 +1,5 @@
-"""The executor's tick loop: wake-ups tick at once, a stop halts the running behavior, records flow."""
+"""The executor's tick loop: wake-ups tick at once, a tree that signals its wake-ups is not polled,
+booked deadlines tick it, a stop halts the running behavior, records flow."""
 
 from __future__ import annotations
 
@@ -7,11 +8,13 @@ import time
 from types import SimpleNamespace
 from typing import Any
 
+import pytest
 from coral.bt import NodeRegistry, Status, load_tree_text
 from coral.bt.leaves import StatefulAction
 from coral.executor import plugins_phase, sinks
 from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
+from coral.executor.wakeups import WakeSchedule
 from coral_testbed.waiting import wait_for
 
 HALTED: list[str] = []
@@ -59,6 +62,10 @@ def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
     registry = NodeRegistry.with_builtins()
     registry.register("Work", Work)
     registry.register("Forever", Forever)
+    registry.register("Waits", Waits)
+    registry.register("Deadline", Deadline)
+    registry.register("WokenWithinItsTick", WokenWithinItsTick)
+    registry.register("FailsFirstRun", FailsFirstRun)
     context = SimpleNamespace(health=HealthMonitor(time.monotonic), failure_message=lambda path: "")
     tree = load_tree_text(xml).build(registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
@@ -125,3 +132,149 @@ def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
         "root_status": "HALTED",
         "exit_code": 143,
     }
+
+
+class Waits(Forever):
+    """RUNNING until a wake-up that never comes; keeps BT.CPP's wake-up contract."""
+
+    SIGNALS_WAKE_UP = True
+
+
+class Deadline(StatefulAction):
+    """Books a tick 0.1 s ahead with the executor and succeeds on the first tick after it."""
+
+    SIGNALS_WAKE_UP = True
+
+    def on_start(self) -> Status:
+        self.due = time.monotonic() + 0.1
+        self.context.wake_at(self.due)
+        return Status.RUNNING
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS if time.monotonic() >= self.due else Status.RUNNING
+
+
+def _start(loop: TickLoop, stop: threading.Event) -> threading.Event:
+    finished = threading.Event()
+
+    def run() -> None:
+        loop.run(stop, lambda: 143)
+        finished.set()
+
+    threading.Thread(target=run, daemon=True).start()
+    return finished
+
+
+def test_a_tree_whose_running_nodes_signal_wake_ups_is_not_polled_at_the_tick_rate() -> None:
+    polled = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Forever/></BehaviorTree></root>', Collect(), 100.0
+    )
+    waiting = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence><Waits/></Sequence></BehaviorTree></root>',
+        Collect(),
+        100.0,
+    )
+    stop = threading.Event()
+    done = [_start(polled, stop), _start(waiting, stop)]
+    try:
+        wait_for(lambda: polled.tree.tick_count >= 20, timeout=10, message="the polled tree to tick 20 times")
+        assert polled.tree.needs_polling() and not waiting.tree.needs_polling()
+        # Over the same time, the tree waiting for a wake-up ticked once (its first tick) or
+        # twice (the status heartbeat, once a second).
+        assert waiting.tree.tick_count <= 2
+    finally:
+        stop.set()
+        for loop in (polled, waiting):
+            loop.tree.wake_up()
+    assert all(event.wait(5.0) for event in done)
+
+
+def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
+    loop = _loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>', Collect(), 0.1
+    )
+    schedule = WakeSchedule()
+    loop.context.wakeups = schedule
+    loop.context.wake_at = schedule.add
+    stop = threading.Event()
+    # At 0.1 Hz, and with nothing waking the tree, only the booked time can end it within 5 s.
+    finished = _start(loop, stop)
+    if not finished.wait(5.0):
+        stop.set()
+        loop.tree.wake_up()
+        raise AssertionError("the booked deadline did not tick the tree")
+    assert loop.tree.last_status == Status.SUCCESS
+
+
+def test_the_wake_schedule_returns_the_earliest_live_booking_and_consumes_due_ones() -> None:
+    schedule = WakeSchedule()
+    late, early = schedule.add(20.0), schedule.add(10.0)
+    assert schedule.next_due(now=0.0) == 10.0
+    schedule.cancel(early)
+    assert schedule.next_due(now=0.0) == 20.0
+    assert schedule.next_due(now=25.0) == 20.0  # due: returned once, so the caller ticks now
+    assert schedule.next_due(now=25.0) is None
+    schedule.cancel(late)  # cancelling a consumed booking is harmless
+
+
+class WokenWithinItsTick(StatefulAction):
+    """Its event arrives while the tree is still ticking, before the loop starts to wait."""
+
+    SIGNALS_WAKE_UP = True
+
+    def on_start(self) -> Status:
+        self.wake_up()
+        return Status.RUNNING
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS
+
+
+class FailsFirstRun(StatefulAction):
+    """FAILURE at once on its first run (its parent then returns RUNNING), SUCCESS on the next."""
+
+    SIGNALS_WAKE_UP = True
+    RUNS = [0]
+
+    def on_start(self) -> Status:
+        self.RUNS[0] += 1
+        return Status.FAILURE if self.RUNS[0] == 1 else Status.SUCCESS
+
+    def on_running(self) -> Status:
+        return Status.SUCCESS
+
+
+# Each tree can only progress through one kind of wake-up. The loop runs at 0.1 Hz, and while
+# every running node signals its wake-ups it ticks anyway once a second (the status heartbeat):
+# a wake-up that is missed shows as a run of a second or more.
+WAKE_UP_KINDS = {
+    "a timer (Sleep)": ('<Sleep msec="50"/>', Status.SUCCESS),
+    "a timer that halts a child (Timeout)": ('<Timeout msec="50"><Waits/></Timeout>', Status.FAILURE),
+    "a timer before a child (Delay)": ('<Delay delay_msec="50"><AlwaysSuccess/></Delay>', Status.SUCCESS),
+    "a booked deadline": ("<Deadline/>", Status.SUCCESS),
+    "an event within the tick": ("<WokenWithinItsTick/>", Status.SUCCESS),
+    "a repeat after a child succeeded": ('<Repeat num_cycles="2"><AlwaysSuccess/></Repeat>', Status.SUCCESS),
+    "a retry after a child failed": (
+        '<RetryUntilSuccessful num_attempts="2"><FailsFirstRun/></RetryUntilSuccessful>',
+        Status.SUCCESS,
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", list(WAKE_UP_KINDS))
+def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(kind: str) -> None:
+    body, expected = WAKE_UP_KINDS[kind]
+    FailsFirstRun.RUNS[0] = 0
+    loop = _loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>', Collect(), 0.1)
+    schedule = WakeSchedule()
+    loop.context.wakeups = schedule
+    loop.context.wake_at = schedule.add
+    stop = threading.Event()
+    started = time.monotonic()
+    finished = _start(loop, stop)
+    ended = finished.wait(5.0)
+    took = time.monotonic() - started
+    stop.set()
+    loop.tree.wake_up()
+    assert ended and loop.tree.last_status == expected
+    assert took < 0.75, f"{kind}: the tree ended after {took:.2f} s, as if a wake-up was missed"

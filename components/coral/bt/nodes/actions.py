@@ -177,6 +177,7 @@ class Sleep(StatefulAction):
     """RUNNING until `msec` elapsed on the wall clock (a timer wakes the tree up), then SUCCESS."""
 
     PORTS = [PortSpec("msec", type="unsigned", required=True)]
+    SIGNALS_WAKE_UP = True
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

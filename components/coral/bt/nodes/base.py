@@ -68,6 +68,12 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
     KIND: NodeKind = NodeKind.ACTION
     PORTS: list[PortSpec] = []
     SYNC_ONLY = False
+    # BT.CPP's emitWakeUpSignal contract: True when, while this node is RUNNING, ticking it again
+    # can change nothing until the tree is woken up (or a RUNNING child changes), so an executor
+    # may sleep until a wake-up instead of ticking at its rate. Leaves may be polled (False);
+    # controls and decorators only mirror their children (True), except those that re-check
+    # something on every tick.
+    SIGNALS_WAKE_UP = False
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         # Behaviour.__init__ is not called: it starts py_trees' generator tick, which we replace.
@@ -117,6 +123,14 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
     def status(self, value: common.Status) -> None:
         # py_trees code may assign its own statuses; the BT status stays authoritative.
         pass
+
+    @property
+    def polled_while_running(self) -> bool:
+        """RUNNING, and a tick could change it without a wake-up: it does not keep the contract
+        above, or a `_while` precondition is checked on every tick."""
+        if self._status != RUNNING:
+            return False
+        return not self.SIGNALS_WAKE_UP or any(index == 3 for index, _ in self._pre or ())
 
     @property
     def bt_status(self) -> Status:
@@ -253,6 +267,7 @@ class LeafNode(TreeNode):
 
 class ControlNode(TreeNode):
     KIND = NodeKind.CONTROL
+    SIGNALS_WAKE_UP = True
 
     def halt(self) -> None:
         self.reset_children()
@@ -277,6 +292,7 @@ class ControlNode(TreeNode):
 
 class DecoratorNode(TreeNode):
     KIND = NodeKind.DECORATOR
+    SIGNALS_WAKE_UP = True
 
     @property
     def child(self) -> TreeNode:

@@ -16,6 +16,8 @@ from coral.bt.status import FAILURE, IDLE, RUNNING, SKIPPED, SUCCESS, PortDirect
 class LoopBase(DecoratorNode):
     """Pops one queue element per child run into `value`; RUNNING after each completed child."""
 
+    SIGNALS_WAKE_UP = False  # RUNNING between two runs of its child, waiting for the next tick
+
     ELEMENT = "any"
 
     def __init__(self, name: str, config: NodeConfig) -> None:
@@ -107,6 +109,7 @@ def entry_key(node: DecoratorNode | Any) -> str:
 
 class EntryUpdatedDecorator(DecoratorNode):
     PORTS = [PortSpec("entry", type="BT::Any", description="Entry to check")]
+    SIGNALS_WAKE_UP = False  # WaitValueUpdate is RUNNING until the entry changes
     IF_NOT_UPDATED: int = SKIPPED
 
     def __init__(self, name: str, config: NodeConfig) -> None:

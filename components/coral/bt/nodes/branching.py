@@ -51,6 +51,8 @@ class IfThenElse(ControlNode):
 class WhileDoElse(ControlNode):
     """Reactive: the condition is re-ticked every tick; a change of branch halts the other one."""
 
+    SIGNALS_WAKE_UP = False
+
     def tick(self) -> int:
         children = self.children
         count = len(children)
@@ -102,6 +104,7 @@ def switch_equal(variable: str, case: str, enums: dict[str, int] | object) -> bo
 
 class SwitchBase(ControlNode):
     CASES = 2
+    SIGNALS_WAKE_UP = False  # the variable is read again on every tick
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)

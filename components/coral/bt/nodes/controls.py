@@ -116,6 +116,8 @@ class SequenceWithMemory(ControlNode):
 class ReactiveSequence(ControlNode):
     """Restarts at child 0 every tick; a RUNNING child halts all the others."""
 
+    SIGNALS_WAKE_UP = False  # its conditions are re-checked on every tick
+
     ON_STOP = FAILURE
     ON_END = SUCCESS
 

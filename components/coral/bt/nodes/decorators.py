@@ -42,6 +42,8 @@ class ForceFailure(ForceSuccess):
 
 
 class KeepRunningUntilFailure(DecoratorNode):
+    SIGNALS_WAKE_UP = False  # RUNNING after a child success, to run it again on the next tick
+
     def tick(self) -> int:
         self.set_status(RUNNING)
         st = self.children[0].execute_tick()
