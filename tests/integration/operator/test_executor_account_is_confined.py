@@ -6,8 +6,8 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from coral.executor import kubernetes_sink as sink
 from coral_api import GROUP, VERSION, Coral, client_as, fleet_mission, is_current_and_true
-from coral_operator.sink import kubernetes as sink
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
