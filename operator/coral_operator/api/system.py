@@ -1,6 +1,6 @@
 """The CoralSystem kind: what Coral system runs on which robots (DESIGN section 3).
 
-Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
+Parsed by the system reconciler (`reconcile.systems`), turned into CoralInstances by
 `planning.instances`, rendered into the CRD by `api.crdgen`, written by `coral convert`.
 """
 
