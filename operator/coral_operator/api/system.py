@@ -1,4 +1,4 @@
-"""The CoralSystem kind: what Coral system runs on which robots (DESIGN section 3).
+"""The CoralSystem kind: what Coral system runs on which robots (docs/architecture.md).
 
 Parsed by the system reconciler (`reconcile.systems`), turned into CoralInstances by
 `planning.instances`, rendered into the CRD by `api.crdgen`, written by `coral convert`.
@@ -178,7 +178,7 @@ class CanarySpec(CamelModel):
 
 
 class RolloutSpec(CamelModel):
-    """How a spec change spreads over the fleet (DESIGN section 6).
+    """How a spec change spreads over the fleet.
 
     Every instance records the revision it runs (`spec.revision`); the rollout decides which
     instances move to the newest revision and when."""

@@ -1,4 +1,4 @@
-"""Builds the pods of one robot: one per component, or one for the robot (DESIGN sections 3 and 4).
+"""Builds the pods of one robot: one per component, or one for the robot (docs/architecture.md).
 
 The pod is pinned to the robot's Node, tolerates the robot dropping off the network (no eviction,
 no rescheduling), shares the host network and IPC for DDS by default, gets the ROS and Coral

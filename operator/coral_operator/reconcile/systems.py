@@ -15,6 +15,8 @@ from concurrent.futures import Executor
 from datetime import UTC, datetime
 from typing import Any
 
+from pydantic import ValidationError
+
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying
@@ -28,7 +30,6 @@ from coral_operator.reconcile.memory import Memory
 from coral_operator.status import system_status
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
-from pydantic import ValidationError
 
 Key = tuple[str, str]
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.

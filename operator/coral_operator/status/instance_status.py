@@ -331,7 +331,7 @@ def build_invalid_status(
 
 def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
     """What of an instance's status is a verdict: the status of each condition, why it is Stalled,
-    the revision it runs, whether its robot is reachable, and for which generation.
+    whether its robot is reachable, and for which generation.
 
     A change here is written at once (the system's rollout reads it); anything else (a stage's
     message, a pod's phase or restarts) waits to ride along with the next write.
@@ -341,7 +341,6 @@ def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
     robot = status.get("robot") or {}
     return (
         status.get("observedGeneration"),
-        status.get("revision"),
         robot.get("reachable"),
         robot.get("nodeReady"),
         tuple((c.get("type"), c.get("status")) for c in conditions),
