@@ -9,13 +9,20 @@ from __future__ import annotations
 
 import functools
 import json
-import time
 from collections.abc import Callable
 from typing import Any
 
 import click
+from coral import terminal
+from coral.local import polling
+from rich.console import Group, RenderableType
+from rich.padding import Padding
+from rich.text import Text
 
 from coral_operator import rollout_control
+
+TONE_STYLE = {"ok": "green", "warn": "yellow", "bad": "red", "": ""}
+"""How a terminal colours the tone of a line of `rollout_control.Report`."""
 
 
 def _target(function: Callable[..., None]) -> Callable[..., None]:
@@ -30,6 +37,21 @@ def _target(function: Callable[..., None]) -> Callable[..., None]:
 
     run = click.option("-n", "--namespace", default="default", show_default=True)(run)
     return click.argument("system")(run)
+
+
+def _view(said: rollout_control.Report) -> Group:
+    """The report as rich draws it: the counts as a table, what went wrong in colour; plain text
+    with the same words in a pipe."""
+    parts: list[RenderableType] = [Text(said.title, style="bold")]
+    if said.spec:
+        headers = [header for _key, header in rollout_control.COUNT_COLUMNS]
+        row = [str(said.counts[key]) for key, _header in rollout_control.COUNT_COLUMNS]
+        parts += [
+            Text(f"  {said.spec}"),
+            Padding(terminal.table(headers, [row], right=headers), (0, 0, 0, 2), expand=False),
+        ]
+    parts += [Text(f"  {text}", style=TONE_STYLE[tone]) for text, tone in [*said.notes, said.verdict]]
+    return Group(*parts)
 
 
 @click.group()
@@ -53,29 +75,32 @@ def status_command(system: str, namespace: str, watch: bool, timeout: float, out
     of the spec never counts as complete.
     """
     control = rollout_control.RolloutControl.from_kubeconfig(namespace)
-    deadline = time.monotonic() + timeout
-    last = None
-    while True:
+    out = terminal.console()
+    shown: list[str] = []
+    waiting_for: list[str] = []
+
+    def settled() -> bool:
+        """Shows the rollout if it changed; True once it completed (or at once without --watch)."""
         body = control.read(system)
-        text = (
-            json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
-            if output == "json"
-            else rollout_control.describe(body)
-        )
-        if text != last:
-            click.echo(text)
-            last = text
+        if output == "json":
+            text = json.dumps((body.get("status") or {}).get("rollout") or {}, indent=2)
+            if shown[-1:] != [text]:
+                click.echo(text)
+        else:
+            text = rollout_control.describe(body)
+            if shown[-1:] != [text]:
+                out.print(_view(rollout_control.report(body)))
+        shown[:] = [text]
         progress = rollout_control.evaluate_progress(body)
         if progress.failure is not None:
             raise click.ClickException(f"the rollout of {system} failed: {progress.failure}")
-        if progress.done or not watch:
-            return
-        if time.monotonic() > deadline:
-            raise click.ClickException(
-                f"the rollout of {system} did not complete within {timeout:g} s "
-                f"(waiting for {progress.waiting_for})"
-            )
-        time.sleep(1.0)
+        waiting_for[:] = [progress.waiting_for]
+        return progress.done or not watch
+
+    if not polling.poll_until(settled, timeout_s=timeout, interval_s=1.0):
+        raise click.ClickException(
+            f"the rollout of {system} did not complete within {timeout:g} s (waiting for {waiting_for[0]})"
+        )
 
 
 @rollout.command("pause")

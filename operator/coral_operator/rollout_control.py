@@ -4,7 +4,8 @@ Pause and resume set `spec.rollout.paused`, as `kubectl rollout pause` does for 
 Resume also names the recorded health-gate failure it acknowledges in the `coral.dev/rollout-resume`
 annotation, so the operator clears it and judges the robots afresh. Undo sets the
 `coral.dev/rollout-undo` annotation to the revision to roll back from; the operator then targets
-the revision before it until the spec makes a newer one. `describe` renders `status.rollout`.
+the revision before it until the spec makes a newer one. `report` reads `status.rollout` for
+`coral rollout status`, `describe` says it as plain text.
 """
 
 from __future__ import annotations
@@ -161,52 +162,109 @@ def finished(body: dict[str, Any]) -> bool:
     return progress.done or progress.failure is not None
 
 
-def describe(body: dict[str, Any]) -> str:
-    """`status.rollout` as a few lines of text: target and current revision, counts, what it waits for."""
+COUNT_COLUMNS = (
+    ("total", "ROBOTS"),
+    ("updated", "UPDATED"),
+    ("healthy", "HEALTHY"),
+    ("unavailable", "UNAVAILABLE"),
+    ("maxUnavailable", "MAX UNAVAILABLE"),
+    ("locked", "LOCKED"),
+    ("offline", "OFFLINE"),
+)
+"""The robot counts of `status.rollout.counts` and their column headers in `coral rollout status`."""
+
+
+@dataclass(frozen=True)
+class Report:
+    """What `coral rollout status` says, before it is drawn as text or on a terminal.
+
+    Each line of `notes` and the `verdict` carry a tone, `ok`, `warn`, `bad` or `""`, that a
+    terminal shows as a colour.
+    """
+
+    title: str
+    spec: str
+    """Spec and target revision, generations, and how many robots run the target ("" before the
+    first rollout report)."""
+    counts: dict[str, int]
+    notes: list[tuple[str, str]]
+    verdict: tuple[str, str]
+
+
+def report(body: dict[str, Any]) -> Report:
+    """`status.rollout` of a CoralSystem as a `Report`: target and current revision, counts, what it
+    waits for, and whether it is complete, failed or in progress."""
     name = body["metadata"]["name"]
     status = body.get("status") or {}
     rollout = status.get("rollout")
     generation, observed = _generations(body)
     progress = evaluate_progress(body)
     if not rollout:
-        return (
-            f"coralsystem/{name}: no rollout reported yet (revision {status.get('revision', 'unknown')})\n"
-            f"  waiting for {progress.waiting_for}"
+        revision = status.get("revision", "unknown")
+        return Report(
+            title=f"coralsystem/{name}: no rollout reported yet (revision {revision})",
+            spec="",
+            counts={},
+            notes=[],
+            verdict=(f"waiting for {progress.waiting_for}", "bad" if progress.failure else "warn"),
         )
-    counts = rollout.get("counts") or {}
+    counts = {key: int((rollout.get("counts") or {}).get(key, 0)) for key, _header in COUNT_COLUMNS}
     history = rollout.get("history") or []
     target = rollout.get("revision")
-    spec_revision = history[-1] if history else target
-    lines = [
-        f"coralsystem/{name} revision {target} (previous {rollout.get('previousRevision') or 'none'})",
-        f"  spec revision {spec_revision}, generation {generation} (observed {observed}); "
-        f"target revision {target}; {counts.get('updated', 0)} of {counts.get('total', 0)} robots run it",
-        f"  robots: {counts.get('healthy', 0)} healthy, {counts.get('updated', 0)} updated of "
-        f"{counts.get('total', 0)}; {counts.get('unavailable', 0)} unavailable "
-        f"(max {counts.get('maxUnavailable', 0)}), {counts.get('locked', 0)} locked by running trees, "
-        f"{counts.get('offline', 0)} offline",
-    ]
+    notes: list[tuple[str, str]] = []
     canary = rollout.get("canary")
     if canary:
-        lines.append(
-            f"  canary: {canary.get('healthy', 0)} of {canary.get('robots', 0)} healthy"
-            + (", promoted" if canary.get("promoted") else "")
-            + (f", healthy since {canary['healthySince']}" if canary.get("healthySince") else "")
+        notes.append(
+            (
+                f"canary: {canary.get('healthy', 0)} of {canary.get('robots', 0)} healthy"
+                + (", promoted" if canary.get("promoted") else "")
+                + (f", healthy since {canary['healthySince']}" if canary.get("healthySince") else ""),
+                "",
+            )
         )
     if rollout.get("rolledBack"):
         back = rollout["rolledBack"]
-        lines.append(
-            f"  rolled back from {back.get('fromRevision')} to {back.get('toRevision')} "
-            f"({back.get('reason')})"
+        notes.append(
+            (
+                f"rolled back from {back.get('fromRevision')} to {back.get('toRevision')} "
+                f"({back.get('reason')})",
+                "warn",
+            )
         )
     if rollout.get("failure"):
-        lines.append(f"  failure: {rollout['failure'].get('message', '')}")
+        notes.append((f"failure: {rollout['failure'].get('message', '')}", "bad"))
     if rollout.get("waitingFor"):
-        lines.append(f"  waiting for: {', '.join(rollout['waitingFor'])}")
+        notes.append((f"waiting for: {', '.join(rollout['waitingFor'])}", ""))
     if progress.done:
-        lines.append(f"  complete: {rollout.get('message', '')}")
+        verdict = (f"complete: {rollout.get('message', '')}", "ok")
     elif progress.failure:
-        lines.append(f"  failed: {progress.failure}")
+        verdict = (f"failed: {progress.failure}", "bad")
     else:
-        lines.append(f"  in progress, waiting for {progress.waiting_for}: {rollout.get('message', '')}")
+        verdict = (f"in progress, waiting for {progress.waiting_for}: {rollout.get('message', '')}", "warn")
+    return Report(
+        title=f"coralsystem/{name} revision {target} (previous {rollout.get('previousRevision') or 'none'})",
+        spec=(
+            f"spec revision {history[-1] if history else target}, generation {generation} "
+            f"(observed {observed}); target revision {target}; {counts['updated']} of {counts['total']} "
+            "robots run it"
+        ),
+        counts=counts,
+        notes=notes,
+        verdict=verdict,
+    )
+
+
+def describe(body: dict[str, Any]) -> str:
+    """`coral rollout status` as plain lines of text (`report` is what it says)."""
+    said = report(body)
+    lines = [said.title]
+    if said.spec:
+        counts = said.counts
+        lines += [
+            f"  {said.spec}",
+            f"  robots: {counts['healthy']} healthy, {counts['updated']} updated of {counts['total']}; "
+            f"{counts['unavailable']} unavailable (max {counts['maxUnavailable']}), {counts['locked']} "
+            f"locked by running trees, {counts['offline']} offline",
+        ]
+    lines += [f"  {text}" for text, _tone in [*said.notes, said.verdict]]
     return "\n".join(lines)

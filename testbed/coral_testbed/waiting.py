@@ -2,20 +2,29 @@
 
 Used by the local control plane (component health), the cluster fixture and every integration test
 that waits for an object to reach a state. Nothing here sleeps to synchronize: it re-checks a
-condition until it holds or the deadline passes, and then says what it was waiting for.
+condition until it holds or the deadline passes, and then says what it was waiting for. tenacity
+does the re-checking; this module adds the deadline message and the "it stays true" check.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TypeVar
+from typing import NoReturn, TypeVar
+
+import tenacity
 
 T = TypeVar("T")
 
 
 class WaitTimeout(TimeoutError):
     """A condition did not hold before its deadline; the message says which and what was last seen."""
+
+
+def _until(deadline_s: float, interval: float) -> Callable[[tenacity.RetryCallState], float]:
+    """tenacity's pause between checks: `interval`, shortened so that the last check falls on the
+    deadline rather than up to one interval after it."""
+    return lambda state: max(0.0, min(interval, deadline_s - state.seconds_since_start))
 
 
 def wait_for(
@@ -25,6 +34,8 @@ def wait_for(
     message: str | Callable[[], str] = "condition",
 ) -> T:
     """Calls `predicate` until it returns something truthy, and returns that value.
+
+    tenacity does the retrying: `predicate` is checked again every `interval` until the deadline.
 
     Args:
         predicate: checked repeatedly; exceptions it raises propagate (a broken check is not a
@@ -37,16 +48,18 @@ def wait_for(
     Raises:
         WaitTimeout: the predicate stayed falsy for `timeout` seconds.
     """
-    deadline = time.monotonic() + timeout
-    while True:
-        result = predicate()
-        if result:
-            return result
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            text = message() if callable(message) else message
-            raise WaitTimeout(f"timed out after {timeout:g} s waiting for {text}")
-        time.sleep(min(interval, remaining))
+
+    def timed_out(state: tenacity.RetryCallState) -> NoReturn:
+        text = message() if callable(message) else message
+        raise WaitTimeout(f"timed out after {timeout:g} s waiting for {text}")
+
+    retrying = tenacity.Retrying(
+        retry=tenacity.retry_if_result(lambda result: not result),
+        stop=tenacity.stop_after_delay(timeout),
+        wait=_until(timeout, interval),
+        retry_error_callback=timed_out,
+    )
+    return retrying(predicate)
 
 
 def holds_for(
@@ -61,12 +74,12 @@ def holds_for(
         AssertionError: the predicate became false; the message says when.
     """
     start = time.monotonic()
-    deadline = start + duration
-    while True:
-        if not predicate():
-            text = message() if callable(message) else message
-            raise AssertionError(f"{text} stopped holding after {time.monotonic() - start:.1f} s")
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return
-        time.sleep(min(interval, remaining))
+    retrying = tenacity.Retrying(
+        retry=tenacity.retry_if_result(bool),
+        stop=tenacity.stop_after_delay(duration),
+        wait=_until(duration, interval),
+        retry_error_callback=lambda state: True,
+    )
+    if not retrying(predicate):
+        text = message() if callable(message) else message
+        raise AssertionError(f"{text} stopped holding after {time.monotonic() - start:.1f} s")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from coral_testbed.waiting import wait_for
 from fixtures.processes import Spawn
 
 PYTHON = sys.executable
@@ -17,14 +17,8 @@ STARTUP_S = 60.0
 
 
 def wait_until(predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
-    """Polls `predicate` until it returns something truthy; fails naming `what` after `timeout_s`."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what}")
+    """`wait_for` with the short interval a process's files and topics want."""
+    return wait_for(predicate, timeout=timeout_s, interval=0.05, message=what)
 
 
 def start_skillset(

@@ -29,17 +29,25 @@ SLOW_PARAMS = """
 """
 
 
+def _slow_params(tmp_path: Path) -> Path:
+    """Parameters under which the skillset's Count takes 30 s: long enough to halt or kill it mid-call."""
+    params = tmp_path / "params.yaml"
+    params.write_text(SLOW_PARAMS)
+    return params
+
+
+def _files(tmp_path: Path) -> tuple[Path, Path, Path, Path, Path]:
+    """The plugin folder, the skillset's log, a tree that calls Count, the executor's status and log."""
+    tree = write_tree(tmp_path / "tree.xml", '    <Count count="{c}"/>')
+    status, log = tmp_path / "status.jsonl", tmp_path / "executor.log"
+    return tmp_path / "plugins", tmp_path / "skillset.log", tree, status, log
+
+
 def test_stopping_the_executor_halts_count_and_cancels_its_request_in_the_skillset(
     tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
 ) -> None:
-    plugins = tmp_path / "plugins"
-    params = tmp_path / "params.yaml"
-    params.write_text(SLOW_PARAMS)
-    skillset_log = tmp_path / "skillset.log"
-    start_skillset(spawned, ros_env, plugins, skillset_log, params=params)
-    tree = write_tree(tmp_path / "tree.xml", '    <Count count="{c}"/>')
-    status = tmp_path / "status.jsonl"
-    log = tmp_path / "executor.log"
+    plugins, skillset_log, tree, status, log = _files(tmp_path)
+    start_skillset(spawned, ros_env, plugins, skillset_log, params=_slow_params(tmp_path))
     executor = start_executor(spawned, ros_env, tree, plugins, status, log)
     wait_until(
         lambda: "Count request started" in skillset_log.read_text(), 60, "the request to reach the skillset"
@@ -62,14 +70,8 @@ def test_stopping_the_executor_halts_count_and_cancels_its_request_in_the_skills
 def test_killing_the_skillset_mid_call_fails_the_behavior_within_its_timeout_and_reports_degraded(
     tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
 ) -> None:
-    plugins = tmp_path / "plugins"
-    params = tmp_path / "params.yaml"
-    params.write_text(SLOW_PARAMS)
-    skillset_log = tmp_path / "skillset.log"
-    skillset = start_skillset(spawned, ros_env, plugins, skillset_log, params=params)
-    tree = write_tree(tmp_path / "tree.xml", '    <Count count="{c}"/>')
-    status = tmp_path / "status.jsonl"
-    log = tmp_path / "executor.log"
+    plugins, skillset_log, tree, status, log = _files(tmp_path)
+    skillset = start_skillset(spawned, ros_env, plugins, skillset_log, params=_slow_params(tmp_path))
     executor = start_executor(spawned, ros_env, tree, plugins, status, log)
 
     # Kill only once the executor has heard the skillset alive and the request is being served.
@@ -99,14 +101,8 @@ def test_killing_the_skillset_mid_call_fails_the_behavior_within_its_timeout_and
 def test_a_call_that_times_out_fails_with_a_message_and_is_cancelled_in_the_skillset(
     tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
 ) -> None:
-    plugins = tmp_path / "plugins"
-    params = tmp_path / "params.yaml"
-    params.write_text(SLOW_PARAMS)
-    skillset_log = tmp_path / "skillset.log"
-    start_skillset(spawned, ros_env, plugins, skillset_log, params=params)
-    tree = write_tree(tmp_path / "tree.xml", '    <Count count="{c}"/>')
-    status = tmp_path / "status.jsonl"
-    log = tmp_path / "executor.log"
+    plugins, skillset_log, tree, status, log = _files(tmp_path)
+    start_skillset(spawned, ros_env, plugins, skillset_log, params=_slow_params(tmp_path))
     assert finish(start_executor(spawned, ros_env, tree, plugins, status, log), 60, log) == 1, log.read_text()
     last = records_of(status, "status")[-1]
     assert last["last_failure"]["message"] == "no response from /examples/count within 5 s"

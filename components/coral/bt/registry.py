@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from coral.bt import treenodesmodel
 from coral.bt.errors import BTError
 from coral.bt.nodes import actions, board_decorators, branching, controls, decorators, parallel, timed
 from coral.bt.nodes.base import TreeNode
@@ -131,6 +132,9 @@ class NodeRegistry:
         self.enums[name] = int(value)
 
     def tree_nodes_model_xml(self, only_plugins: bool = True) -> str:
-        from coral.bt.treenodesmodel import registry_to_xml
-
-        return registry_to_xml(self, only_plugins=only_plugins)
+        """The registered node types as a Groot2 palette; built-ins left out unless `only_plugins` is
+        False (Groot2 knows them already)."""
+        specs = (self._specs[node_id] for node_id in self.node_ids())
+        if only_plugins:
+            specs = (spec for spec in specs if spec.source not in (BUILTIN_SOURCE, V3_SOURCE))
+        return treenodesmodel.build_tree_nodes_model(specs)

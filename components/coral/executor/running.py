@@ -200,6 +200,8 @@ def _wait_for_node_types(
     last_missing: list[str] | None = None
     state.plugins_ready = None
     reminded_at = time.monotonic()
+    # Hand-written rather than a tenacity retry: a wake (a plugin exported) or a stop ends each
+    # pause early, and every pass reports what changed, not only the last outcome.
     while True:
         plugins_phase.refresh(state, registry, options.plugins, ros_distro)
         plugins_record = state.record()

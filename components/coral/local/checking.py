@@ -178,7 +178,8 @@ def validate(target: Path) -> Report:
 
 def nodes_model(target: Path | None, references: list[str]) -> tuple[str, list[str]]:
     """The `<TreeNodesModel>` XML for a project's components or for named components."""
-    from coral.plugins import model_xml
+    from coral.bt import treenodesmodel
+    from coral.plugins import manifest as plugin_manifests
 
     manifests: dict[str, object] = {}
     problems: list[str] = []
@@ -193,4 +194,5 @@ def nodes_model(target: Path | None, references: list[str]) -> tuple[str, list[s
         problems += verification.problems
         if verification.manifest is not None:
             manifests[verification.component] = verification.manifest
-    return model_xml.build_tree_nodes_model(manifests.values()), problems  # type: ignore[arg-type]
+    palette = plugin_manifests.palette_behaviors(manifests.values())  # type: ignore[arg-type]
+    return treenodesmodel.build_tree_nodes_model(palette), problems

@@ -42,7 +42,9 @@ def list_plugins(plugins_dir: Path) -> None:
 @click.argument("plugins_dir", type=click.Path(path_type=Path, file_okay=False, exists=True))
 def model(plugins_dir: Path) -> None:
     """Print the loadable behaviors as a BT.CPP <TreeNodesModel> (Groot2 palette)."""
-    from coral.plugins import model_xml
+    from coral.bt import treenodesmodel
+    from coral.plugins import manifest
 
     report = _report(plugins_dir)
-    click.echo(model_xml.build_tree_nodes_model(p.manifest for p in report.plugins), nl=False)
+    palette = manifest.palette_behaviors(p.manifest for p in report.plugins)
+    click.echo(treenodesmodel.build_tree_nodes_model(palette), nl=False)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Literal
 
@@ -119,6 +120,13 @@ class PluginManifest(pydantic.BaseModel):
 
     def to_json(self) -> str:
         return json.dumps(self.model_dump(by_alias=True), indent=2, sort_keys=True) + "\n"
+
+
+def palette_behaviors(plugins: Iterable[PluginManifest]) -> list[BehaviorEntry]:
+    """Every behavior the plugins export, by ID and then by component name: the order of a Groot2
+    palette (`coral.bt.treenodesmodel`)."""
+    owned = [(behavior, plugin.component.name) for plugin in plugins for behavior in plugin.behaviors]
+    return [behavior for behavior, _owner in sorted(owned, key=lambda pair: (pair[0].id, pair[1]))]
 
 
 def parse_manifest(text: str, source: str) -> PluginManifest:

@@ -10,19 +10,17 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 from pathlib import Path
+
+import psutil
+
+from coral_testbed.waiting import wait_for
 
 
 def hierarchies() -> list[Path]:
     """Mount points of every cgroup hierarchy (each v1 controller, named ones, and v2)."""
-    found = []
-    with open("/proc/self/mounts") as mounts:
-        for line in mounts:
-            _, point, kind = line.split()[:3]
-            if kind in ("cgroup", "cgroup2"):
-                found.append(Path(point))
-    return found
+    mounted = psutil.disk_partitions(all=True)
+    return [Path(mount.mountpoint) for mount in mounted if mount.fstype in ("cgroup", "cgroup2")]
 
 
 def _relative(path: str) -> str:
@@ -65,20 +63,28 @@ def pids(path: str) -> set[int]:
 
 
 def kill_all(path: str, timeout: float = 15.0) -> None:
-    """SIGKILLs every process in the subtree until none is left."""
-    deadline = time.monotonic() + timeout
-    while True:
+    """SIGKILLs every process in the subtree until none is left.
+
+    Raises:
+        WaitTimeout: processes were still there after `timeout` seconds.
+    """
+
+    def none_left() -> bool:
+        # A process forking while it is killed leaves a child behind: each pass kills what is left.
         left = pids(path)
-        if not left:
-            return
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"processes {sorted(left)} in cgroup {path} survived SIGKILL")
         for pid in left:
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
-        time.sleep(0.1)
+        return not left
+
+    wait_for(
+        none_left,
+        timeout=timeout,
+        interval=0.1,
+        message=lambda: f"processes {sorted(pids(path))} in cgroup {path} to die of SIGKILL",
+    )
 
 
 def remove(path: str) -> None:

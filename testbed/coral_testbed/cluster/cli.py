@@ -55,10 +55,6 @@ def dir_option(command: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-def _running_cluster(state_dir: Path) -> Cluster:
-    return Cluster.from_dev_cluster(state_dir)
-
-
 _fail_on_errors = clierrors.fail_on(
     controlplane.ControlPlaneError,
     binaries.BinariesMissing,
@@ -66,6 +62,19 @@ _fail_on_errors = clierrors.fail_on(
     operatorchart.ChartInstallError,
     ValueError,
 )
+
+
+def on_running_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
+    """For verbs acting on a running control plane: the `--dir` option, the `Cluster` found there
+    passed first, and the testbed's errors (none running, say) as a clean message."""
+
+    @dir_option
+    @_fail_on_errors
+    @functools.wraps(command)
+    def wrapper(state_dir: Path, **kwargs: Any) -> Any:
+        return command(Cluster.from_dev_cluster(state_dir), **kwargs)
+
+    return wrapper
 
 
 @click.group("dev-cluster")
@@ -188,105 +197,83 @@ def robots() -> None:
     """Create, remove and fail robots: kwok Nodes, and real robots (kubelet + containerd)."""
 
 
+def _robot_names(command: Callable[..., Any]) -> Callable[..., Any]:
+    """The NAMES argument and `--label` options of the verbs that add robots."""
+    command = click.option(
+        "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
+    )(command)
+    return click.argument("names", nargs=-1, required=True)(command)
+
+
 @robots.command("add")
-@dir_option
-@click.argument("names", nargs=-1, required=True)
-@click.option(
-    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
-)
-@_fail_on_errors
-def add_robots(state_dir: Path, names: tuple[str, ...], labels: dict[str, str]) -> None:
+@on_running_cluster
+@_robot_names
+def add_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str]) -> None:
     """Create robots (or add labels to existing ones) and wait until they are Ready."""
-    _running_cluster(state_dir).add_robots(list(names), labels)
+    cluster.add_robots(list(names), labels)
+
+
+@robots.command("add-real")
+@on_running_cluster
+@_robot_names
+def add_real_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str]) -> None:
+    """Start real robots (kubelet + containerd each) and wait until they are Ready."""
+    cluster.robots.add(list(names), labels, progress=_say)
 
 
 @robots.command("remove")
-@dir_option
+@on_running_cluster
 @click.argument("names", nargs=-1, required=True)
-@_fail_on_errors
-def remove_robots(state_dir: Path, names: tuple[str, ...]) -> None:
+def remove_robots(cluster: Cluster, names: tuple[str, ...]) -> None:
     """Delete robots' Nodes; real robots are torn down first (processes, mounts, network, cgroups)."""
-    cluster = _running_cluster(state_dir)
     real = [name for name in names if name in cluster.robots.names()]
     if real:
         cluster.robots.remove(real)
     cluster.remove_robots([name for name in names if name not in real])
 
 
-@robots.command("add-real")
-@dir_option
-@click.argument("names", nargs=-1, required=True)
-@click.option(
-    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
-)
-@_fail_on_errors
-def add_real_robots(state_dir: Path, names: tuple[str, ...], labels: dict[str, str]) -> None:
-    """Start real robots (kubelet + containerd each) and wait until they are Ready."""
-    _running_cluster(state_dir).robots.add(list(names), labels, progress=_say)
-
-
-@robots.command("stop")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_stop(state_dir: Path, name: str) -> None:
-    """Stop a real robot's kubelet: its containers keep running, its Node goes NotReady (about 40 s)."""
-    _running_cluster(state_dir).robots.stop(name)
-
-
-@robots.command("start")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_start(state_dir: Path, name: str) -> None:
-    """Start a stopped real robot's kubelet again and wait until its Node is Ready."""
-    _running_cluster(state_dir).robots.start(name)
-
-
-@robots.command("cut")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_cut(state_dir: Path, name: str) -> None:
-    """Cut a real robot's network link: no traffic to other robots, the API server or the registry."""
-    _running_cluster(state_dir).robots.cut_link(name)
-
-
-@robots.command("restore")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_restore(state_dir: Path, name: str) -> None:
-    """Restore a cut real robot's network link."""
-    _running_cluster(state_dir).robots.restore_link(name)
-
-
 @robots.command("ready")
-@dir_option
+@on_running_cluster
 @click.argument("name")
 @click.option("--not-ready", is_flag=True, help="Make the robot report Ready=False instead.")
-@_fail_on_errors
-def robot_ready(state_dir: Path, name: str, not_ready: bool) -> None:
+def robot_ready(cluster: Cluster, name: str, not_ready: bool) -> None:
     """Make a robot report Ready (or NotReady with --not-ready) and wait until its Node shows it."""
-    _running_cluster(state_dir).set_robot_ready(name, not not_ready)
+    cluster.set_robot_ready(name, not not_ready)
 
 
-@robots.command("offline")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_offline(state_dir: Path, name: str) -> None:
-    """Take a robot off the network: its lease lapses and it turns Ready=Unknown (about 30 s)."""
-    _running_cluster(state_dir).set_robot_reachable(name, False)
+ONE_ROBOT_ACTIONS: dict[str, Callable[[Cluster, str], None]] = {
+    "stop": lambda cluster, name: cluster.robots.stop(name),
+    "start": lambda cluster, name: cluster.robots.start(name),
+    "cut": lambda cluster, name: cluster.robots.cut_link(name),
+    "restore": lambda cluster, name: cluster.robots.restore_link(name),
+    "offline": lambda cluster, name: cluster.set_robot_reachable(name, False),
+    "online": lambda cluster, name: cluster.set_robot_reachable(name, True),
+}
+"""`robots VERB NAME`: what each verb does to robot NAME of the running cluster."""
+
+ONE_ROBOT_HELP = {
+    "stop": "Stop a real robot's kubelet: its containers keep running, its Node goes NotReady (~40 s).",
+    "start": "Start a stopped real robot's kubelet again and wait until its Node is Ready.",
+    "cut": "Cut a real robot's network link: no traffic to other robots, the API server or the registry.",
+    "restore": "Restore a cut real robot's network link.",
+    "offline": "Take a robot off the network: its lease lapses and it turns Ready=Unknown (about 30 s).",
+    "online": "Bring an offline robot back: kwok renews its lease and it reports Ready again.",
+}
 
 
-@robots.command("online")
-@dir_option
-@click.argument("name")
-@_fail_on_errors
-def robot_online(state_dir: Path, name: str) -> None:
-    """Bring an offline robot back: kwok renews its lease and it reports Ready again."""
-    _running_cluster(state_dir).set_robot_reachable(name, True)
+def _one_robot_command(verb: str) -> click.Command:
+    act = ONE_ROBOT_ACTIONS[verb]
+
+    @on_running_cluster
+    @click.argument("name")
+    def command(cluster: Cluster, name: str) -> None:
+        act(cluster, name)
+
+    return click.command(verb, help=ONE_ROBOT_HELP[verb])(command)
+
+
+for _verb in ONE_ROBOT_ACTIONS:
+    robots.add_command(_one_robot_command(_verb))
 
 
 @dev_cluster.command("demo")

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import tenacity
+
 from coral_testbed.cluster import (
     binaries,
     components,
@@ -185,16 +187,17 @@ def start(
             f"a control plane is already running from {state_dir} (kubeconfig {previous.kubeconfig})"
         )
     began = time.monotonic()
-    for attempt in range(1, _ATTEMPTS + 1):
-        try:
-            state = _start_once(state_dir, bin_dir, progress, die_with_parent, timeout, extra_args or {})
-            break
-        except ControlPlaneError as error:
-            # Ports are chosen free but not held: another process may take one before its component
-            # binds it. Only that race is worth another attempt.
-            if attempt == _ATTEMPTS or "address already in use" not in str(error):
-                raise
-            progress("A port was taken meanwhile; starting again on other ports")
+    # Ports are chosen free but not held: another process may take one before its component binds
+    # it. Only that race is worth another attempt; tenacity makes them and re-raises the last error.
+    retrying = tenacity.Retrying(
+        retry=tenacity.retry_if_exception(
+            lambda error: isinstance(error, ControlPlaneError) and "address already in use" in str(error)
+        ),
+        stop=tenacity.stop_after_attempt(_ATTEMPTS),
+        before_sleep=lambda _state: progress("A port was taken meanwhile; starting again on other ports"),
+        reraise=True,
+    )
+    state = retrying(_start_once, state_dir, bin_dir, progress, die_with_parent, timeout, extra_args or {})
     progress(f"Control plane ready in {time.monotonic() - began:.1f} s; kubeconfig: {state.kubeconfig}")
     return state
 

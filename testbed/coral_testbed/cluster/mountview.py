@@ -15,6 +15,8 @@ import os
 import subprocess
 from pathlib import Path
 
+import psutil
+
 # Paths a node owns: the plugin root, pod logs, and the kubelet's and containerd's state.
 PRIVATE = (
     "/var/lib/coral",
@@ -36,10 +38,14 @@ def _run(*argv: str) -> None:
         raise MountError(f"`{' '.join(argv)}` exited with {result.returncode}: {result.stderr.strip()}")
 
 
+def _mount_points() -> list[str]:
+    # Not os.path.ismount: a folder bind-mounted onto itself stays on the same device, which it
+    # cannot tell from a plain folder; the mount table (read by psutil) lists it.
+    return [mount.mountpoint for mount in psutil.disk_partitions(all=True)]
+
+
 def is_mountpoint(path: Path) -> bool:
-    target = str(path.resolve())
-    with open("/proc/self/mountinfo") as mounts:
-        return any(line.split()[4] == target for line in mounts)
+    return str(path.resolve()) in _mount_points()
 
 
 def ensure_private_folder(folder: Path) -> None:
@@ -105,6 +111,4 @@ def remove(ns_file: Path) -> None:
 def mounts_under(folder: Path) -> list[str]:
     """Mount points on the host at or below `folder` (empty after a clean teardown)."""
     prefix = str(folder.resolve())
-    with open("/proc/self/mountinfo") as mounts:
-        points = [line.split()[4] for line in mounts]
-    return [p for p in points if p == prefix or p.startswith(prefix + "/")]
+    return [p for p in _mount_points() if p == prefix or p.startswith(prefix + "/")]

@@ -1,7 +1,7 @@
 """Starting and stopping the control plane's processes, each in its own process group.
 
 Used by `controlplane` (start, stop, status). A process is recorded by pid plus its kernel start
-time, so a later `down` never signals an unrelated process that reused the pid.
+time (read by psutil), so a later `down` never signals an unrelated process that reused the pid.
 """
 
 from __future__ import annotations
@@ -10,11 +10,14 @@ import ctypes
 import os
 import signal
 import subprocess
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import psutil
+
+from coral_testbed.waiting import WaitTimeout, wait_for
 
 _PR_SET_PDEATHSIG = 1
 
@@ -37,16 +40,14 @@ class Recorded:
 
 
 def process_start_time(pid: int) -> str | None:
-    """Field 22 of /proc/<pid>/stat (start time in clock ticks since boot), None if gone or a zombie."""
+    """When the kernel started `pid` (psutil's create_time), None if it is gone or a zombie."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
+        found = psutil.Process(pid)
+        if found.status() == psutil.STATUS_ZOMBIE:
+            return None
+        return f"{found.create_time():.2f}"
+    except psutil.NoSuchProcess:
         return None
-    # The command name may hold spaces and parentheses; fields after it are plain.
-    fields = stat[stat.rindex(")") + 2 :].split()
-    if fields[0] == "Z":
-        return None
-    return fields[19]
 
 
 def is_alive(process: Recorded) -> bool:
@@ -114,17 +115,21 @@ def stop(process: Recorded, timeout: float = 15.0) -> None:
     if not is_alive(process):
         _reap(process.pid)
         return
+
+    def gone() -> bool:
+        _reap(process.pid)
+        return not is_alive(process)
+
     for sig, grace in ((signal.SIGTERM, timeout), (signal.SIGKILL, 5.0)):
         try:
             os.killpg(process.pid, sig)
         except ProcessLookupError:
             pass
-        deadline = time.monotonic() + grace
-        while time.monotonic() < deadline:
-            _reap(process.pid)
-            if not is_alive(process):
-                return
-            time.sleep(0.05)
+        try:
+            wait_for(gone, timeout=grace, interval=0.05, message=f"{process.name} to exit")
+            return
+        except WaitTimeout:
+            continue
     raise RuntimeError(f"{process.name} (pid {process.pid}) survived SIGKILL")
 
 

@@ -33,6 +33,8 @@ class NetworkError(RuntimeError):
     """An `ip` command failed; the message has the command and its stderr."""
 
 
+# iproute2's `ip` rather than pyroute2: each step is a command a person can rerun by hand to look
+# at or undo a robot's network, and a failure quotes it.
 def ip(*args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
     result = subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30, check=False)
     if check and result.returncode != 0:

@@ -119,6 +119,8 @@ def follow(
     """
     deadline = time.monotonic() + timeout
     shown: dict[str, str] = {}
+    # Not `wait_for`: each poll also echoes the robots whose line changed and feeds the live view,
+    # and a timeout lists every robot's last line rather than one message.
     while True:
         check()
         instances = list_instances()

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import yaml
+from fixtures.tolerations import robot_down_tolerations
 
-ROBOT_TOLERATIONS = [
-    {"key": "node.kubernetes.io/unreachable", "operator": "Exists", "effect": "NoExecute"},
-    {"key": "node.kubernetes.io/not-ready", "operator": "Exists", "effect": "NoExecute"},
-]
+ROBOT_TOLERATIONS = robot_down_tolerations()
 
 
 def robot_pod(name: str, robot: str, tolerations: list[dict[str, object]] | None = None) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import pytest
 from coral_testbed.cluster import Cluster
 from coral_testbed.waiting import holds_for, wait_for
+from fixtures.tolerations import robot_down_tolerations
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
@@ -21,20 +22,7 @@ ROBOT = "r-flaky"
 # Healthy neighbours keep the node-lifecycle controller out of its "zone disrupted" mode, in which
 # it stops evicting altogether and the test would prove nothing.
 NEIGHBOURS = ["r1", "r2", "r3"]
-SHORT_TOLERATION = [
-    {
-        "key": "node.kubernetes.io/not-ready",
-        "operator": "Exists",
-        "effect": "NoExecute",
-        "tolerationSeconds": 1,
-    },
-    {
-        "key": "node.kubernetes.io/unreachable",
-        "operator": "Exists",
-        "effect": "NoExecute",
-        "tolerationSeconds": 1,
-    },
-]
+SHORT_TOLERATION = robot_down_tolerations(seconds=1)
 
 
 def _pod(core: k8s.CoreV1Api, name: str, namespace: str) -> k8s.V1Pod | None:

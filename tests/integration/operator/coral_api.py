@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,11 @@ def fleet_mission(name: str, fleet: str) -> dict[str, Any]:
 def client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
     """An API client authenticated as a ServiceAccount, as a pod running under it would be."""
     token = cluster.kubectl("create", "token", account, "-n", namespace, "--duration=10m").stdout.strip()
+    return client_with_token(cluster, token)
+
+
+def client_with_token(cluster: Any, token: str) -> k8s.ApiClient:
+    """An API client of the cluster's API server presenting `token` as its bearer token."""
     base = cluster.api_client.configuration
     configuration = k8s.Configuration()
     configuration.host = base.host
@@ -33,6 +39,15 @@ def client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
     configuration.verify_ssl = base.verify_ssl
     configuration.api_key = {"authorization": f"Bearer {token}"}
     return k8s.ApiClient(configuration)
+
+
+def denied(call: Callable[[], Any]) -> bool:
+    """Whether the API server refuses `call` as forbidden (403); another API error is not a refusal."""
+    try:
+        call()
+    except ApiException as error:
+        return error.status == 403
+    return False
 
 
 class Coral:

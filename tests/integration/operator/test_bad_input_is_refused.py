@@ -8,8 +8,9 @@ from typing import Any
 
 import pytest
 import yaml
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_api import condition, fleet_mission, is_current_and_true
 from coral_testbed.waiting import holds_for
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -100,18 +101,11 @@ def test_the_api_server_rejects_what_the_cel_rules_forbid(
     assert "coralsystems" not in cluster.kubectl("get", "coralsystems", "-n", namespace, "-o", "name").stdout
 
 
-def test_a_bad_tree_stalls_with_file_and_line_and_robots_keep_what_they_ran(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
+def test_a_bad_tree_stalls_with_file_and_line_and_robots_keep_what_they_ran(scenario: Scenario) -> None:
+    coral, wait = scenario.coral, scenario.wait
+    scenario.robots(1)
 
-    broken = fleet_mission("broken", fleet_label)
+    broken = scenario.mission("broken")
     broken["spec"]["tree"] = {"inline": BAD_TREE}
     coral.create_system(broken)
     stalled = wait(
@@ -125,8 +119,7 @@ def test_a_bad_tree_stalls_with_file_and_line_and_robots_keep_what_they_ran(
     assert not coral.instances() and not coral.pods()
 
     # A running system whose tree breaks keeps its pods and revision, and says why.
-    coral.create_system(fleet_mission("good", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("good"), "Ready"), "the good system to become Ready")
+    scenario.deploy(scenario.mission("good"))
     running = {n: p.metadata.uid for n, p in coral.pods().items() if n.startswith("good-")}
     revision = coral.system("good")["status"]["revision"]
     coral.patch_system("good", {"spec": {"tree": {"inline": BAD_TREE}}})

@@ -2,32 +2,22 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_api import condition, is_current_and_true
 from coral_testbed.waiting import holds_for
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def test_a_system_is_deleted_even_while_the_operator_is_down(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+def test_a_system_is_deleted_even_while_the_operator_is_down(scenario: Scenario) -> None:
+    coral, wait = scenario.coral, scenario.wait
+    scenario.robots(2)
+    scenario.deploy()
     assert not coral.system("fleet")["metadata"].get("finalizers")
     assert all(not i["metadata"].get("finalizers") for i in coral.instances().values())
 
-    coral_operator.stop()
+    scenario.operator.stop()
     coral.delete_system("fleet")
     wait(
         lambda: coral.system("fleet") is None and not coral.instances() and not coral.pods(),
@@ -35,25 +25,16 @@ def test_a_system_is_deleted_even_while_the_operator_is_down(
     )
 
 
-def test_a_tree_from_a_config_map_is_followed_and_a_broken_edit_is_refused(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    mission = fleet_mission("fleet", fleet_label)
+def test_a_tree_from_a_config_map_is_followed_and_a_broken_edit_is_refused(scenario: Scenario) -> None:
+    coral, wait, namespace = scenario.coral, scenario.wait, scenario.namespace
+    scenario.robots(1)
+    mission = scenario.mission()
     tree = mission["spec"]["tree"].pop("inline")
     coral.core.create_namespaced_config_map(
         namespace, {"metadata": {"name": "mission"}, "data": {"tree.xml": tree}}
     )
     mission["spec"]["tree"]["configMapRef"] = {"name": "mission", "key": "tree.xml"}
-    coral.create_system(mission)
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
-    first = coral.system("fleet")["status"]["revision"]
+    first = scenario.deploy(mission)["status"]["revision"]
 
     edited = tree.replace('msec="500"', 'msec="250"')
     coral.core.patch_namespaced_config_map("mission", namespace, {"data": {"tree.xml": edited}})

@@ -2,38 +2,19 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
 from coral.executor import kubernetes_sink as sink
-from coral_api import GROUP, VERSION, Coral, client_as, fleet_mission, is_current_and_true
+from coral_api import GROUP, VERSION, client_as, denied
 from kubernetes import client as k8s
-from kubernetes.client.exceptions import ApiException
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def _denied(call: Callable[[], Any]) -> bool:
-    try:
-        call()
-    except ApiException as error:
-        return error.status == 403
-    return False
-
-
-def test_the_executor_account_writes_its_tree_status_and_nothing_else(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    mine, other = robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+def test_the_executor_account_writes_its_tree_status_and_nothing_else(scenario: Scenario) -> None:
+    cluster, namespace, coral, wait = scenario.cluster, scenario.namespace, scenario.coral, scenario.wait
+    mine, other = scenario.robots(2)
+    scenario.deploy()
     instance = f"fleet-{mine}"
     as_executor = client_as(cluster, namespace, f"{instance}-executor")
 
@@ -66,17 +47,17 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(
     core = k8s.CoreV1Api(as_executor)
     merge = "application/merge-patch+json"
     body = {"status": {"tree": {"rootStatus": "FAILURE"}}}
-    assert _denied(
+    assert denied(
         lambda: custom.patch_namespaced_custom_object_status(
             GROUP, VERSION, namespace, "coralinstances", f"fleet-{other}", body, _content_type=merge
         )
     ), "patching another robot's instance must be denied"
-    assert _denied(
+    assert denied(
         lambda: custom.patch_namespaced_custom_object_status(
             GROUP, VERSION, namespace, "coralsystems", "fleet", {"status": {}}, _content_type=merge
         )
     ), "patching the CoralSystem's status must be denied"
-    assert _denied(
+    assert denied(
         lambda: custom.patch_namespaced_custom_object(
             GROUP,
             VERSION,
@@ -87,7 +68,7 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(
             _content_type=merge,
         )
     ), "patching its own instance's spec must be denied"
-    assert _denied(
+    assert denied(
         lambda: core.patch_namespaced_pod(
             f"{instance}-executor", namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
         )

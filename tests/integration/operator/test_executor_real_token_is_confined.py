@@ -9,13 +9,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import GROUP, VERSION, Coral, fleet_mission, is_current_and_true
+from coral_api import GROUP, VERSION, Coral, client_with_token, denied, fleet_mission, is_current_and_true
 from coral_operator.planning.pods import SERVICE_ACCOUNT_DIR
 from coral_testbed.cluster import realrobots
 from fixtures.operator import HelmOperator
 from fixtures.robots import REAL_ROBOTS
 from kubernetes import client as k8s
-from kubernetes.client.exceptions import ApiException
 
 pytestmark = [pytest.mark.cluster, pytest.mark.real_robots, pytest.mark.slow]
 
@@ -39,14 +38,6 @@ def _guard_system(robot: str) -> dict[str, Any]:
             "executors": [{"name": "executor", "image": "coral/executor:0.1.0"}],
         },
     }
-
-
-def _denied(call: Callable[[], Any]) -> bool:
-    try:
-        call()
-    except ApiException as error:
-        return error.status == 403
-    return False
 
 
 def _claims(token: str) -> dict[str, Any]:
@@ -80,8 +71,10 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     pod = wait(running_executor, "the guard's executor container to run", timeout=180)
     mine = f"guard-{robot}"
     wait(
-        lambda: ((coral.instances().get(mine) or {}).get("status") or {}).get("tree", {}).get("rootStatus")
-        == "RUNNING",
+        lambda: (
+            ((coral.instances().get(mine) or {}).get("status") or {}).get("tree", {}).get("rootStatus")
+            == "RUNNING"
+        ),
         "the executor's own tree status on its instance",
         timeout=120,
     )
@@ -94,13 +87,7 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     assert identity["pod"]["name"] == pod.metadata.name
     assert identity["serviceaccount"]["name"] == pod.spec.service_account_name
 
-    base = cluster.api_client.configuration
-    configuration = k8s.Configuration()
-    configuration.host = base.host
-    configuration.ssl_ca_cert = base.ssl_ca_cert
-    configuration.verify_ssl = base.verify_ssl
-    configuration.api_key = {"authorization": f"Bearer {token}"}
-    as_executor = k8s.ApiClient(configuration)
+    as_executor = client_with_token(cluster, token)
     custom = k8s.CustomObjectsApi(as_executor)
     as_core = k8s.CoreV1Api(as_executor)
 
@@ -129,7 +116,7 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
         "listing pods": lambda: as_core.list_namespaced_pod(namespace),
         "listing secrets": lambda: as_core.list_namespaced_secret(namespace),
     }  # fmt: skip
-    allowed = [what for what, call in refused.items() if not _denied(call)]
+    allowed = [what for what, call in refused.items() if not denied(call)]
     assert not allowed, f"the executor's token was not refused: {allowed}"
     assert (coral.instances()[other].get("status") or {}).get("tree") is None
     assert "x" not in core.read_namespaced_pod(pod.metadata.name, namespace).metadata.labels

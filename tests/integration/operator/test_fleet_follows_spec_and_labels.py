@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import Coral, fleet_mission, is_current_and_true
+from coral_api import Coral, is_current_and_true
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -28,18 +28,10 @@ def _is_executor(pod: Any) -> bool:
     return pod.metadata.labels["coral.dev/role"] == "executor"
 
 
-def test_spec_changes_labels_and_deletion(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    first, second = robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+def test_spec_changes_labels_and_deletion(scenario: Scenario) -> None:
+    cluster, namespace, coral, wait = scenario.cluster, scenario.namespace, scenario.coral, scenario.wait
+    first, second = scenario.robots(2)
+    scenario.deploy()
     before = _uids(coral)
     assert len(before) == 6
 

@@ -2,27 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
-from coral_api import Coral, fleet_mission, is_current_and_true, pod_ready_since
+from coral_api import is_current_and_true, pod_ready_since
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def test_the_fleet_example_runs_on_every_matching_robot(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    fleet = robots(3, {"fleet": fleet_label})
-    other = robots(1, {"fleet": "someone-else"}, start=9)
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
+def test_the_fleet_example_runs_on_every_matching_robot(scenario: Scenario) -> None:
+    cluster, namespace, coral = scenario.cluster, scenario.namespace, scenario.coral
+    fleet = scenario.robots(3)
+    other = scenario.make_robots(1, {"fleet": "someone-else"}, start=9)
+    coral.create_system(scenario.mission())
 
     cluster.kubectl(
         "wait", "--for=condition=Ready", "coralsystem/fleet", "-n", namespace, "--timeout=120s", timeout=130

@@ -66,6 +66,8 @@ class Stage:
         return self.log.read_text()
 
     def peak_rss_kib(self) -> int:
+        # VmHWM, the peak resident size, is what a memory limit would have caught; psutil only has
+        # the current one.
         status = Path(f"/proc/{self.operator.pid}/status").read_text()
         return int(next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:")))
 

@@ -2,27 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_api import condition, is_current_and_true
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def test_a_restarted_operator_picks_up_where_it_stopped(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+def test_a_restarted_operator_picks_up_where_it_stopped(scenario: Scenario) -> None:
+    coral, wait, coral_operator = scenario.coral, scenario.wait, scenario.operator
+    scenario.robots(2)
+    scenario.deploy()
     pods = {n: p.metadata.uid for n, p in coral.pods().items()}
     ready_since = condition(coral.system("fleet"), "Ready")["lastTransitionTime"]
     instance_ready = {n: condition(i, "Ready")["lastTransitionTime"] for n, i in coral.instances().items()}
@@ -30,7 +20,7 @@ def test_a_restarted_operator_picks_up_where_it_stopped(
     coral_operator.stop()
     coral_operator.start()
     # A robot joining proves the new process is reconciling before anything is compared.
-    robots(1, {"fleet": fleet_label}, start=3)
+    scenario.robots(1, start=3)
     wait(
         lambda: (
             coral.system("fleet")["status"]["robots"]["ready"] == 3

@@ -8,13 +8,13 @@ side (start order, probes, a crashing container) is in tests/integration/mission
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import pytest
 from coral_api import Coral, condition, fleet_mission, is_current_and_true
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -58,17 +58,10 @@ def _conditions_of(coral: Coral) -> dict[str, list[tuple[str, str, str, str]]]:
     }
 
 
-def test_one_pod_per_robot_reads_like_one_pod_per_component(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(1, {"fleet": f"{fleet_label}-c"}, start=1)
-    robots(1, {"fleet": f"{fleet_label}-r"}, start=2)
-    coral = Coral(cluster.api_client, namespace)
+def test_one_pod_per_robot_reads_like_one_pod_per_component(scenario: Scenario) -> None:
+    coral, wait, fleet_label = scenario.coral, scenario.wait, scenario.fleet_label
+    scenario.make_robots(1, {"fleet": f"{fleet_label}-c"}, start=1)
+    scenario.make_robots(1, {"fleet": f"{fleet_label}-r"}, start=2)
     coral.create_system(_mission("per-component", f"{fleet_label}-c", "PodPerComponent"))
     coral.create_system(_mission("per-robot", f"{fleet_label}-r", "PodPerRobot"))
     per_component = wait(lambda: _ready_instance(coral, "per-component"), "the PodPerComponent robot Ready")
@@ -94,17 +87,12 @@ def _enforce_baseline(cluster: Any, namespace: str) -> None:
 
 
 def test_a_baseline_namespace_accepts_one_pod_per_robot_and_says_why_it_refuses_the_other(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    scenario: Scenario,
 ) -> None:
-    _enforce_baseline(cluster, namespace)
-    robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    manifest = _mission("baseline", fleet_label, "PodPerRobot", network="Pod")
+    coral, wait = scenario.coral, scenario.wait
+    _enforce_baseline(scenario.cluster, scenario.namespace)
+    scenario.robots(1)
+    manifest = _mission("baseline", scenario.fleet_label, "PodPerRobot", network="Pod")
     for role in ("drivers", "skillsets", "executors"):
         for component in manifest["spec"].get(role, []):
             component.pop("hostPaths", None)  # baseline refuses every hostPath volume
@@ -138,16 +126,11 @@ def test_a_baseline_namespace_accepts_one_pod_per_robot_and_says_why_it_refuses_
 
 
 def test_an_image_only_change_keeps_the_robot_pod_and_any_other_change_replaces_it(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    scenario: Scenario,
 ) -> None:
-    robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    manifest = _mission("images", fleet_label, "PodPerRobot")
+    coral, wait = scenario.coral, scenario.wait
+    scenario.robots(1)
+    manifest = _mission("images", scenario.fleet_label, "PodPerRobot")
     coral.create_system(manifest)
     first = wait(lambda: _ready_instance(coral, "images"), "the robot Ready")
     (pod,) = coral.pods().values()

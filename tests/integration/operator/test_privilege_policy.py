@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
-from coral_api import Coral, condition, fleet_mission
+from coral_api import condition
 from coral_testbed.waiting import holds_for
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -20,17 +18,10 @@ def operator_env() -> dict[str, str]:
     }
 
 
-def test_a_privileged_driver_outside_the_allowed_namespaces_is_refused(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    mission = fleet_mission("fleet", fleet_label)
+def test_a_privileged_driver_outside_the_allowed_namespaces_is_refused(scenario: Scenario) -> None:
+    coral, wait, namespace = scenario.coral, scenario.wait, scenario.namespace
+    scenario.robots(1)
+    mission = scenario.mission()
     mission["spec"]["drivers"][0] |= {
         "privileged": True,
         "hostPaths": [{"hostPath": "/etc/ssh", "mountPath": "/etc/ssh"}],

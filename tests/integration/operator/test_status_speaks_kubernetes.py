@@ -2,31 +2,20 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import pytest
-from coral_api import Coral, condition, fleet_mission
+from coral_api import condition
+from fixtures import argocd
+from scenarios import Scenario
 
-lupa = pytest.importorskip("lupa", reason="lupa (test extra) runs the Lua health check")
+pytest.importorskip("lupa", reason="lupa (test extra) runs the Lua health check")
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
-HEALTH = Path(__file__).resolve().parents[3] / "charts" / "coral-operator" / "argocd" / "health.lua"
 
 
 def argocd_health(obj: dict[str, Any]) -> str:
-    runtime = lupa.LuaRuntime()
-
-    def to_lua(value: Any) -> Any:
-        if isinstance(value, dict):
-            return runtime.table_from({k: to_lua(v) for k, v in value.items()})
-        if isinstance(value, list):
-            return runtime.table_from([to_lua(v) for v in value])
-        return value
-
-    runtime.globals().obj = to_lua(obj)
-    return str(runtime.execute(HEALTH.read_text())["status"])
+    return argocd.health(obj)["status"]
 
 
 def test_kubectl_explain_describes_the_fields(cluster: Any, coral_crds: None, wait: Any) -> None:
@@ -45,16 +34,11 @@ def test_kubectl_explain_describes_the_fields(cluster: Any, coral_crds: None, wa
 
 
 def test_kubectl_wait_and_argo_cd_follow_a_system_from_progressing_to_healthy_to_degraded(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    scenario: Scenario,
 ) -> None:
-    robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
+    cluster, namespace, coral, wait = scenario.cluster, scenario.namespace, scenario.coral, scenario.wait
+    scenario.robots(2)
+    coral.create_system(scenario.mission())
     assert argocd_health(coral.system("fleet")) == "Progressing"
     cluster.kubectl(
         "wait", "--for=condition=Ready", "coralsystem/fleet", "-n", namespace, "--timeout=120s", timeout=130

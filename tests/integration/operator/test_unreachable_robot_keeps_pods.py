@@ -2,27 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
+from coral_api import condition, is_current_and_true
+from fixtures.tolerations import robot_down_tolerations
+from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
 
-def test_an_unreachable_robot_keeps_its_pods(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-) -> None:
-    lost, kept = robots(2, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
+def test_an_unreachable_robot_keeps_its_pods(scenario: Scenario) -> None:
+    cluster, namespace, coral, wait = scenario.cluster, scenario.namespace, scenario.coral, scenario.wait
+    lost, kept = scenario.robots(2)
+    scenario.deploy()
     uids = {n: p.metadata.uid for n, p in coral.pods().items()}
 
     # A pod with the usual 1 s toleration shows that the control plane really evicts from this robot.
@@ -33,20 +24,7 @@ def test_an_unreachable_robot_keeps_its_pods(
             "spec": {
                 "nodeName": lost,
                 "containers": [{"name": "c", "image": "example/ordinary:1"}],
-                "tolerations": [
-                    {
-                        "key": "node.kubernetes.io/not-ready",
-                        "operator": "Exists",
-                        "effect": "NoExecute",
-                        "tolerationSeconds": 1,
-                    },
-                    {
-                        "key": "node.kubernetes.io/unreachable",
-                        "operator": "Exists",
-                        "effect": "NoExecute",
-                        "tolerationSeconds": 1,
-                    },
-                ],
+                "tolerations": robot_down_tolerations(seconds=1),
             },
         },
     )

@@ -152,7 +152,7 @@ def test_registry_exports_plugins_as_tree_nodes_model() -> None:
     registry = bt.NodeRegistry.with_builtins()
     registry.register("Greet", Greet)
     xml = registry.tree_nodes_model_xml()
-    assert '<Action ID="Greet">' in xml and 'name="name" type="string" default="world"' in xml
+    assert '<Action ID="Greet">' in xml and 'name="name" type="std::string" default="world"' in xml
     assert "Sequence" not in xml
 
 

@@ -5,7 +5,11 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from coral_operator.planning.observed import RobotNode
+from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.api.system import StartupSpec
+from coral_operator.planning import startup as startup_planning
+from coral_operator.planning.observed import ObservedPod, RobotNode
+from coral_operator.status import instance_status
 
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
@@ -36,4 +40,33 @@ def robot(name: str, ready: bool = True, **labels: str) -> RobotNode:
         ready=ready,
         last_seen=NOW,
         reachable=ready,
+    )
+
+
+def instance_view(
+    spec: CoralInstanceSpec,
+    desired: list[dict[str, Any]],
+    observed: list[ObservedPod],
+    *,
+    startup: StartupSpec,
+    node: RobotNode | None = None,
+    tree: dict[str, Any] | None = None,
+    plugins: dict[str, Any] | None = None,
+    refused: dict[str, str] | None = None,
+) -> instance_status.InstanceView:
+    """What an instance's status is computed from, on robot r1 unless `node` says otherwise, with
+    its start-up planned at NOW as the reconciler plans it."""
+    plan = startup_planning.plan_startup(
+        desired=desired, observed=observed, transient=set(), startup=startup, now=NOW
+    )
+    return instance_status.InstanceView(
+        spec=spec,
+        node=node or robot("r1"),
+        desired=desired,
+        pods=observed,
+        plan=plan,
+        transient=set(),
+        tree=tree,
+        plugins=plugins,
+        refused=refused or {},
     )

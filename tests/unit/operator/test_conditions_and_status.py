@@ -8,13 +8,13 @@ from typing import Any
 
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
-from coral_operator.planning import instances, naming, pods, startup
+from coral_operator.planning import instances, naming, pods
 from coral_operator.planning.observed import ObservedInstance, ObservedPod
 from coral_operator.status import instance_status, system_status
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.rollout import RolloutConditionType, RolloutReason
 from coral_operator.status.transitions import Verdict, find, merge_conditions
-from operator_specs import NOW, robot
+from operator_specs import NOW, instance_view, robot
 
 LATER = NOW + timedelta(minutes=5)
 
@@ -59,16 +59,12 @@ def _view(
         )
         for m in desired
     ]
-    plan = startup.plan_startup(
-        desired=desired, observed=observed, transient=set(), startup=StartupSpec(), now=NOW
-    )
-    return instance_status.InstanceView(
-        spec=parsed,
+    return instance_view(
+        parsed,
+        desired,
+        observed,
+        startup=StartupSpec(),
         node=robot("r1", ready=node_ready),
-        desired=desired,
-        pods=observed,
-        plan=plan,
-        transient=set(),
         tree=tree,
         plugins=plugins,
     )

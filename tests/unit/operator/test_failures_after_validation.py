@@ -8,12 +8,12 @@ from typing import Any
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing
-from coral_operator.planning import instances, pods, startup
+from coral_operator.planning import instances, pods
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.status import instance_status, ownership
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.transitions import MAX_MESSAGE, Verdict, merge_conditions
-from operator_specs import BASE_SPEC, NOW, robot
+from operator_specs import BASE_SPEC, NOW, instance_view, robot
 
 PSA = 'pods "x" is forbidden: violates PodSecurity "baseline:latest": hostPath volumes (volume "plugins")'
 
@@ -22,21 +22,7 @@ def _view(pods_seen: list[ObservedPod] | None = None, refused: dict[str, str] | 
     template = instances.build_template(CoralSystemSpec.model_validate(BASE_SPEC), "t", "p")
     spec = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
     desired = pods.build_pods(spec=spec, instance="sys-r1", namespace="ns", instance_uid="u")
-    seen = pods_seen or []
-    plan = startup.plan_startup(
-        desired=desired, observed=seen, transient=set(), startup=StartupSpec(), now=NOW
-    )
-    return instance_status.InstanceView(
-        spec=spec,
-        node=robot("r1"),
-        desired=desired,
-        pods=seen,
-        plan=plan,
-        transient=set(),
-        tree=None,
-        plugins=None,
-        refused=refused or {},
-    )
+    return instance_view(spec, desired, pods_seen or [], startup=StartupSpec(), refused=refused)
 
 
 def _conditions(view: Any) -> dict[str, dict[str, Any]]:

@@ -22,7 +22,7 @@ from coral_operator.kube import observing
 from coral_operator.planning import instances, naming, pods, startup
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.status import instance_status
-from operator_specs import NOW, robot
+from operator_specs import NOW, instance_view, robot
 
 GOLDEN = Path(__file__).parent / "golden"
 EXAMPLE = Path(__file__).parents[3] / "examples" / "lidar-slam" / "mission.yaml"
@@ -292,18 +292,8 @@ def _status(
     parsed = _instance_spec(spec)
     desired = pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
     observed = [record for body in bodies for record in observing.observed_pods(body)]
-    plan = startup.plan_startup(
-        desired=desired, observed=observed, transient=set(), startup=parsed.startup, now=NOW
-    )
-    view = instance_status.InstanceView(
-        spec=parsed,
-        node=robot("r1"),
-        desired=desired,
-        pods=observed,
-        plan=plan,
-        transient=set(),
-        tree={"rootStatus": "RUNNING"},
-        plugins=plugins,
+    view = instance_view(
+        parsed, desired, observed, startup=parsed.startup, tree={"rootStatus": "RUNNING"}, plugins=plugins
     )
     status = instance_status.build_instance_status(view, old_conditions=[], generation=1, now=NOW)
     for entry in status["components"]:

@@ -5,15 +5,14 @@ from __future__ import annotations
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 
 from coral_operator.kube.workqueue import WorkQueue
+from coral_testbed.waiting import wait_for
 
 
-def _wait(condition: object, timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():  # type: ignore[operator]
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.005)
+def _wait(condition: Callable[[], object], timeout: float = 5.0) -> None:
+    wait_for(condition, timeout=timeout, interval=0.005, message="the work queue to get there")
 
 
 def test_a_burst_of_adds_for_one_key_costs_one_pass() -> None:

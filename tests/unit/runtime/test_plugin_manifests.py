@@ -7,8 +7,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from coral.bt import treenodesmodel
 from coral.plugins import manifest as manifests
-from coral.plugins import model_xml
 
 from .plugin_builders import greeter_plugin
 
@@ -59,7 +59,7 @@ def test_the_tree_nodes_model_lists_behaviors_with_their_ports(tmp_path: Path) -
             }
         )
     )
-    root = ET.fromstring(model_xml.build_tree_nodes_model([manifest]))
+    root = ET.fromstring(treenodesmodel.build_tree_nodes_model(manifests.palette_behaviors([manifest])))
     assert root.get("BTCPP_format") == "4"
     model = root.find("TreeNodesModel")
     assert model is not None
@@ -97,4 +97,4 @@ BT_CPP_TYPE_NAMES = {
 
 @pytest.mark.parametrize(("declared", "written"), BT_CPP_TYPE_NAMES.items())
 def test_port_types_are_written_with_bt_cpp_names(declared: str, written: str) -> None:
-    assert model_xml.cpp_type_name(declared) == written
+    assert treenodesmodel.cpp_type_name(declared) == written

@@ -12,6 +12,7 @@ from coral.bt.leaves import StatefulAction
 from coral.executor import plugins_phase, sinks
 from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
+from coral_testbed.waiting import wait_for
 
 HALTED: list[str] = []
 
@@ -64,6 +65,20 @@ def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
     return TickLoop(tree, context, sinks.SinkFanout([collect]), state, rate_hz=rate_hz)
 
 
+def _run_in_background(loop: TickLoop, stop: threading.Event) -> tuple[threading.Event, list[int]]:
+    """Runs `loop` on a thread until `stop` (a SIGTERM gives 143); the event is set once it returned,
+    with its exit code in the list."""
+    finished = threading.Event()
+    codes: list[int] = []
+
+    def run() -> None:
+        codes.append(loop.run(stop, lambda: 143))
+        finished.set()
+
+    threading.Thread(target=run, daemon=True).start()
+    return finished, codes
+
+
 def test_wake_ups_tick_at_once_instead_of_waiting_for_the_period() -> None:
     collect = Collect()
     # At 0.1 Hz a tick waits 10 s; only wake-ups can finish two Works within the 5 s bound below.
@@ -75,14 +90,7 @@ def test_wake_ups_tick_at_once_instead_of_waiting_for_the_period() -> None:
         rate_hz=0.1,
     )
     stop = threading.Event()
-    finished = threading.Event()
-    codes: list[int] = []
-
-    def run() -> None:
-        codes.append(loop.run(stop, lambda: 143))
-        finished.set()
-
-    threading.Thread(target=run, daemon=True).start()
+    finished, codes = _run_in_background(loop, stop)
     if not finished.wait(5.0):
         stop.set()
         loop.tree.wake_up()
@@ -99,18 +107,13 @@ def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
         '<root BTCPP_format="4"><BehaviorTree ID="M"><Forever/></BehaviorTree></root>', collect, 50.0
     )
     stop = threading.Event()
-    finished = threading.Event()
-    codes: list[int] = []
-
-    def run() -> None:
-        codes.append(loop.run(stop, lambda: 143))
-        finished.set()
-
-    threading.Thread(target=run, daemon=True).start()
-    deadline = time.monotonic() + 5
-    while not any(r["event"] == "transition" and r["status"] == "RUNNING" for r in list(collect.records)):
-        assert time.monotonic() < deadline, "Forever never started"
-        time.sleep(0.01)
+    finished, codes = _run_in_background(loop, stop)
+    wait_for(
+        lambda: any(r["event"] == "transition" and r["status"] == "RUNNING" for r in list(collect.records)),
+        timeout=5,
+        interval=0.01,
+        message="Forever to start",
+    )
     stop.set()
     loop.tree.wake_up()
     assert finished.wait(5.0)
