@@ -17,7 +17,7 @@ def run(*, namespaces: list[str], verbose: bool = False, liveness: str | None = 
         level=logging.DEBUG if verbose else logging.INFO,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
-    # Per-object "Timer succeeded" lines would drown everything else at INFO.
+    # Per-object "Handler succeeded" lines (one per watch event) would drown everything else at INFO.
     logging.getLogger("kopf.objects").setLevel(logging.DEBUG if verbose else logging.WARNING)
     importlib.import_module("coral_operator.handlers")
     kopf.run(

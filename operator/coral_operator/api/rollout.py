@@ -1,4 +1,4 @@
-"""The rollout part of a CoralSystem's status (`status.rollout`, DESIGN section 6).
+"""The rollout part of a CoralSystem's status (`status.rollout`; docs/architecture.md, "Rollouts").
 
 Counts and a few names only, never a per-robot list, so the status stays small at thousands of
 robots. Written by the system handler from `planning.rollout`'s decision; read back by the same

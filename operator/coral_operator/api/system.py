@@ -1,6 +1,6 @@
-"""The CoralSystem kind: what Coral system runs on which robots (DESIGN section 3).
+"""The CoralSystem kind: what Coral system runs on which robots (docs/architecture.md).
 
-Parsed by the system handler (`handlers.systems`), turned into CoralInstances by
+Parsed by the system reconciler (`reconcile.systems`), turned into CoralInstances by
 `planning.instances`, rendered into the CRD by `api.crdgen`, written by `coral convert`.
 """
 
@@ -217,7 +217,7 @@ class CanarySpec(CamelModel):
 
 
 class RolloutSpec(CamelModel):
-    """How a spec change spreads over the fleet (DESIGN section 6).
+    """How a spec change spreads over the fleet.
 
     Every instance records the revision it runs (`spec.revision`); the rollout decides which
     instances move to the newest revision and when."""

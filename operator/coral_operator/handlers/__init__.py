@@ -1,5 +1,9 @@
-"""Thin kopf registrations; importing this package registers every handler with kopf."""
+"""kopf glue only: importing this package registers the indexes, the watch handlers and the settings.
 
-from coral_operator.handlers import indexing, instances, settings, systems, triggers
+The operator's logic lives in `reconcile/` (passes), `planning/` (decisions) and `kube/` (API
+calls); see docs/architecture.md.
+"""
 
-__all__ = ["indexing", "instances", "settings", "systems", "triggers"]
+from coral_operator.handlers import indexing, settings, watching
+
+__all__ = ["indexing", "settings", "watching"]

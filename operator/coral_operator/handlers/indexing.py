@@ -1,7 +1,7 @@
-"""In-memory indexes of robot Nodes, component pods and CoralInstances, kept by kopf's watches.
+"""In-memory indexes of robot Nodes, component pods, CoralInstances and CoralSystems, kept by kopf.
 
-The reconcilers read these instead of listing the API on every pass; a pass that runs before
-an index caught up meets 409 on create, which `kube.applying` treats as done.
+The reconcilers read these (`reconcile.indexes`) instead of listing the API on every pass; a pass
+that runs before an index caught up meets 409 on create, which `kube.applying` treats as done.
 """
 
 from __future__ import annotations
@@ -12,22 +12,7 @@ import kopf
 
 from coral_operator.api import names
 from coral_operator.kube import observing
-
-ALL_ROBOTS = "all"
-
-
-def read_index(index: kopf.Index | None, key: Any) -> list[Any]:
-    """The values under `key` of a kopf index, read from a thread other than kopf's event loop.
-
-    kopf changes its indexes on the event loop; a read that meets a change in flight is repeated.
-    """
-    if index is None:
-        return []
-    while True:
-        try:
-            return list(index.get(key, []))
-        except RuntimeError:
-            continue
+from coral_operator.reconcile.indexes import ALL_ROBOTS
 
 
 @kopf.index("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
@@ -52,8 +37,8 @@ def coral_instances(namespace: str, spec: kopf.Spec, body: kopf.Body, **_: Any) 
 
 
 @kopf.index(names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
-def coral_systems(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
-    return {namespace: (name, dict(spec))}
+def coral_systems(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
+    return {(namespace, name): observing.system_record(body)}
 
 
 @kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)

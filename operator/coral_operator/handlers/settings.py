@@ -1,4 +1,4 @@
-"""Operator-wide kopf settings, applied at startup.
+"""Operator-wide kopf settings and the controller's lifetime, from startup to cleanup.
 
 Progress goes to `coral.dev/` annotations (status belongs to the CRD schema, which would prune
 kopf's own fields); no diff-base is kept (no change handlers); no finalizers, so a stopped
@@ -12,8 +12,10 @@ from typing import Any
 
 import kopf
 
+from coral_operator import config
 from coral_operator.api import names
 from coral_operator.kube import applying
+from coral_operator.reconcile.controller import Controller
 
 
 class EssenceFreeDiffBase(kopf.AnnotationsDiffBaseStorage):
@@ -55,3 +57,22 @@ def wait_for_the_coral_api(settings: kopf.OperatorSettings, memo: kopf.Memo, **_
     problem = applying.coral_api_served(list(memo.get("namespaces", [])))
     if problem is not None:
         raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
+
+
+def _post(reference: dict[str, Any], kind: str, reason: str, message: str) -> None:
+    # kopf.event, not kopf.info: the posting level (WARNING) keeps kopf's own chatter out, not ours.
+    kopf.event(reference, type=kind, reason=reason, message=message)
+
+
+@kopf.on.startup()
+def create_controller(memo: kopf.Memo, **_: Any) -> None:
+    # Its workers start with the first watch event (`handlers.watching`), in a handler's context,
+    # where kopf's Event poster lives.
+    memo["controller"] = Controller(policy=config.from_environment().policy, post=_post)
+
+
+@kopf.on.cleanup()
+def stop_controller(memo: kopf.Memo, **_: Any) -> None:
+    controller = memo.get("controller")
+    if controller is not None:
+        controller.stop()

@@ -1,14 +1,14 @@
 """Writes to the API: create-if-absent, patch-when-changed and delete, all idempotent.
 
 A 409 on create means an earlier pass (or an operator before a restart) already made the object;
-a 404 on delete means it is already gone. Called by the handlers only.
+a 404 on delete means it is already gone. Called by the reconcilers (`reconcile/`) only.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor
 from typing import Any, TypeVar
 
 from kubernetes.client.exceptions import ApiException
@@ -20,13 +20,12 @@ from coral_operator.planning import naming
 
 T = TypeVar("T")
 R = TypeVar("R")
-# API calls wait on the network, so a fleet's worth of them overlap instead of queueing.
-_POOL = ThreadPoolExecutor(max_workers=8, thread_name_prefix="coral-api")
 
 
-def in_parallel(call: Callable[[T], R], items: Iterable[T]) -> list[R]:
-    """`call` on every item, a few at a time; results in item order; the first error is raised."""
-    return list(_POOL.map(call, list(items)))
+def in_parallel(pool: Executor, call: Callable[[T], R], items: Iterable[T]) -> list[R]:
+    """`call` on every item, a few at a time on `pool`; results in item order; the first error is
+    raised. API calls wait on the network, so a fleet's worth of them overlap instead of queueing."""
+    return list(pool.map(call, list(items)))
 
 
 def _ignore(error: ApiException, *codes: int) -> None:
@@ -102,12 +101,21 @@ def patch_pod(namespace: str, name: str, patch: dict[str, Any]) -> None:
 def patch_instance_status(namespace: str, name: str, changes: dict[str, Any]) -> str | None:
     """Merge `changes` into an instance's status; the resourceVersion it made, None when the
     instance is gone."""
+    return _patch_status("coralinstances", namespace, name, changes)
+
+
+def patch_system_status(namespace: str, name: str, changes: dict[str, Any]) -> str | None:
+    """Merge `changes` into a system's status; the resourceVersion it made, None when it is gone."""
+    return _patch_status("coralsystems", namespace, name, changes)
+
+
+def _patch_status(plural: str, namespace: str, name: str, changes: dict[str, Any]) -> str | None:
     try:
         response = client.custom().patch_namespaced_custom_object_status(
             GROUP,
             VERSION,
             namespace,
-            "coralinstances",
+            plural,
             name,
             {"status": changes},
             _content_type="application/merge-patch+json",
@@ -194,22 +202,6 @@ def retire_instance(namespace: str, name: str) -> None:
             "coralinstances",
             name,
             {"spec": {"retiring": True}},
-            _content_type="application/merge-patch+json",
-        )
-    except ApiException as error:
-        _ignore(error, 404)
-
-
-def annotate(plural: str, namespace: str, name: str, annotations: dict[str, str]) -> None:
-    """Merge annotations into a coral.dev object (the triggers' way to make kopf reconcile it)."""
-    try:
-        client.custom().patch_namespaced_custom_object(
-            GROUP,
-            VERSION,
-            namespace,
-            plural,
-            name,
-            {"metadata": {"annotations": annotations}},
             _content_type="application/merge-patch+json",
         )
     except ApiException as error:

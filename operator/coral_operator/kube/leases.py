@@ -3,7 +3,7 @@
 A Node's Ready condition carries a heartbeat that the kubelet refreshes only every few minutes
 when nothing changes, so the Lease is the truthful "last seen" of a robot. Read only for robots
 that are unreachable (then the value stops changing), so it costs nothing while robots are fine.
-Called by the instance glue in `handlers.instances`.
+Called by the instance reconciler (`reconcile.instances`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""Turns API bodies (nodes, pods, CoralInstances) into the plain records planning reads.
+"""Turns API bodies (nodes, pods, CoralInstances, CoralSystems) into the plain records planning reads.
 
-Called by the kopf indexers in `handlers.indexing`; no API calls, but it knows API shapes, so
-it lives beside the client.
+Called by the kopf indexers in `handlers.indexing` and by `reconcile.controller`; no API calls,
+but it knows API shapes, so it lives beside the client.
 """
 
 from __future__ import annotations
@@ -12,7 +12,13 @@ from typing import Any
 
 from coral_operator.api import keys, names
 from coral_operator.planning import naming
-from coral_operator.planning.observed import InstanceRecord, ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.observed import (
+    InstanceRecord,
+    ObservedInstance,
+    ObservedPod,
+    RobotNode,
+    SystemRecord,
+)
 from coral_operator.status import transitions
 
 parse_time = transitions.parse_rfc3339
@@ -234,5 +240,35 @@ def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
         generation=metadata.get("generation"),
         spec=dict(body.get("spec") or {}),
         status=dict(body.get("status") or {}),
+        resource_version=metadata.get("resourceVersion"),
+    )
+
+
+def instance_summary(body: Mapping[str, Any]) -> tuple[Any, ...]:
+    """What a system pass reads of one instance: a change here (and only here) calls for one."""
+    instance = observed_instance(body)
+    return (
+        instance.revision,
+        instance.ready,
+        instance.reachable,
+        instance.node_ready,
+        instance.tree_root,
+        instance.stalled,
+        bool(instance.spec.get("retiring")),
+        tuple(sorted(instance.labels.items())),
+    )
+
+
+def system_record(body: Mapping[str, Any]) -> SystemRecord:
+    """A CoralSystem as its reconciler reads it."""
+    metadata = body.get("metadata", {})
+    return SystemRecord(
+        name=metadata.get("name", ""),
+        namespace=metadata.get("namespace", ""),
+        uid=metadata.get("uid", ""),
+        generation=metadata.get("generation"),
+        spec=dict(body.get("spec") or {}),
+        status=dict(body.get("status") or {}),
+        annotations=dict(metadata.get("annotations") or {}),
         resource_version=metadata.get("resourceVersion"),
     )

@@ -1,7 +1,7 @@
 """Reads and writes the ControllerRevisions holding a CoralSystem's revision history.
 
-Planned by `planning.revisions`; called by the rollout glue in `handlers.rollouts`, which caches
-what it read, so the API is listed once per system per operator process.
+Planned by `planning.revisions`; called by the system reconciler (`reconcile.systems`), whose
+`Memory` keeps what it read, so the API is listed once per system per operator process.
 """
 
 from __future__ import annotations

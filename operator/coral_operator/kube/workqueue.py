@@ -3,8 +3,9 @@
 Watch events only name the object that needs a pass (`add`); the workers run the pass later from
 the caches. A key is held at most once however many events name it, never processed by two
 workers at once (an `add` during its pass queues one more pass afterwards), and passes of one key
-are spaced by `min_interval_s`, so a burst of events (a pod created, bound, started) costs one
-pass and one status write instead of one per event. A failed pass is retried with a per-key
+are spaced by `min_interval_s` (a number, or a function of the key), so a burst of events (a pod
+created, bound, started) costs one pass and one status write instead of one per event. A delayed
+`add` stands in for a timer. A failed pass is retried with a per-key
 exponential backoff. Memory is bounded by the number of distinct keys.
 """
 
@@ -30,14 +31,17 @@ class WorkQueue(Generic[K]):
         process: Callable[[K], None],
         *,
         workers: int = 8,
-        min_interval_s: float = 0.0,
+        min_interval_s: float | Callable[[K], float] = 0.0,
         retry_base_s: float = 0.5,
         retry_max_s: float = 30.0,
         name: str = "work",
     ) -> None:
         self._process = process
         self._workers = workers
-        self._min_interval = min_interval_s
+        # One queue serves several kinds of key, each spaced as its passes cost.
+        self._min_interval: Callable[[K], float] = (
+            min_interval_s if callable(min_interval_s) else (lambda _key: float(min_interval_s))
+        )
         self._retry_base = retry_base_s
         self._retry_max = retry_max_s
         self._name = name
@@ -86,7 +90,7 @@ class WorkQueue(Generic[K]):
     def add(self, key: K, delay_s: float = 0.0) -> None:
         """Ask for a pass of `key` no sooner than `delay_s` from now (and its rate limit)."""
         now = time.monotonic()
-        due = max(now + delay_s, self._last_run.get(key, -1e18) + self._min_interval)
+        due = max(now + delay_s, self._last_run.get(key, -1e18) + self._min_interval(key))
         with self._cond:
             if key in self._processing:
                 # Queued again once the running pass ends, so the pass sees this event's cause.
@@ -105,6 +109,11 @@ class WorkQueue(Generic[K]):
         with self._cond:
             self._last_run.pop(key, None)
             self._failures.pop(key, None)
+
+    def pending(self) -> set[K]:
+        """The keys waiting for a pass (not those being processed)."""
+        with self._cond:
+            return set(self._due)
 
     def __len__(self) -> int:
         with self._cond:

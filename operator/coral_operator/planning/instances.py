@@ -1,7 +1,7 @@
 """From a CoralSystem and its matched robots to the CoralInstances that should exist.
 
 `build_instance_spec` freezes one revision of the system for one robot; `plan_instances` compares
-desired and existing instances. Pure; called by the system handler. Fleet rollouts (which
+desired and existing instances. Pure; called by `planning.system_pass`. Fleet rollouts (which
 instances move to a new revision, and when) plug in between the two without changing them.
 """
 
@@ -106,8 +106,8 @@ def build_instance(
 
 
 @dataclass
-class InstancePlan:
-    """What to do with CoralInstances; each list holds manifests or names."""
+class InstanceChanges:
+    """What to do with a system's CoralInstances; each list holds manifests or names."""
 
     create: list[dict[str, Any]] = field(default_factory=list)
     update: list[dict[str, Any]] = field(default_factory=list)
@@ -131,7 +131,7 @@ def _normalized(spec: dict[str, Any]) -> dict[str, Any] | None:
 
 def plan_instances(
     desired: list[dict[str, Any]], existing: list[ObservedInstance], reachable_nodes: set[str] | None = None
-) -> InstancePlan:
+) -> InstanceChanges:
     """Create the missing, update the changed, retire or delete those whose robot left the selector.
 
     Args:
@@ -140,7 +140,7 @@ def plan_instances(
         reachable_nodes: Nodes that are Ready; a leaving robot among them is retired (its
             components stop executors first, drivers last), any other is deleted at once.
     """
-    plan = InstancePlan()
+    plan = InstanceChanges()
     by_name = {instance.name: instance for instance in existing}
     wanted = set()
     for manifest in desired:

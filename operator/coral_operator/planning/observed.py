@@ -89,8 +89,31 @@ class InstanceRecord:
     @property
     def reference(self) -> dict[str, Any]:
         """Enough of a body for an Event to name its object."""
-        return {
-            "apiVersion": names.API_VERSION,
-            "kind": names.INSTANCE_KIND,
-            "metadata": {"name": self.name, "namespace": self.namespace, "uid": self.uid},
-        }
+        return _reference(names.INSTANCE_KIND, self.name, self.namespace, self.uid)
+
+
+@dataclass(frozen=True)
+class SystemRecord:
+    """What a CoralSystem pass reads of its own object."""
+
+    name: str
+    namespace: str
+    uid: str
+    generation: int | None
+    spec: dict[str, Any]
+    status: dict[str, Any]
+    annotations: dict[str, str] = field(default_factory=dict)
+    resource_version: str | None = None
+
+    @property
+    def reference(self) -> dict[str, Any]:
+        """Enough of a body for an Event to name its object."""
+        return _reference(names.SYSTEM_KIND, self.name, self.namespace, self.uid)
+
+
+def _reference(kind: str, name: str, namespace: str, uid: str) -> dict[str, Any]:
+    return {
+        "apiVersion": names.API_VERSION,
+        "kind": kind,
+        "metadata": {"name": name, "namespace": namespace, "uid": uid},
+    }

@@ -1,4 +1,4 @@
-"""Builds the pods of one robot: one per component, or one for the robot (DESIGN sections 3 and 4).
+"""Builds the pods of one robot: one per component, or one for the robot (docs/architecture.md).
 
 The pod is pinned to the robot's Node, tolerates the robot dropping off the network (no eviction,
 no rescheduling), shares the host network and IPC for DDS by default, gets the ROS and Coral
@@ -25,7 +25,7 @@ COMPONENT_UID = 10001
 """The user Coral's component images run as (`coral`, USER 10001:10001 in their Dockerfiles)."""
 PLUGINS_OWNER = "plugins-owner"
 # The executor loads this with `--sink`; it writes the tree status to the robot's CoralInstance.
-STATUS_SINK = "coral_operator.sink.kubernetes:create_sink"
+STATUS_SINK = "coral.executor.kubernetes_sink:create_sink"
 
 # DaemonSet-style: a robot that drops off the network keeps its pods (no tolerationSeconds).
 TOLERATIONS = [

@@ -1,4 +1,4 @@
-"""The operator's own privilege policy (DESIGN section 9): who may ask for what on robots.
+"""The operator's own privilege policy: who may ask for what on robots (docs/architecture.md).
 
 Whoever may create a CoralSystem in a namespace may start processes on robots. The policy decides
 which of the spec's fields that reach a pod may grant more than an unprivileged container:

@@ -1,4 +1,4 @@
-"""Fleet rollout decisions: which robots move to which revision now (DESIGN section 6).
+"""Fleet rollout decisions: which robots move to which revision now (docs/architecture.md, "Rollouts").
 
 Pure and level-based: from the newest revision, the revision history, what every robot runs and
 how it is doing, the rollout policy and the previous `status.rollout`, decide the moves of this

@@ -1,4 +1,4 @@
-"""Validates the tree XML and the parameters YAML before anything reaches a robot (DESIGN section 9).
+"""Validates the tree XML and the parameters YAML before anything reaches a robot (docs/architecture.md).
 
 Errors read `file:line: message`. The tree goes through the BT engine (`coral.bt`), the same
 loader the executors use, with two differences that keep one namespace's bad input from costing

@@ -1,4 +1,4 @@
-"""Every condition type and reason the operator writes, in one place (DESIGN section 3).
+"""Every condition type and reason the operator writes, in one place (docs/architecture.md).
 
 Read by `status.transitions` and the readiness chains in `status.system_status` and
 `status.instance_status`; the Argo CD health check and `kubectl wait` rely on these names.

@@ -1,7 +1,7 @@
 """Computes the operator-owned part of a CoralInstance's status (the executor owns `tree`, `plugins`).
 
 `Ready` comes from an ordered chain of small checks; the first that fails gives reason and
-message. Pure; called by the instance handler with the observed state and the clock.
+message. Pure; called by `reconcile.instances` with the observed state and the clock.
 """
 
 from __future__ import annotations
@@ -319,3 +319,39 @@ def build_instance_status(
         },
         keys.INSTANCE_STATUS.components: build_components(view),
     }
+
+
+def build_invalid_status(
+    message: str, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
+) -> dict[str, Any]:
+    """The status of an instance whose spec fails validation: Stalled, with the fields named."""
+    conditions = merge_conditions(
+        old_conditions,
+        [
+            Verdict(C.READY, False, R.INVALID_SPEC, message),
+            Verdict(C.RECONCILING, False, R.INVALID_SPEC),
+            Verdict(C.STALLED, True, R.INVALID_SPEC, message),
+        ],
+        generation=generation,
+        now=now,
+    )
+    return {"conditions": conditions, "observedGeneration": generation}
+
+
+def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
+    """What of an instance's status is a verdict: the status of each condition, why it is Stalled,
+    whether its robot is reachable, and for which generation.
+
+    A change here is written at once (the system's rollout reads it); anything else (a stage's
+    message, a pod's phase or restarts) waits to ride along with the next write.
+    """
+    conditions = status.get("conditions") or []
+    stalled = next((c for c in conditions if c.get("type") == C.STALLED), {})
+    robot = status.get("robot") or {}
+    return (
+        status.get("observedGeneration"),
+        robot.get("reachable"),
+        robot.get("nodeReady"),
+        tuple((c.get("type"), c.get("status")) for c in conditions),
+        stalled.get("reason") if stalled.get("status") == "True" else None,
+    )

@@ -1,4 +1,4 @@
-"""Who owns which part of a CoralInstance's status (DESIGN section 3, "Who owns which status").
+"""Who owns which part of a CoralInstance's status (docs/architecture.md).
 
 The executor writes `tree` and `plugins`; everything else is the operator's, recomputed from
 what it observes on every pass. The executor's account may patch the status subresource (RBAC

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from coral.executor import kubernetes_sink as sink
 from coral_api import GROUP, VERSION, client_as, denied
-from coral_operator.sink import kubernetes as sink
 from kubernetes import client as k8s
 from scenarios import Scenario
 

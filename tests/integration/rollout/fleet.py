@@ -75,8 +75,24 @@ class Fleet:
         return {robot: item["spec"]["revision"] for robot, item in self.instances().items()}
 
     def set_tree(self, robot: str, root: str) -> None:
-        """Write the tree status the robot's executor would write through its status sink."""
+        """Write the tree status the robot's executor would write through its status sink.
+
+        A real executor reports seconds after its pod was made (it has to start first); reports
+        are stamped to the second, and one stamped in the second its executor's pod was made may
+        be the previous executor's, which the operator rightly ignores. So the report waits until
+        the clock is past that second, as a running executor's always is.
+        """
         instance = self.instances()[robot]["metadata"]["name"]
+        # Any of the robot's pods: with one pod per robot the executor's is the robot's pod.
+        pods = self.core.list_namespaced_pod(self.namespace, label_selector=f"coral.dev/robot={robot}").items
+        newest = max((pod.metadata.creation_timestamp for pod in pods), default=None)
+        if newest is not None:
+            wait_for(
+                lambda: datetime.now(UTC).replace(microsecond=0) > newest,
+                timeout=5,
+                interval=0.05,
+                message="the second the executor's pod was made to pass",
+            )
         self.custom.patch_namespaced_custom_object_status(
             GROUP,
             VERSION,

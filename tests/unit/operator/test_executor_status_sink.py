@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral_operator.sink import kubernetes as sink
+from coral.executor import kubernetes_sink as sink
 
 
 class Clock:

@@ -1,46 +1,118 @@
-"""The reconcilers skip their own status writes and re-run on new inputs or after a failed pass."""
+"""Watch events become keys on the one work queue: a pass on new inputs only, and again after a failure.
+
+The controller's queue is not started in most of these tests, so what the events queued can be read
+from it; no cluster is needed (events are built as kopf hands them over).
+"""
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
-import pytest
-from coral_operator.api import names
-from coral_operator.handlers import triggers
+from coral_operator.planning.policy import Policy
+from coral_operator.reconcile.controller import INSTANCE, SYSTEM, Controller
 
 
-def test_a_pass_is_skipped_only_for_inputs_already_handled() -> None:
-    triggers.handled("uid-a", (1, "pods-x"))
-    assert triggers.already_handled("uid-a", (1, "pods-x"))
-    assert not triggers.already_handled("uid-a", (1, "pods-y")), "a poke is a new input"
-    assert not triggers.already_handled("uid-a", (2, "pods-x")), "a spec change is a new input"
-    triggers.forget("uid-a")
-    assert not triggers.already_handled("uid-a", (1, "pods-x"))
+def _controller() -> Controller:
+    return Controller(policy=Policy(), post=lambda *_: None)
 
 
-def test_a_poke_writes_each_digest_once(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The API write is replaced by a recorder: this checks the de-duplication, not the API."""
-    writes: list[tuple[Any, ...]] = []
-    monkeypatch.setattr(triggers.applying, "annotate", lambda *args: writes.append(args))
-    triggers.poke("coralinstances", "ns", "sys-r1", "pods-1")
-    triggers.poke("coralinstances", "ns", "sys-r1", "pods-1")
-    triggers.poke("coralinstances", "ns", "sys-r1", "pods-2")
-    assert [w[3][names.ANNOTATION_OBSERVED] for w in writes] == ["pods-1", "pods-2"]
+def _system(generation: int, annotations: dict[str, str] | None = None) -> dict[str, Any]:
+    return {"metadata": {"generation": generation, "annotations": annotations or {}}}
 
 
-def test_a_failed_write_is_not_remembered(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The API failure is simulated: a refused poke must be retried by the next identical poke."""
-    calls: list[str] = []
+def _instance(ready: str = "False", root: str | None = None) -> dict[str, Any]:
+    return {
+        "metadata": {"generation": 1, "labels": {}},
+        "spec": {"system": "fleet", "robot": "r1", "revision": "abc"},
+        "status": {
+            "conditions": [{"type": "Ready", "status": ready, "observedGeneration": 1}],
+            **({"tree": {"rootStatus": root}} if root else {}),
+        },
+    }
 
-    def refuse(*args: Any) -> None:
-        calls.append(args[3][names.ANNOTATION_OBSERVED])
-        raise RuntimeError("API unavailable")
 
-    monkeypatch.setattr(triggers.applying, "annotate", refuse)
-    for _ in range(2):
-        with pytest.raises(RuntimeError):
-            triggers.poke("coralsystems", "ns", "sys", "robots-1")
-    assert calls == ["robots-1", "robots-1"]
+def _drain(controller: Controller) -> set[tuple[str, str, str]]:
+    pending = controller.queue.pending()
+    for key in pending:
+        controller.queue._due.pop(key)  # noqa: SLF001 - emptying an unstarted queue between steps
+    return pending
+
+
+def test_a_system_pass_is_queued_only_for_inputs_not_yet_handled() -> None:
+    controller = _controller()
+    system = dict(deleted=False, namespace="ns", name="fleet", uid="u1")
+    controller.on_system(**system, body=_system(1))
+    assert _drain(controller) == {(SYSTEM, "ns", "fleet")}
+    controller.on_system(**system, body=_system(1))
+    assert _drain(controller) == set(), "the echo of its own status write is not an input"
+    controller.on_system(**system, body=_system(2))
+    assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "a spec change is a new input"
+    controller.on_system(**system, body=_system(2, {"coral.dev/rollout-undo": "abc"}))
+    assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "`coral rollout undo` is a new input"
+    controller.on_system(**{**system, "deleted": True}, body=_system(2))
+    controller.on_system(**system, body=_system(2))
+    assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "a system made again starts afresh"
+
+
+def test_an_instance_change_queues_its_system_only_when_the_system_reads_it() -> None:
+    controller = _controller()
+    instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
+    controller.on_instance(**instance, body=_instance())
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1"), (SYSTEM, "ns", "fleet")}
+    controller.on_instance(**instance, body=_instance())
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}, "the system reads nothing new"
+    controller.on_instance(**instance, body=_instance(ready="True"))
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1"), (SYSTEM, "ns", "fleet")}
+    controller.on_instance(**instance, body=_instance(ready="True", root="RUNNING"))
+    assert (SYSTEM, "ns", "fleet") in _drain(controller), "a tree's root status gates rollouts"
+
+
+def test_a_robot_heartbeat_queues_nothing_and_a_readiness_change_queues_its_instances() -> None:
+    controller = _controller()
+    controller.indexes.attach(
+        instances_by_node={"n1": [("ns", "fleet-r1")]}, coral_systems={("ns", "fleet"): []}
+    )
+    labels = {"coral.dev/robot": "r1"}
+
+    def node(ready: str, heartbeat: str) -> dict[str, Any]:
+        return {"conditions": [{"type": "Ready", "status": ready, "lastHeartbeatTime": heartbeat}]}
+
+    controller.on_robot_node(
+        deleted=False, name="n1", labels=labels, spec={}, status=node("True", "2026-01-01T00:00:01Z")
+    )
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1"), (SYSTEM, "ns", "fleet")}
+    controller.on_robot_node(
+        deleted=False, name="n1", labels=labels, spec={}, status=node("True", "2026-01-01T00:00:11Z")
+    )
+    assert _drain(controller) == set()
+    controller.on_robot_node(
+        deleted=False, name="n1", labels=labels, spec={}, status=node("False", "2026-01-01T00:00:21Z")
+    )
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1"), (SYSTEM, "ns", "fleet")}
+
+
+def test_a_failed_pass_is_retried_from_the_queue() -> None:
+    """The failure is simulated (a pass that raises once): the queue, not a timer, runs it again."""
+    controller = _controller()
+    passes: list[tuple[str, str]] = []
+    done = threading.Event()
+
+    def flaky(key: tuple[str, str]) -> None:
+        passes.append(key)
+        if len(passes) == 1:
+            raise RuntimeError("API unavailable")
+        done.set()
+
+    controller.systems.reconcile = flaky  # type: ignore[method-assign]
+    controller.queue._retry_base = 0.05  # noqa: SLF001 - a short backoff keeps the test quick
+    controller.on_system(deleted=False, namespace="ns", name="fleet", uid="u1", body=_system(1))
+    controller.start()
+    try:
+        assert done.wait(5.0), "the failed pass was not retried"
+    finally:
+        controller.stop()
+    assert passes == [("ns", "fleet"), ("ns", "fleet")]
 
 
 def test_the_operator_registers_no_change_handlers_so_it_needs_no_diff_base() -> None:

@@ -16,12 +16,12 @@ from typing import Any
 
 import coral_operator
 import pytest
+from coral.executor import kubernetes_sink as sink
 from coral_operator.api import keys, names
 from coral_operator.api.instance import CoralInstanceSpec, CoralInstanceStatus
 from coral_operator.api.system import CoralSystemSpec, CoralSystemStatus, StartupSpec
 from coral_operator.planning import instances, pods
 from coral_operator.planning.observed import ObservedInstance, ObservedPod
-from coral_operator.sink import kubernetes as sink
 from coral_operator.status import instance_status, system_status
 from operator_specs import NOW, instance_view, robot
 from pydantic import BaseModel, ValidationError

@@ -1,6 +1,6 @@
 """Writes an executor's tree summary into `status.tree` / `status.plugins` of its own CoralInstance.
 
-Plugged into the executor with `--sink coral_operator.sink.kubernetes:create_sink` (the operator
+Plugged into the executor with `--sink coral.executor.kubernetes_sink:create_sink` (the operator
 puts it in the executor's default command). It patches only when the summary changed, at most
 once per `min_interval_s`, with the last pending summary flushed by a background thread and on
 close. It authenticates as the robot's executor ServiceAccount, whose Role allows nothing but
@@ -168,11 +168,15 @@ class KubernetesStatusSink:
         self.flush(force=True)
 
 
-def build_patcher(api_client: Any, namespace: str, instance: str) -> Patcher:
-    """A patcher that merge-patches `coralinstances/<instance>/status` through `api_client`."""
-    from kubernetes import client
+def build_patcher(api_client: Any, namespace: str, instance: str, *, api: Any = None) -> Patcher:
+    """A patcher that merge-patches `coralinstances/<instance>/status` through `api_client`.
 
-    api = client.CustomObjectsApi(api_client)
+    `api` replaces the client's CustomObjectsApi (the contract test records the address with it).
+    """
+    if api is None:
+        from kubernetes import client
+
+        api = client.CustomObjectsApi(api_client)
 
     def patch(body: dict[str, Any]) -> None:
         api.patch_namespaced_custom_object_status(

@@ -1,14 +1,21 @@
-"""Kubernetes Events for what a user watching `kubectl describe` should see: objects the operator
-created or deleted and condition transitions. Called by the handlers.
+"""Kubernetes Events for what a user watching `kubectl describe` should see.
+
+Events are few and aggregated: a system pass posts one Event per kind of change with a count
+(instances created, moved to a revision, retired, deleted; rollout waves), and condition changes of
+the system. An instance posts only what concerns that robot alone and needs attention (warnings:
+a refused pod, an unreachable robot, a failed tree); its progress is counted on its system.
+The poster is injected (kopf's, from `handlers`), so this module needs no framework.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-import kopf
-
 from coral_operator.api import keys
+
+Poster = Callable[[dict[str, Any], str, str, str], None]
+"""(object reference, `Normal` or `Warning`, reason, message) -> posts one Event."""
 
 # Transitions worth an Event: (type, new status) -> (is a warning, reason).
 _NOTABLE = {
@@ -25,14 +32,18 @@ _NOTABLE = {
 _DELIVERY_FAILURES = {"PodRefused", "ImagePullFailed", "PodUnschedulable"}
 
 
-def info(body: kopf.Body, reason: str, message: str) -> None:
-    # kopf.event, not kopf.info: the posting level (WARNING) keeps kopf's own chatter out, not ours.
-    kopf.event(body, type="Normal", reason=reason, message=message)
+def names(listed: list[str], shown: int = 10) -> str:
+    """The first names, then how many more: a fleet has thousands."""
+    text = ", ".join(listed[:shown])
+    return text + (f" and {len(listed) - shown} more" if len(listed) > shown else "")
 
 
-def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[dict[str, Any]]) -> None:
-    """Post one Event per notable condition whose status or message changed."""
+def condition_events(
+    old: list[dict[str, Any]], new: list[dict[str, Any]], *, warnings_only: bool = False
+) -> list[tuple[str, str, str]]:
+    """(type, reason, message) of one Event per notable condition whose status or message changed."""
     before = {c.get(keys.CONDITION.type): c for c in old}
+    found = []
     for condition in new:
         ctype, status = condition[keys.CONDITION.type], condition[keys.CONDITION.status]
         why, text = condition[keys.CONDITION.reason], condition[keys.CONDITION.message]
@@ -42,12 +53,14 @@ def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[d
                 previous.get(keys.CONDITION.reason),
                 previous.get(keys.CONDITION.message),
             ) != (why, text):
-                kopf.event(body, type="Warning", reason=why, message=text)
+                found.append(("Warning", why, text))
             continue
         key = (ctype, status)
         if key not in _NOTABLE:
             continue
         warning, reason = _NOTABLE[key]
+        if warnings_only and not warning:
+            continue
         if previous is None and not warning and ctype != "Ready":
             # Good news is news only as a recovery: a robot reachable from the start says nothing.
             continue
@@ -57,5 +70,5 @@ def on_condition_changes(body: kopf.Body, old: list[dict[str, Any]], new: list[d
             and previous.get(keys.CONDITION.message) == text
         ):
             continue
-        message = text or why
-        kopf.event(body, type="Warning" if warning else "Normal", reason=reason, message=message)
+        found.append(("Warning" if warning else "Normal", reason, text or why))
+    return found

@@ -1,0 +1,276 @@
+"""One CoralSystem pass as a pure decision: from what was observed to every write it calls for.
+
+`plan_system` validates the spec and its files, chooses the robots, stores the newest revision in
+the history, asks `planning.rollout` which robots move, and builds the CoralInstances that carry
+the moves out. It writes nothing and remembers nothing: the reconciler (`reconcile.systems`)
+reads the observation, applies the plan through `kube`, and computes status from what it sees.
+See docs/architecture.md for where this sits on the data path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from pydantic import ValidationError
+
+from coral_operator.api.rollout import RolloutStatus
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.planning import configmaps, instances, policy, revisions, rollout, selection, validation
+from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
+from coral_operator.status.conditions import Reason
+from coral_operator.status.system_status import Problem
+
+UNDO_ANNOTATION = "coral.dev/rollout-undo"
+RESUME_ANNOTATION = "coral.dev/rollout-resume"
+
+SourceText = tuple[str, str]
+"""(file text, the name messages give it: `configmap/NAME/KEY` or the inline field)."""
+
+
+@dataclass(frozen=True)
+class SystemObservation:
+    """Everything one system pass decides from, read by the reconciler before planning."""
+
+    system: SystemRecord
+    tree: SourceText | Problem | None
+    """The tree's text; None when the spec did not parse, so nothing was read."""
+    parameters: SourceText | Problem | None
+    robots: list[RobotNode]
+    """Every robot Node (the selector is applied here)."""
+    instances: list[ObservedInstance]
+    """The system's CoralInstances."""
+    stored_revisions: list[revisions.StoredRevision]
+    """The system's revision history (ControllerRevisions)."""
+    expected: Mapping[str, str]
+    """Robot -> revision it was moved to by an earlier pass, not yet seen in `instances`."""
+    previous_rollout: RolloutStatus | None
+    """`status.rollout` as last written."""
+    policy: policy.Policy
+    now: datetime
+
+
+@dataclass
+class RolloutPlan:
+    """What the rollout decided in this pass."""
+
+    status: RolloutStatus
+    target: str
+    """The revision robots are moved to."""
+    moves: dict[str, str]
+    """Robot -> revision moved to in this pass."""
+    events: list[rollout.RolloutEvent]
+    wake_at: datetime | None
+    """When to decide again even if nothing changes (a canary hold ends)."""
+
+
+@dataclass
+class SystemPlan:
+    """The writes of one system pass, in the order they must happen."""
+
+    problem: Problem | None = None
+    """Why nothing is deployed (invalid spec, tree or parameters, policy), or None."""
+    matched: int = 0
+    """Robots the selector matches."""
+    history: revisions.HistoryPlan | None = None
+    config_maps: list[dict[str, Any]] = field(default_factory=list)
+    """The validated tree and parameters; created before any instance points at them."""
+    changes: instances.InstanceChanges = field(default_factory=instances.InstanceChanges)
+    in_use: set[str] = field(default_factory=set)
+    """ConfigMaps some revision or instance still points at (never cleaned up)."""
+    rollout: RolloutPlan | None = None
+    stored_after: list[revisions.StoredRevision] = field(default_factory=list)
+    """The revision history once `history` is applied."""
+
+
+def format_validation(error: ValidationError) -> str:
+    parts = []
+    for item in error.errors():
+        where = "spec." + ".".join(str(p) for p in item["loc"]) if item["loc"] else "spec"
+        parts.append(f"{where}: {item['msg']}")
+    return "; ".join(parts)
+
+
+def parse_spec(spec: Mapping[str, Any]) -> CoralSystemSpec | Problem:
+    try:
+        return CoralSystemSpec.model_validate(dict(spec))
+    except ValidationError as error:
+        return Problem(Reason.INVALID_SPEC, format_validation(error))
+
+
+def listed(problems: list[str], shown: int = 20) -> str:
+    """The first problems, then how many more: a tree can have thousands."""
+    more = len(problems) - shown
+    return "; ".join(problems[:shown]) + (f"; and {more} more problems" if more > 0 else "")
+
+
+def validate_files(observation: SystemObservation, spec: CoralSystemSpec) -> tuple[str, str] | Problem:
+    """Validated (tree text, parameters text), or the problem that stalls the system."""
+    tree, params = observation.tree, observation.parameters
+    if isinstance(tree, Problem):
+        return tree
+    if isinstance(params, Problem):
+        return params
+    assert tree is not None and params is not None  # read whenever the spec parsed
+    name, namespace = observation.system.name, observation.system.namespace
+    problems = validation.validate_tree(
+        tree[0],
+        tree[1],
+        spec.tree.main_tree_id,
+        spec.tree.files,
+        files_label=f"coralsystem/{name} spec.tree.files",
+    )
+    if problems:
+        return Problem(Reason.INVALID_TREE, listed(problems))
+    problems = validation.validate_parameters(params[0], params[1])
+    if problems:
+        return Problem(Reason.INVALID_PARAMETERS, listed(problems))
+    denied = policy.evaluate_policy(namespace, spec, observation.policy)
+    if denied:
+        return Problem(Reason.POLICY_DENIED, "Refused by the operator's policy: " + listed(denied))
+    return tree[0], params[0]
+
+
+def plan_system(observation: SystemObservation) -> SystemPlan:
+    """Decide one pass of a CoralSystem (see the module docstring).
+
+    Raises:
+        ValueError: the rollout policy cannot be applied (`maxUnavailable` malformed).
+    """
+    system = observation.system
+    spec = parse_spec(system.spec)
+    if isinstance(spec, Problem):
+        return SystemPlan(problem=spec, matched=len(observation.instances))
+    try:
+        files = validate_files(observation, spec)
+    except Exception as error:  # noqa: BLE001 - one system's input must not stop the others
+        files = Problem(
+            Reason.VALIDATION_FAILED, f"The spec could not be validated ({type(error).__name__})."
+        )
+    if isinstance(files, Problem):
+        return SystemPlan(problem=files, matched=len(observation.instances))
+    return _plan_deployment(observation, spec, files)
+
+
+def _plan_deployment(
+    observation: SystemObservation, spec: CoralSystemSpec, files: tuple[str, str]
+) -> SystemPlan:
+    system = observation.system
+    common = {"system": system.name, "namespace": system.namespace, "system_uid": system.uid}
+    tree_cm = configmaps.build_config_map(
+        **common, kind="tree", key=configmaps.TREE_KEY, text=files[0], beside=spec.tree.files
+    )
+    params_cm = configmaps.build_config_map(**common, kind="params", key=configmaps.PARAMS_KEY, text=files[1])
+    template = instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"])
+    revision = instances.revision_of(template)
+    robots = selection.select_robots(spec.robots, observation.robots)
+    observed = observation.instances
+    by_robot = {i.robot: i for i in observed if not i.spec.get("retiring")}
+    history = revisions.plan_history(
+        stored=observation.stored_revisions,
+        revision=revision,
+        template=template,
+        in_use={i.revision for i in observed},
+        **common,
+    )
+    stored = stored_after(observation.stored_revisions, history, revision, template)
+    templates = {s.revision: s.template for s in stored}
+    for instance in observed:
+        # A robot kept on its revision must get back exactly the spec it has, or it would be
+        # rewritten (and counted unavailable) for nothing: its own spec is the surest template.
+        if instance.revision != revision:
+            templates[instance.revision] = revisions.template_of_instance(instance.spec)
+    decision = rollout.plan_rollout(
+        rollout.RolloutRequest(
+            desired=revision,
+            history=history.order,
+            robots=_views(spec, robots, by_robot, observation.expected),
+            policy=spec.rollout,
+            previous=observation.previous_rollout,
+            now=observation.now,
+            undo_from=system.annotations.get(UNDO_ANNOTATION),
+            resumed=system.annotations.get(RESUME_ANNOTATION),
+        )
+    )
+    builder = instances.InstanceBuilder(system=system.name, namespace=system.namespace, system_uid=system.uid)
+    desired = []
+    for robot in robots:
+        instance = by_robot.get(robot.robot)
+        chosen = decision.moves.get(robot.robot) or (
+            instance.revision if instance is not None else decision.create_revision
+        )
+        if chosen not in templates:
+            chosen = revision
+        manifest = builder.build(robot, templates[chosen])
+        manifest["spec"]["revision"] = chosen
+        desired.append(manifest)
+    reachable = {node.node_name for node in observation.robots if node.ready}
+    in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}
+    for kept in [*templates.values(), *(i.spec for i in observed)]:
+        in_use.add((kept.get("tree") or {}).get("configMap", ""))
+        in_use.add((kept.get("parameters") or {}).get("configMap", ""))
+    return SystemPlan(
+        matched=len(robots),
+        history=history,
+        config_maps=[tree_cm, params_cm],
+        changes=instances.plan_instances(desired, observed, reachable),
+        in_use=in_use,
+        rollout=RolloutPlan(
+            status=decision.status,
+            target=decision.target,
+            moves={robot: decision.moves[robot] for robot in decision.moves},
+            events=list(decision.events),
+            wake_at=decision.wake_at,
+        ),
+        stored_after=stored,
+    )
+
+
+def stored_after(
+    stored: list[revisions.StoredRevision],
+    plan: revisions.HistoryPlan,
+    revision: str,
+    template: dict[str, Any],
+) -> list[revisions.StoredRevision]:
+    """The revision history as it is once `plan` is applied."""
+    by_revision = {s.revision: s for s in stored}
+    if plan.create is not None:
+        by_revision[revision] = revisions.StoredRevision(
+            plan.create["metadata"]["name"], revision, plan.create["revision"], template
+        )
+    if plan.renumber is not None:
+        old = by_revision[revision]
+        by_revision[revision] = revisions.StoredRevision(old.name, revision, plan.renumber[1], old.template)
+    deleted = set(plan.delete)
+    return [s for s in by_revision.values() if s.name not in deleted]
+
+
+def _views(
+    spec: CoralSystemSpec,
+    robots: list[RobotNode],
+    by_robot: Mapping[str, ObservedInstance],
+    expected: Mapping[str, str],
+) -> list[rollout.RobotView]:
+    canary = spec.rollout.canary
+    views = []
+    for robot in robots:
+        instance = by_robot.get(robot.robot)
+        revision = instance.revision if instance else None
+        ready = bool(instance and instance.ready)
+        if robot.robot in expected and expected[robot.robot] != revision:
+            # Moved by an earlier pass, not yet in the index: it is on its way and unavailable.
+            revision, ready = expected[robot.robot], False
+        views.append(
+            rollout.RobotView(
+                robot=robot.robot,
+                revision=revision,
+                ready=ready,
+                online=robot.ready,
+                tree_root=instance.tree_root if instance else None,
+                stalled=bool(instance and instance.stalled),
+                canary=canary is not None and selection.matches(canary.robots, robot.labels),
+            )
+        )
+    return views

@@ -1,0 +1,165 @@
+"""The operator's controller: one keyed work queue, two reconcilers, and the map from watch events to keys.
+
+kopf's handlers (`handlers.watching`) call the `on_*` methods with what a watch event says; each
+names the objects that need a pass as keys `(kind, namespace, name)` on the one queue. The queue
+holds a key once however many events name it, never runs it on two workers at once, spaces its
+passes (a fleet's system at most every `SYSTEM_INTERVAL_S`), retries a failed pass with backoff,
+and runs delayed passes (a health timeout, a canary hold) in place of timers. See
+docs/architecture.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from coral_operator.kube import observing
+from coral_operator.kube.workqueue import WorkQueue
+from coral_operator.planning import system_pass
+from coral_operator.planning.policy import Policy
+from coral_operator.reconcile import events
+from coral_operator.reconcile.indexes import Indexes
+from coral_operator.reconcile.instances import InstanceReconciler
+from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.systems import SystemReconciler
+
+SYSTEM = "CoralSystem"
+INSTANCE = "CoralInstance"
+Key = tuple[str, str, str]
+"""(kind, namespace, name)."""
+
+# A fleet's instances change in bursts (a wave of robots becoming Ready); the system needs one
+# pass per burst, not one per instance, and a pass over a thousand robots is not free.
+SYSTEM_INTERVAL_S = 0.5
+# A stage's pod is created, scheduled and started in quick succession: one pass after the burst.
+INSTANCE_INTERVAL_S = 0.1
+WORKERS = 8
+API_WRITERS = 8
+"""Threads that carry one system pass's instance writes in parallel (they wait on the network)."""
+
+
+class Controller:
+    """Everything the operator runs between watch events and API writes; one per process."""
+
+    def __init__(
+        self, *, policy: Policy, post: events.Poster, memory: Memory | None = None, workers: int = WORKERS
+    ) -> None:
+        self.memory = memory or Memory()
+        self.indexes = Indexes()
+        self._pool = ThreadPoolExecutor(max_workers=API_WRITERS, thread_name_prefix="coral-api")
+        self.queue: WorkQueue[Key] = WorkQueue(
+            self._process, workers=workers, min_interval_s=_interval, name="coral"
+        )
+        self.instances = InstanceReconciler(
+            memory=self.memory,
+            indexes=self.indexes,
+            post=post,
+            requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
+        )
+        self.systems = SystemReconciler(
+            memory=self.memory,
+            indexes=self.indexes,
+            post=post,
+            requeue=lambda key, delay: self.queue.add((SYSTEM, *key), delay),
+            policy=policy,
+            pool=self._pool,
+        )
+
+    def _process(self, key: Key) -> None:
+        kind, namespace, name = key
+        reconciler = self.systems if kind == SYSTEM else self.instances
+        reconciler.reconcile((namespace, name))
+
+    def start(self, **indexes: Mapping[Any, Any]) -> None:
+        """Attach kopf's indexes and start the workers unless they run (see `WorkQueue.start` for
+        why this is called from a resource handler)."""
+        self.indexes.attach(**indexes)
+        self.queue.ensure_started()
+
+    def stop(self) -> None:
+        self.queue.stop()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
+    # --- watch events to keys ----------------------------------------------------------------
+
+    def on_system(
+        self, *, deleted: bool, namespace: str, name: str, uid: str, body: Mapping[str, Any]
+    ) -> None:
+        """A system's spec or its rollout commands (`coral rollout undo`, `resume`) changed; its own
+        status writes change neither, so they cost no pass."""
+        key = (SYSTEM, namespace, name)
+        if deleted:
+            self.memory.forget_system(uid, namespace, name)
+            self.memory.forget_seen(key)
+            self.queue.forget(key)
+            return
+        metadata = body.get("metadata") or {}
+        annotations = metadata.get("annotations") or {}
+        inputs = (
+            uid,
+            metadata.get("generation"),
+            annotations.get(system_pass.UNDO_ANNOTATION),
+            annotations.get(system_pass.RESUME_ANNOTATION),
+        )
+        if self.memory.changed(key, inputs):
+            self.queue.add(key)
+
+    def on_instance(
+        self, *, deleted: bool, namespace: str, name: str, uid: str, body: Mapping[str, Any]
+    ) -> None:
+        """Pass the instance on any change (its own status writes find nothing to do), and its
+        system when something the system reads of it changed."""
+        key = (INSTANCE, namespace, name)
+        system = (body.get("spec") or {}).get("system")
+        if deleted:
+            self.memory.forget_instance(uid)
+            self.memory.forget_seen(key)
+            self.queue.forget(key)
+            if system:
+                self.queue.add((SYSTEM, namespace, system))
+            return
+        self.queue.add(key)
+        if system and self.memory.changed(key, observing.instance_summary(body)):
+            self.queue.add((SYSTEM, namespace, system))
+
+    def on_pod(self, *, namespace: str, instance: str) -> None:
+        self.queue.add((INSTANCE, namespace, instance))
+
+    def on_robot_node(
+        self,
+        *,
+        deleted: bool,
+        name: str,
+        labels: Mapping[str, str],
+        spec: Mapping[str, Any],
+        status: Mapping[str, Any],
+    ) -> None:
+        """A robot came, went, changed labels or reachability; heartbeats alone change nothing."""
+        robot = None if deleted else observing.robot_node(name, labels, status, spec)
+        summary = None if robot is None else (tuple(sorted(labels.items())), robot.ready, robot.reachable)
+        if not self.memory.changed(("Node", name), summary):
+            return
+        if deleted:
+            self.memory.forget_seen(("Node", name))
+        for namespace, instance in self.indexes.read("instances_by_node", name):
+            self.queue.add((INSTANCE, namespace, instance))
+        for namespace, system in self.indexes.keys("coral_systems"):
+            self.queue.add((SYSTEM, namespace, system))
+
+    def on_config_map(self, *, namespace: str, name: str) -> None:
+        """A source file of some system may have changed."""
+        for system_namespace, system in self.indexes.keys("coral_systems"):
+            if system_namespace != namespace:
+                continue
+            for record in self.indexes.read("coral_systems", (namespace, system)):
+                refs = [
+                    ((record.spec.get(field) or {}).get("configMapRef") or {}).get("name")
+                    for field in ("tree", "parameters")
+                ]
+                if name in refs:
+                    self.queue.add((SYSTEM, namespace, system))
+
+
+def _interval(key: Key) -> float:
+    return SYSTEM_INTERVAL_S if key[0] == SYSTEM else INSTANCE_INTERVAL_S

@@ -1,0 +1,192 @@
+"""Reconciles one CoralInstance: observe, plan (pure), apply, then report status from what is seen.
+
+Run by the work queue's workers (`reconcile.controller`), never inside a kopf handler. A pass
+reads the instance, its pods and its robot's Node from the indexes, asks
+`planning.instance_pass.plan_instance` what to write, writes it through `kube.applying`, and
+computes the status with `status.instance_status`. The status is patched only when a verdict
+changed (`status.instance_status.verdict_of`); progress alone waits for `PROGRESS_INTERVAL_S`.
+The executor's fields (`tree`, `plugins`) are read, never written; whatever else it writes there
+is overwritten (`status.ownership`). See docs/architecture.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from datetime import UTC, datetime
+from typing import Any
+
+from coral_operator.kube import applying, leases
+from coral_operator.planning import instance_pass
+from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
+from coral_operator.reconcile import events
+from coral_operator.reconcile.indexes import Indexes
+from coral_operator.reconcile.memory import Memory
+from coral_operator.status import instance_status, ownership
+
+Key = tuple[str, str]
+# A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
+# outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
+REFUSED_RETRY_S = 30.0
+# Status changes that change no verdict (a stage's message, a pod's phase) are written at most
+# this often; a robot's startup then costs a write when it starts and one when it is Ready.
+PROGRESS_INTERVAL_S = 10.0
+
+
+class InstanceReconciler:
+    """One level-based pass per CoralInstance key (namespace, name)."""
+
+    def __init__(
+        self,
+        *,
+        memory: Memory,
+        indexes: Indexes,
+        post: events.Poster,
+        requeue: Callable[[Key, float], None],
+        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+    ) -> None:
+        self.memory = memory
+        self.indexes = indexes
+        self.post = post
+        self.requeue = requeue
+        self.clock = clock
+
+    def reconcile(self, key: Key) -> None:
+        records = self.indexes.read("instance_records", key)
+        if not records:
+            return
+        record: InstanceRecord = records[0]
+        now = self.clock()
+        status = self.memory.observed_status(record.uid, record.resource_version, record.status)
+        spec = instance_pass.parse_instance_spec(record)
+        if isinstance(spec, str):
+            new = instance_status.build_invalid_status(
+                spec,
+                old_conditions=list(status.get("conditions") or []),
+                generation=record.generation,
+                now=now,
+            )
+            self._write_status(record, status, new)
+            return
+        node = self._robot(spec.node_name)
+        # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
+        observed: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
+        desired = (
+            []
+            if spec.retiring
+            else self.memory.desired_pods(
+                record.uid, record.generation, lambda: instance_pass.build_desired_pods(record, spec)
+            )
+        )
+        plan = instance_pass.plan_instance(
+            record=record, spec=spec, desired=desired, node=node, observed=observed, now=now
+        )
+        if plan.retire:
+            self._retire(record, plan)
+            return
+        assert plan.startup is not None
+        refused = self._apply(record, plan)
+        if refused:
+            self.requeue(key, REFUSED_RETRY_S)
+        if plan.startup.wake_at is not None:
+            # Pass again when the waiting stage's health timeout falls due, even if nothing changes.
+            self.requeue(key, max((plan.startup.wake_at - now).total_seconds(), 0.0) + 0.5)
+        view = instance_status.InstanceView(
+            spec=spec,
+            node=node,
+            desired=plan.desired,
+            pods=observed,
+            plan=plan.startup,
+            transient=plan.transient,
+            tree=status.get("tree"),
+            plugins=status.get("plugins"),
+            refused=refused,
+        )
+        new = instance_status.build_instance_status(
+            view, old_conditions=list(status.get("conditions") or []), generation=record.generation, now=now
+        )
+        self._write_status(record, status, new)
+
+    def _robot(self, node_name: str) -> RobotNode | None:
+        node: RobotNode | None = next(iter(self.indexes.read("robot_nodes", ("node", node_name))), None)
+        if node is not None and not node.reachable:
+            # The Lease says when the robot was last heard from; it no longer changes while it is away.
+            node = dataclasses.replace(
+                node, last_seen=leases.read_renew_time(node.node_name) or node.last_seen
+            )
+        return node
+
+    def _apply(self, record: InstanceRecord, plan: instance_pass.InstancePlan) -> dict[str, str]:
+        """Carry out the startup plan; returns the pods the API server refused for good, with its
+        messages, keyed by `instance_pass.refusal_key`."""
+        assert plan.startup is not None
+        namespace = record.namespace
+        refused: dict[str, str] = {}
+        if plan.identity and not self.memory.has_identity(record.uid):
+            try:
+                applying.apply_rbac(plan.identity)
+                self.memory.remember_identity(record.uid)
+            except Exception as error:
+                message = applying.refusal(error)
+                if message is None:
+                    raise
+                for manifest in plan.startup.create:
+                    if instance_pass.starts_executor(manifest):
+                        refused[instance_pass.refusal_key(manifest)] = message
+        for pod_name in plan.startup.delete:
+            applying.delete_pod(namespace, pod_name)
+        for manifest in plan.startup.create:
+            if instance_pass.refusal_key(manifest) in refused:
+                continue
+            try:
+                applying.create_pod(manifest)
+            except Exception as error:
+                message = applying.refusal(error)
+                if message is None:
+                    raise
+                refused[instance_pass.refusal_key(manifest)] = message
+        for pod_name, labels in plan.startup.relabel:
+            applying.patch_pod_labels(namespace, pod_name, labels)
+        for pod_name, patch in plan.startup.set_images:
+            applying.patch_pod(namespace, pod_name, patch)
+        return refused
+
+    def _retire(self, record: InstanceRecord, plan: instance_pass.InstancePlan) -> None:
+        """Stop the robot's components in reverse startup order, then remove the instance."""
+        if plan.delete_instance:
+            applying.delete_instance(record.namespace, record.name)
+            return
+        for pod_name in plan.stop:
+            applying.delete_pod(record.namespace, pod_name)
+
+    def _write_status(self, record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
+        changed = {key: value for key, value in new.items() if current.get(key) != value}
+        if not changed:
+            return
+        if instance_status.verdict_of(current) == instance_status.verdict_of(new):
+            _, _, last = self.memory.status_written(record.uid)
+            wait = PROGRESS_INTERVAL_S - (self.memory.clock() - last)
+            if wait > 0:
+                # Progress only: it rides along with the next verdict, or goes out when this is due.
+                self.requeue((record.namespace, record.name), wait)
+                return
+        changes = {key: _patch_value(current.get(key), value) for key, value in changed.items()}
+        version = applying.patch_instance_status(record.namespace, record.name, changes)
+        if version is None:
+            return
+        after = {key: value for key, value in {**current, **changed}.items() if value is not None}
+        self.memory.remember_status(record.uid, version, ownership.operator_part(after))
+        # After the write, so a deferred or failed one cannot post the same transition twice. Only
+        # warnings: the good news of a fleet is counted on its system, not told per robot.
+        for kind, reason, message in events.condition_events(
+            list(current.get("conditions") or []), list(new.get("conditions") or []), warnings_only=True
+        ):
+            self.post(record.reference, kind, reason, message)
+
+
+def _patch_value(old: Any, new: Any) -> Any:
+    # A merge patch merges objects key by key: keys the new value lacks must be sent as null, or
+    # the old ones (or forged ones) would stay.
+    if isinstance(old, dict) and isinstance(new, dict):
+        return {**{key: None for key in old if key not in new}, **new}
+    return new

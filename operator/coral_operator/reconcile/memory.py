@@ -1,0 +1,162 @@
+"""What the reconcilers must remember between passes: only what they cannot observe (yet).
+
+One `Memory` is made per operator process and handed to both reconcilers; nothing else in the
+operator keeps state between passes. Each entry says why it cannot be read from the cluster:
+
+- writes the watch has not delivered yet (the status last written, rollout moves);
+- derived values too costly to compute on every pass (the pods an instance's spec asks for,
+  the revision history, which is read from the API once per system);
+- summaries of the last watch event per object, so that an event that changes nothing a pass
+  reads (a Node heartbeat, the echo of the operator's own write) costs no pass. kopf's `on.event`
+  does not hand over the previous object, as controller-runtime's update predicates get it.
+
+Thread safe: the queue's workers and kopf's event loop use it at once.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass, field
+from typing import Any
+
+from coral_operator.api.rollout import RolloutStatus
+from coral_operator.planning.revisions import StoredRevision
+from coral_operator.status import ownership
+
+# A rollout move not seen in the index after this long is forgotten (the write failed or was replaced).
+EXPECTATION_SECONDS = 60.0
+
+
+@dataclass
+class Memory:
+    """The operator's only state between passes (see the module docstring)."""
+
+    clock: Callable[[], float] = time.monotonic
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+    _status_written: dict[str, tuple[str, dict[str, Any], float]] = field(default_factory=dict)
+    _desired_pods: dict[str, tuple[int | None, list[dict[str, Any]]]] = field(default_factory=dict)
+    _identities: set[str] = field(default_factory=set)
+    _history: dict[tuple[str, str, str], list[StoredRevision]] = field(default_factory=dict)
+    _expected: dict[tuple[str, str], dict[str, tuple[str, float]]] = field(default_factory=dict)
+    _rollout_written: dict[str, RolloutStatus] = field(default_factory=dict)
+    _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
+
+    # --- instances ---------------------------------------------------------------------------
+
+    def status_written(self, uid: str) -> tuple[str | None, dict[str, Any], float]:
+        """(resourceVersion, operator's status fields, monotonic time) of the last status write."""
+        with self._lock:
+            return self._status_written.get(uid, (None, {}, float("-inf")))
+
+    def observed_status(
+        self, uid: str, resource_version: str | None, status: dict[str, Any]
+    ) -> dict[str, Any]:
+        """An object's status, with this process's last write if the object (as the index holds it)
+        does not include that write yet. Once it does, the object as observed is the truth, so
+        whatever else wrote there is overwritten by the next pass."""
+        version, written, _ = self.status_written(uid)
+        if ownership.at_or_after(resource_version, version):
+            return status
+        return {**status, **written}
+
+    def remember_status(self, uid: str, version: str, status: dict[str, Any]) -> None:
+        with self._lock:
+            self._status_written[uid] = (version, status, self.clock())
+
+    def desired_pods(
+        self, uid: str, generation: int | None, build: Callable[[], list[dict[str, Any]]]
+    ) -> list[dict[str, Any]]:
+        """The pods for this generation of the spec: a spec changes only with its generation, and
+        building and hashing every pod on every pass would be the pass's main cost."""
+        with self._lock:
+            cached = self._desired_pods.get(uid)
+        if cached is not None and cached[0] == generation:
+            return cached[1]
+        desired = build()
+        with self._lock:
+            self._desired_pods[uid] = (generation, desired)
+        return desired
+
+    def has_identity(self, uid: str) -> bool:
+        """Whether this process created the instance's executor identity (created once, not per pass)."""
+        with self._lock:
+            return uid in self._identities
+
+    def remember_identity(self, uid: str) -> None:
+        with self._lock:
+            self._identities.add(uid)
+
+    def forget_instance(self, uid: str) -> None:
+        with self._lock:
+            self._status_written.pop(uid, None)
+            self._desired_pods.pop(uid, None)
+            self._identities.discard(uid)
+
+    # --- systems -----------------------------------------------------------------------------
+
+    def stored_revisions(
+        self, key: tuple[str, str, str], read: Callable[[], list[StoredRevision]]
+    ) -> list[StoredRevision]:
+        """A system's revision history: read from the API once per system and process."""
+        with self._lock:
+            cached = self._history.get(key)
+        if cached is None:
+            cached = read()
+            with self._lock:
+                self._history[key] = cached
+        return list(cached)
+
+    def remember_revisions(self, key: tuple[str, str, str], stored: list[StoredRevision]) -> None:
+        with self._lock:
+            self._history[key] = list(stored)
+
+    def expected_moves(self, uid: str, namespace: str, observed: dict[str, str]) -> dict[str, str]:
+        """Robot -> revision of rollout moves not yet seen in `observed` (robot -> revision), as
+        Kubernetes' own controllers keep "expectations": a pass that runs before the index caught up
+        must never move more robots than `maxUnavailable` allows."""
+        now = self.clock()
+        with self._lock:
+            moves = self._expected.get((namespace, uid), {})
+            for robot, (revision, since) in list(moves.items()):
+                if observed.get(robot) == revision or now - since > EXPECTATION_SECONDS:
+                    del moves[robot]
+            return {robot: revision for robot, (revision, _) in moves.items()}
+
+    def expect_moves(self, uid: str, namespace: str, moves: dict[str, str]) -> None:
+        now = self.clock()
+        with self._lock:
+            expected = self._expected.setdefault((namespace, uid), {})
+            for robot, revision in moves.items():
+                expected[robot] = (revision, now)
+
+    def rollout_written(self, uid: str) -> RolloutStatus | None:
+        """The rollout status last written: a pass may read the system from before that write, and
+        the canary clock or a recorded failure must not be lost to that."""
+        with self._lock:
+            return self._rollout_written.get(uid)
+
+    def remember_rollout(self, uid: str, status: RolloutStatus) -> None:
+        with self._lock:
+            self._rollout_written[uid] = status
+
+    def forget_system(self, uid: str, namespace: str, name: str) -> None:
+        with self._lock:
+            self._history.pop((namespace, name, uid), None)
+            self._expected.pop((namespace, uid), None)
+            self._rollout_written.pop(uid, None)
+
+    # --- event filtering ---------------------------------------------------------------------
+
+    def changed(self, key: Hashable, summary: Hashable) -> bool:
+        """Whether `summary` differs from the one last seen under `key` (and remember it)."""
+        with self._lock:
+            if self._last_seen.get(key) == summary:
+                return False
+            self._last_seen[key] = summary
+            return True
+
+    def forget_seen(self, key: Hashable) -> None:
+        with self._lock:
+            self._last_seen.pop(key, None)

@@ -1,0 +1,259 @@
+"""Reconciles one CoralSystem: observe, plan (pure), apply, then report status from what is seen.
+
+Run by the work queue's workers (`reconcile.controller`). A pass reads the system, its robots and
+its instances from the indexes and its source files from the API, asks
+`planning.system_pass.plan_system` what to write, writes it through `kube` in order (revision
+history, ConfigMaps before the instances that name them, instances, stale ConfigMaps last), and
+computes status with `status.system_status`, patched only when it changed. See
+docs/architecture.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Executor
+from datetime import UTC, datetime
+from typing import Any
+
+from pydantic import ValidationError
+
+from coral_operator.api.rollout import RolloutStatus
+from coral_operator.api.system import CoralSystemSpec, SourceSpec
+from coral_operator.kube import applying
+from coral_operator.kube import revisions as stored_revisions
+from coral_operator.planning import configmaps, instances, system_pass
+from coral_operator.planning.observed import ObservedInstance, SystemRecord
+from coral_operator.planning.policy import Policy
+from coral_operator.reconcile import events
+from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
+from coral_operator.reconcile.memory import Memory
+from coral_operator.status import system_status
+from coral_operator.status.conditions import Reason
+from coral_operator.status.rollout import evaluate_rollout
+
+Key = tuple[str, str]
+# Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
+_OPTIONAL_ROLLOUT_FIELDS = ("failure", "rolledBack", "canary")
+
+
+class SystemReconciler:
+    """One level-based pass per CoralSystem key (namespace, name)."""
+
+    def __init__(
+        self,
+        *,
+        memory: Memory,
+        indexes: Indexes,
+        post: events.Poster,
+        requeue: Callable[[Key, float], None],
+        policy: Policy,
+        pool: Executor,
+        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+    ) -> None:
+        self.memory = memory
+        self.indexes = indexes
+        self.post = post
+        self.requeue = requeue
+        self.policy = policy
+        self.pool = pool
+        self.clock = clock
+
+    def reconcile(self, key: Key) -> None:
+        records = self.indexes.read("coral_systems", key)
+        if not records:
+            return
+        system: SystemRecord = records[0]
+        now = self.clock()
+        status = self.memory.observed_status(system.uid, system.resource_version, system.status)
+        observed: list[ObservedInstance] = self.indexes.read("coral_instances", key)
+        spec = system_pass.parse_spec(system.spec)
+        parsed = isinstance(spec, CoralSystemSpec)
+        history_key = (system.namespace, system.name, system.uid)
+        observation = system_pass.SystemObservation(
+            system=system,
+            tree=self._read_source(system, spec.tree, "tree") if isinstance(spec, CoralSystemSpec) else None,
+            parameters=self._read_source(system, spec.parameters, "parameters")
+            if isinstance(spec, CoralSystemSpec)
+            else None,
+            robots=self.indexes.read("robot_nodes", ALL_ROBOTS),
+            instances=observed,
+            stored_revisions=self.memory.stored_revisions(
+                history_key, lambda: stored_revisions.read_revisions(system.namespace, system.name)
+            )
+            if parsed
+            else [],
+            expected=self.memory.expected_moves(
+                system.uid, system.namespace, {i.robot: i.revision for i in observed}
+            ),
+            previous_rollout=self.memory.rollout_written(system.uid) or _rollout_of(status),
+            policy=self.policy,
+            now=now,
+        )
+        plan = system_pass.plan_system(observation)
+        problem = plan.problem
+        if plan.rollout is not None:
+            self._apply_history(system, plan)
+            self.memory.remember_rollout(system.uid, plan.rollout.status)
+            self.memory.expect_moves(system.uid, system.namespace, plan.rollout.moves)
+            try:
+                self._apply_changes(system, plan)
+            except Exception as error:
+                refused = applying.refusal(error)
+                if refused is None:
+                    raise
+                problem = system_status.Problem(
+                    Reason.APPLY_REFUSED, f"The API server refused a write: {refused}"
+                )
+            for event in plan.rollout.events:
+                self.post(
+                    system.reference, "Warning" if event.warning else "Normal", event.reason, event.message
+                )
+            if plan.rollout.wake_at is not None:
+                # Decide again when the canary hold ends, even if nothing else changes.
+                self.requeue(key, max((plan.rollout.wake_at - now).total_seconds(), 0.0) + 0.5)
+            if plan.rollout.status.failure is not None:
+                problem = system_status.Problem(
+                    Reason.HEALTH_GATE_FAILED, plan.rollout.status.failure.message
+                )
+        self._write_status(system, status, observed, plan, problem, now)
+
+    def _read_source(
+        self, system: SystemRecord, source: SourceSpec, field: str
+    ) -> system_pass.SourceText | system_status.Problem:
+        """(text, filename for messages) of an inline or ConfigMap file, or why it cannot be read."""
+        if source.inline is not None:
+            return source.inline, f"coralsystem/{system.name} spec.{field}.inline"
+        ref = source.config_map_ref
+        assert ref is not None  # the model guarantees exactly one of the two
+        text = applying.read_config_map_key(system.namespace, ref.name, ref.key)
+        if text is None:
+            return system_status.Problem(
+                Reason.CONFIG_MAP_NOT_FOUND,
+                f"spec.{field}.configMapRef: ConfigMap {ref.name} has no key {ref.key}.",
+            )
+        return text, f"configmap/{ref.name}/{ref.key}"
+
+    def _apply_history(self, system: SystemRecord, plan: system_pass.SystemPlan) -> None:
+        history = plan.history
+        assert history is not None
+        if history.create is not None:
+            stored_revisions.create_revision(history.create)
+        if history.renumber is not None:
+            stored_revisions.renumber_revision(system.namespace, *history.renumber)
+        for name in history.delete:
+            stored_revisions.delete_revision(system.namespace, name)
+        self.memory.remember_revisions((system.namespace, system.name, system.uid), plan.stored_after)
+
+    def _apply_changes(self, system: SystemRecord, plan: system_pass.SystemPlan) -> None:
+        changes = plan.changes
+        if changes.empty:
+            return
+        # ConfigMaps first: an instance must never point at a file that does not exist yet.
+        for manifest in plan.config_maps:
+            applying.create_config_map(manifest)
+        self._apply_instances(system, changes)
+        existing = applying.list_system_config_maps(system.namespace, system.name)
+        for stale in configmaps.plan_config_map_cleanup(existing, plan.in_use):
+            applying.delete_config_map(system.namespace, stale)
+
+    def _apply_instances(self, system: SystemRecord, changes: instances.InstanceChanges) -> None:
+        # One Event per kind of change and pass, with a count, not one per robot.
+        namespace, reference = system.namespace, system.reference
+        made = applying.in_parallel(self.pool, applying.create_instance, changes.create)
+        created = [m["metadata"]["name"] for m, new in zip(changes.create, made, strict=True) if new]
+        if created:
+            self.post(
+                reference,
+                "Normal",
+                "InstancesCreated",
+                f"Created {len(created)} CoralInstances: {events.names(created)}",
+            )
+        applying.in_parallel(self.pool, applying.update_instance, changes.update)
+        if changes.update:
+            revision = changes.update[0]["spec"]["revision"]
+            updated = [m["metadata"]["name"] for m in changes.update]
+            self.post(
+                reference,
+                "Normal",
+                "InstancesUpdated",
+                f"Moved {len(updated)} CoralInstances to revision {revision}: {events.names(updated)}",
+            )
+        applying.in_parallel(
+            self.pool, lambda name: applying.retire_instance(namespace, name), changes.retire
+        )
+        if changes.retire:
+            self.post(
+                reference,
+                "Normal",
+                "InstancesRetiring",
+                f"Stopping {len(changes.retire)} CoralInstances in reverse order, their robots left: "
+                f"{events.names(changes.retire)}",
+            )
+        applying.in_parallel(
+            self.pool, lambda name: applying.delete_instance(namespace, name), changes.delete
+        )
+        if changes.delete:
+            self.post(
+                reference,
+                "Normal",
+                "InstancesDeleted",
+                f"Deleted {len(changes.delete)} CoralInstances whose robots left: "
+                f"{events.names(changes.delete)}",
+            )
+
+    def _write_status(
+        self,
+        system: SystemRecord,
+        status: dict[str, Any],
+        observed: list[ObservedInstance],
+        plan: system_pass.SystemPlan,
+        problem: system_status.Problem | None,
+        now: datetime,
+    ) -> None:
+        rollout = plan.rollout.status.to_wire() if plan.rollout is not None else None
+        if rollout is not None:
+            for field in _OPTIONAL_ROLLOUT_FIELDS:
+                if field not in rollout and field in (status.get("rollout") or {}):
+                    rollout[field] = None
+        view = system_status.SystemView(
+            matched=plan.matched,
+            # Instances stopping because their robot left are no longer part of the system's counts.
+            instances=[i for i in observed if not i.spec.get("retiring")],
+            # Counts and Ready follow the revision robots are moved to (an earlier one after undo).
+            revision=plan.rollout.target if plan.rollout is not None else status.get("revision"),
+            problem=problem,
+            rollout=evaluate_rollout(plan.rollout.status) if plan.rollout is not None else None,
+            rolled_back=system_status.describe_rollback(rollout),
+        )
+        old_conditions = list(status.get("conditions") or [])
+        new = system_status.build_system_status(
+            view, old_conditions=old_conditions, generation=system.generation, now=now
+        )
+        if rollout is not None:
+            new["rollout"] = rollout
+        changes = {key: value for key, value in new.items() if status.get(key) != value}
+        if not changes:
+            return
+        version = applying.patch_system_status(system.namespace, system.name, changes)
+        if version is None:
+            return
+        after = {
+            key: _without_nulls(value) for key, value in {**status, **changes}.items() if value is not None
+        }
+        self.memory.remember_status(system.uid, version, after)
+        for kind, reason, message in events.condition_events(old_conditions, new["conditions"]):
+            self.post(system.reference, kind, reason, message)
+
+
+def _rollout_of(status: dict[str, Any]) -> RolloutStatus | None:
+    try:
+        return RolloutStatus.model_validate(status.get("rollout")) if status.get("rollout") else None
+    except ValidationError:
+        return None
+
+
+def _without_nulls(value: Any) -> Any:
+    # What a merge patch leaves: a field sent as null is removed, not stored as null.
+    if isinstance(value, dict):
+        return {key: item for key, item in value.items() if item is not None}
+    return value

@@ -1,1 +1,0 @@
-"""The executor's Kubernetes status sink (robot side; imports no kopf)."""

@@ -1,0 +1,430 @@
+"""One reconcile pass per verdict, for both kinds, without a cluster.
+
+The reconcilers run as the operator runs them, on indexes filled with records and against an
+in-memory stand-in for `kube` (`FakeKube`, which keeps what was written and can refuse a write as
+an admission controller would). Each test names the verdict a user would read with `kubectl get`.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from collections.abc import Callable, Iterator
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.kube import applying, leases, observing
+from coral_operator.kube import revisions as stored_revisions
+from coral_operator.planning import instances, naming
+from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
+from coral_operator.planning.policy import Policy
+from coral_operator.planning.revisions import StoredRevision
+from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
+from coral_operator.reconcile.instances import InstanceReconciler
+from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.systems import SystemReconciler
+from kubernetes.client.exceptions import ApiException
+from operator_specs import BASE_SPEC, NOW, robot
+
+NS = "ns"
+
+
+class FakeKube:
+    """In-memory stand-in for the API writes of `kube.applying` and `kube.revisions`.
+
+    A refusal (Pod Security, say) is simulated with the 403 and message the API server would send;
+    that fault cannot be caused without a cluster.
+    """
+
+    def __init__(self) -> None:
+        self.writes: list[tuple[str, str]] = []
+        self.pods: dict[str, dict[str, Any]] = {}
+        self.instances: dict[str, dict[str, Any]] = {}
+        self.status: dict[str, dict[str, Any]] = {}
+        self.config_maps: dict[str, dict[str, str]] = {}
+        self.revisions: list[StoredRevision] = []
+        self.refuse_pods = ""
+        self.refuse_instances = ""
+        self.renewed = NOW - timedelta(minutes=3)
+        self._version = 100
+
+    def _refused(self, message: str) -> ApiException:
+        error = ApiException(status=403, reason="Forbidden")
+        error.body = json.dumps({"message": message})
+        return error
+
+    def install(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        def create_pod(manifest: dict[str, Any]) -> bool:
+            if self.refuse_pods:
+                raise self._refused(self.refuse_pods)
+            self.writes.append(("create pod", manifest["metadata"]["name"]))
+            self.pods[manifest["metadata"]["name"]] = manifest
+            return True
+
+        def delete_pod(namespace: str, name: str) -> None:
+            self.writes.append(("delete pod", name))
+            self.pods.pop(name, None)
+
+        def patch_status(namespace: str, name: str, changes: dict[str, Any]) -> str:
+            self.writes.append(("patch status", name))
+            merged = self.status.setdefault(name, {})
+            for key, value in changes.items():
+                if isinstance(value, dict) and isinstance(merged.get(key), dict):
+                    merged[key] = {k: v for k, v in {**merged[key], **value}.items() if v is not None}
+                elif value is None:
+                    merged.pop(key, None)
+                else:
+                    merged[key] = value
+            self._version += 1
+            return str(self._version)
+
+        def create_instance(manifest: dict[str, Any]) -> bool:
+            if self.refuse_instances:
+                raise self._refused(self.refuse_instances)
+            self.writes.append(("create instance", manifest["metadata"]["name"]))
+            self.instances[manifest["metadata"]["name"]] = manifest
+            return True
+
+        def record(verb: str) -> Callable[..., None]:
+            return lambda *args: self.writes.append((verb, str(args[-1] if verb != "apply rbac" else "")))
+
+        patches = {
+            "create_pod": create_pod,
+            "delete_pod": delete_pod,
+            "patch_pod_labels": lambda ns, name, labels: self.writes.append(("relabel pod", name)),
+            "patch_pod": lambda ns, name, patch: self.writes.append(("patch pod", name)),
+            "apply_rbac": lambda objects: self.writes.append(("apply rbac", objects[0]["metadata"]["name"])),
+            "patch_instance_status": patch_status,
+            "patch_system_status": patch_status,
+            "delete_instance": lambda ns, name: self.writes.append(("delete instance", name)),
+            "create_instance": create_instance,
+            "update_instance": lambda manifest: self.writes.append(
+                ("update instance", manifest["metadata"]["name"])
+            ),
+            "retire_instance": lambda ns, name: self.writes.append(("retire instance", name)),
+            "create_config_map": lambda manifest: self.writes.append(
+                ("create configmap", manifest["metadata"]["name"])
+            ),
+            "delete_config_map": lambda ns, name: self.writes.append(("delete configmap", name)),
+            "list_system_config_maps": lambda ns, system: [],
+            "read_config_map_key": lambda ns, name, key: self.config_maps.get(name, {}).get(key),
+        }
+        for name, fake in patches.items():
+            monkeypatch.setattr(applying, name, fake)
+        monkeypatch.setattr(leases, "read_renew_time", lambda node: self.renewed)
+        monkeypatch.setattr(stored_revisions, "read_revisions", lambda ns, system: list(self.revisions))
+        monkeypatch.setattr(
+            stored_revisions, "create_revision", lambda manifest: self.writes.append(("create revision", ""))
+        )
+        monkeypatch.setattr(stored_revisions, "renumber_revision", record("renumber revision"))
+        monkeypatch.setattr(stored_revisions, "delete_revision", record("delete revision"))
+
+    def of(self, verb: str) -> list[str]:
+        """Names written with `verb`; a pod by its instance and component (its suffix is a hash)."""
+        names = [name for done, name in self.writes if done == verb]
+        return [name.rsplit("-", 1)[0] for name in names] if verb.endswith("pod") else names
+
+
+@pytest.fixture
+def kube(monkeypatch: pytest.MonkeyPatch) -> FakeKube:
+    fake = FakeKube()
+    fake.install(monkeypatch)
+    return fake
+
+
+class Harness:
+    """Both reconcilers over hand-filled indexes; `requeued` and `events` record what they asked for."""
+
+    def __init__(self, kube: FakeKube) -> None:
+        self.kube = kube
+        self.memory = Memory(clock=lambda: self.seconds)
+        self.seconds = 1000.0
+        self.indexes = Indexes()
+        self.tables: dict[str, dict[Any, list[Any]]] = {
+            name: {}
+            for name in ("robot_nodes", "coral_pods", "instance_records", "coral_systems", "coral_instances")
+        }
+        self.indexes.attach(**self.tables)
+        self.requeued: list[tuple[tuple[str, str], float]] = []
+        self.events: list[tuple[str, str, str, str]] = []
+        common: dict[str, Any] = {
+            "memory": self.memory,
+            "indexes": self.indexes,
+            "post": lambda ref, kind, reason, message: self.events.append(
+                (ref["metadata"]["name"], kind, reason, message)
+            ),
+            "requeue": lambda key, delay: self.requeued.append((key, delay)),
+            "clock": lambda: NOW,
+        }
+        self.instances = InstanceReconciler(**common)
+        self.systems = SystemReconciler(
+            **common, policy=Policy(host_network_namespaces=frozenset({NS})), pool=_Inline()
+        )
+
+    def add_robot(self, node: RobotNode) -> None:
+        self.tables["robot_nodes"].setdefault(ALL_ROBOTS, []).append(node)
+        self.tables["robot_nodes"][("node", node.node_name)] = [node]
+
+    # --- instances ---------------------------------------------------------------------------
+
+    def instance(self, spec: dict[str, Any], name: str = "sys-r1") -> None:
+        status = self.kube.status.get(name, {})
+        self.tables["instance_records"][(NS, name)] = [
+            InstanceRecord(
+                name=name,
+                namespace=NS,
+                uid="uid-" + name,
+                generation=1,
+                spec=spec,
+                status=copy.deepcopy(status),
+                resource_version=str(self.kube._version),
+            )
+        ]
+
+    def pods_are(self, ready: set[str], **overrides: dict[str, Any]) -> None:
+        """Every created pod as the kubelet reports it: Running, Ready when its component is in `ready`."""
+        bodies = []
+        for name, manifest in self.kube.pods.items():
+            component = manifest["metadata"]["labels"][naming.LABEL_COMPONENT]
+            status = {
+                "phase": "Running",
+                "conditions": [{"type": "Ready", "status": "True" if component in ready else "False"}],
+                "containerStatuses": [{"name": component, "ready": component in ready, "restartCount": 0}],
+                **overrides.get(component, {}),
+            }
+            body = {"metadata": {**manifest["metadata"], "creationTimestamp": "2026-01-01T11:59:55Z"}}
+            bodies.append({**body, "spec": manifest["spec"], "status": status})
+            assert name == manifest["metadata"]["name"]
+        self.tables["coral_pods"][(NS, "sys-r1")] = [observing.observed_pods(body) for body in bodies]
+
+    def pass_instance(self, spec: dict[str, Any], name: str = "sys-r1") -> dict[str, Any]:
+        self.instance(spec, name)
+        self.instances.reconcile((NS, name))
+        return self.kube.status.get(name, {})
+
+    # --- systems -----------------------------------------------------------------------------
+
+    def system(self, spec: dict[str, Any], name: str = "sys") -> None:
+        self.tables["coral_systems"][(NS, name)] = [
+            SystemRecord(
+                name=name,
+                namespace=NS,
+                uid="uid-" + name,
+                generation=1,
+                spec=spec,
+                status=copy.deepcopy(self.kube.status.get(name, {})),
+                resource_version=str(self.kube._version),
+            )
+        ]
+
+    def instances_are(self, ready: bool) -> None:
+        """The instances the system created, as the index holds them, Ready or not."""
+        bodies = []
+        for manifest in self.kube.instances.values():
+            conditions = [{"type": "Ready", "status": "True" if ready else "False", "observedGeneration": 1}]
+            bodies.append(
+                {
+                    "metadata": {**manifest["metadata"], "generation": 1},
+                    "spec": manifest["spec"],
+                    "status": {"conditions": conditions, "robot": {"reachable": True, "nodeReady": True}},
+                }
+            )
+        self.tables["coral_instances"][(NS, "sys")] = [observing.observed_instance(body) for body in bodies]
+
+    def pass_system(self, spec: dict[str, Any], name: str = "sys") -> dict[str, Any]:
+        self.system(spec, name)
+        self.systems.reconcile((NS, name))
+        return self.kube.status.get(name, {})
+
+
+class _Inline:
+    """Runs the system's parallel writes in order, so the recorded writes are deterministic."""
+
+    def map(self, call: Callable[[Any], Any], items: list[Any]) -> Iterator[Any]:
+        return iter([call(item) for item in items])
+
+
+@pytest.fixture
+def harness(kube: FakeKube) -> Harness:
+    made = Harness(kube)
+    made.add_robot(robot("r1"))
+    return made
+
+
+def _conditions(status: dict[str, Any]) -> dict[str, tuple[str, str]]:
+    return {c["type"]: (c["status"], c["reason"]) for c in status.get("conditions") or []}
+
+
+def _instance_spec() -> dict[str, Any]:
+    """The spec a system of BASE_SPEC gives robot r1."""
+    template = instances.build_template(CoralSystemSpec.model_validate(BASE_SPEC), "tree-cm", "params-cm")
+    return instances.build_instance_spec("sys", robot("r1"), template)
+
+
+# --- CoralInstance verdicts ------------------------------------------------------------------------
+
+
+def test_instance_reconciling_a_new_robot_starts_its_drivers_and_writes_status_once(harness: Harness) -> None:
+    spec = _instance_spec()
+    status = harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"]
+    assert _conditions(status)["Ready"][0] == "False"
+    assert _conditions(status)["Reconciling"] == ("True", "Progressing")
+    assert _conditions(status)["Stalled"][0] == "False"
+    harness.pods_are(ready=set())
+    harness.pass_instance(spec)
+    assert harness.kube.of("patch status") == ["sys-r1"], "nothing a verdict reads changed"
+
+
+def test_instance_progress_without_a_verdict_change_waits_instead_of_writing(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.pass_instance(spec)
+    harness.pods_are(ready={"lidar"})
+    harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == ["sys-r1-lidar", "sys-r1-slam"]
+    assert harness.kube.of("patch status") == ["sys-r1"], "a stage's progress is not a verdict"
+    assert harness.requeued and harness.requeued[-1][0] == (NS, "sys-r1"), "it goes out later"
+
+
+def test_instance_ready_once_every_component_is_ready(harness: Harness) -> None:
+    spec = _instance_spec()
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+        harness.pods_are(ready=ready)
+        status = harness.pass_instance(spec)
+    assert harness.kube.of("apply rbac"), "the executor's identity is made before its pod"
+    assert _conditions(status)["Ready"] == ("True", "Ready")
+    assert _conditions(status)["Reconciling"][0] == "False"
+    assert [c["ready"] for c in status["components"]] == [True, True, True]
+    assert len(harness.kube.of("patch status")) == 2, "one write when it started, one when Ready"
+    harness.pass_instance(spec)
+    assert len(harness.kube.of("patch status")) == 2, "an unchanged verdict is not written again"
+
+
+def test_instance_stalled_when_a_component_crash_loops(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.pass_instance(spec)
+    crash = {
+        "containerStatuses": [
+            {"name": "lidar", "restartCount": 5, "state": {"waiting": {"reason": "CrashLoopBackOff"}}}
+        ]
+    }
+    harness.pods_are(ready=set(), lidar=crash)
+    status = harness.pass_instance(spec)
+    assert _conditions(status)["Stalled"] == ("True", "ComponentFailed")
+    assert ("sys-r1", "Warning", "Stalled") in [e[:3] for e in harness.events]
+
+
+def test_instance_stalled_with_the_servers_message_when_its_pod_is_refused(harness: Harness) -> None:
+    harness.kube.refuse_pods = 'pods "sys-r1-lidar" is forbidden: violates PodSecurity "baseline:latest"'
+    spec = _instance_spec()
+    status = harness.pass_instance(spec)
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "PodRefused")
+    assert "violates PodSecurity" in stalled["message"]
+    assert any(e[2] == "PodRefused" for e in harness.events), "a Warning Event on the instance"
+    assert ((NS, "sys-r1"), 30.0) in harness.requeued, "tried again later: the fix may be outside the spec"
+
+
+def test_instance_stalled_when_its_spec_is_invalid(harness: Harness) -> None:
+    status = harness.pass_instance({"system": "sys", "robot": "r1"})
+    assert _conditions(status)["Stalled"] == ("True", "InvalidSpec")
+    assert "spec.nodeName" in next(c for c in status["conditions"] if c["type"] == "Stalled")["message"]
+    assert harness.kube.of("create pod") == []
+
+
+def test_instance_reports_an_unreachable_robot_with_when_it_was_last_seen(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.tables["robot_nodes"][("node", "r1")] = [robot("r1", ready=False)]
+    status = harness.pass_instance(spec)
+    assert _conditions(status)["RobotReachable"][0] == "False"
+    assert status["robot"]["reachable"] is False
+    assert status["robot"]["lastSeen"] == "2026-01-01T11:57:00Z", "read from the robot's Node Lease"
+
+
+def test_instance_of_a_robot_that_left_stops_executors_first_then_goes(harness: Harness) -> None:
+    spec = _instance_spec()
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}):
+        harness.pods_are(ready=ready)
+        harness.pass_instance(spec)
+    harness.pods_are(ready={"lidar", "slam", "executor"})
+    retiring = {**spec, "retiring": True}
+    harness.pass_instance(retiring)
+    assert harness.kube.of("delete pod") == ["sys-r1-executor"]
+    harness.pods_are(ready=set())
+    harness.tables["coral_pods"][(NS, "sys-r1")] = []
+    harness.pass_instance(retiring)
+    assert harness.kube.of("delete instance") == ["sys-r1"]
+
+
+# --- CoralSystem verdicts --------------------------------------------------------------------------
+
+
+def _spec(**changes: Any) -> dict[str, Any]:
+    return {**copy.deepcopy(BASE_SPEC), **changes}
+
+
+def test_system_reconciling_creates_one_instance_per_robot_and_counts_them_in_one_event(
+    harness: Harness,
+) -> None:
+    harness.add_robot(robot("r2"))
+    status = harness.pass_system(_spec())
+    assert sorted(harness.kube.of("create instance")) == ["sys-r1", "sys-r2"]
+    assert len(harness.kube.of("create configmap")) == 2, "the validated tree and parameters"
+    assert harness.kube.of("create revision") == [""]
+    assert _conditions(status)["Reconciling"][0] == "True"
+    assert status["robots"]["matched"] == 2
+    created = [e for e in harness.events if e[2] == "InstancesCreated"]
+    assert len(created) == 1 and created[0][3].startswith("Created 2 CoralInstances")
+
+
+def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
+    harness.pass_system(_spec())
+    harness.instances_are(ready=True)
+    status = harness.pass_system(_spec())
+    assert _conditions(status)["Ready"] == ("True", "Ready")
+    assert status["robots"]["ready"] == 1
+    writes = len(harness.kube.of("patch status"))
+    harness.pass_system(_spec())
+    assert len(harness.kube.of("patch status")) == writes, "an unchanged status is not written again"
+
+
+def test_system_stalled_when_its_spec_is_invalid(harness: Harness) -> None:
+    status = harness.pass_system(_spec(ros={"domainId": 1000}))
+    assert _conditions(status)["Stalled"] == ("True", "InvalidSpec")
+    assert harness.kube.of("create instance") == []
+
+
+def test_system_stalled_when_its_tree_is_invalid(harness: Harness) -> None:
+    status = harness.pass_system(_spec(tree={"inline": "<root BTCPP_format='4'><BehaviorTree ID='Main'>"}))
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "InvalidTree")
+    assert "coralsystem/sys spec.tree.inline" in stalled["message"]
+    assert harness.kube.of("create instance") == []
+
+
+def test_system_stalled_when_a_source_config_map_is_missing(harness: Harness) -> None:
+    status = harness.pass_system(_spec(tree={"configMapRef": {"name": "trees", "key": "main.xml"}}))
+    assert _conditions(status)["Stalled"] == ("True", "ConfigMapNotFound")
+
+
+def test_system_stalled_when_the_policy_refuses_it(harness: Harness) -> None:
+    privileged = [{"name": "lidar", "image": "example/lidar:1", "privileged": True}]
+    status = harness.pass_system(_spec(drivers=privileged))
+    assert _conditions(status)["Stalled"] == ("True", "PolicyDenied")
+    assert harness.kube.of("create instance") == []
+
+
+def test_system_not_ready_without_matching_robots(harness: Harness) -> None:
+    status = harness.pass_system(_spec(robots={"matchLabels": {"fleet": "nobody"}}))
+    assert _conditions(status)["Ready"] == ("False", "NoMatchingRobots")
+    assert _conditions(status)["Reconciling"][0] == "False"
+
+
+def test_system_stalled_with_the_servers_message_when_a_write_is_refused(harness: Harness) -> None:
+    harness.kube.refuse_instances = "exceeded quota: coralinstances"
+    status = harness.pass_system(_spec())
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "ApplyRefused")
+    assert "exceeded quota" in stalled["message"]
