@@ -252,7 +252,7 @@ def instance_summary(body: Mapping[str, Any]) -> tuple[Any, ...]:
         instance.ready,
         instance.reachable,
         instance.node_ready,
-        instance.tree_root,
+        instance.root_status,
         instance.stalled,
         bool(instance.spec.get("retiring")),
         tuple(sorted(instance.labels.items())),

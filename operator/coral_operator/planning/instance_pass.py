@@ -14,6 +14,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming, pods, rbac, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
@@ -100,7 +101,7 @@ def plan_instance(
 
 def refusal_key(manifest: dict[str, Any]) -> str:
     """What a refusal of this pod is reported under: its component, or the whole robot's pod."""
-    return manifest["metadata"]["labels"].get(naming.LABEL_COMPONENT, naming.ROBOT_POD)
+    return manifest["metadata"]["labels"].get(names.LABEL_COMPONENT, naming.ROBOT_POD)
 
 
 def starts_executor(manifest: dict[str, Any]) -> bool:

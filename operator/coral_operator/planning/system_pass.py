@@ -16,15 +16,13 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from coral_operator.api import names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import configmaps, instances, policy, revisions, rollout, selection, validation
 from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
 from coral_operator.status.conditions import Reason
 from coral_operator.status.system_status import Problem
-
-UNDO_ANNOTATION = "coral.dev/rollout-undo"
-RESUME_ANNOTATION = "coral.dev/rollout-resume"
 
 SourceText = tuple[str, str]
 """(file text, the name messages give it: `configmap/NAME/KEY` or the inline field)."""
@@ -190,8 +188,8 @@ def _plan_deployment(
             policy=spec.rollout,
             previous=observation.previous_rollout,
             now=observation.now,
-            undo_from=system.annotations.get(UNDO_ANNOTATION),
-            resumed=system.annotations.get(RESUME_ANNOTATION),
+            undo_from=system.annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+            resumed=system.annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
     )
     builder = instances.InstanceBuilder(system=system.name, namespace=system.namespace, system_uid=system.uid)
@@ -268,7 +266,7 @@ def _views(
                 revision=revision,
                 ready=ready,
                 online=robot.ready,
-                tree_root=instance.tree_root if instance else None,
+                root_status=instance.root_status if instance else None,
                 stalled=bool(instance and instance.stalled),
                 canary=canary is not None and selection.matches(canary.robots, robot.labels),
             )

@@ -14,9 +14,9 @@ from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
-from coral_operator.planning import system_pass
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes
@@ -99,8 +99,8 @@ class Controller:
         inputs = (
             uid,
             metadata.get("generation"),
-            annotations.get(system_pass.UNDO_ANNOTATION),
-            annotations.get(system_pass.RESUME_ANNOTATION),
+            annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
+            annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
         if self.memory.changed(key, inputs):
             self.queue.add(key)

@@ -17,6 +17,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying
@@ -33,7 +34,7 @@ from coral_operator.status.rollout import evaluate_rollout
 
 Key = tuple[str, str]
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
-_OPTIONAL_ROLLOUT_FIELDS = ("failure", "rolledBack", "canary")
+_OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
 
 class SystemReconciler:

@@ -335,7 +335,7 @@ def build_invalid_status(
         generation=generation,
         now=now,
     )
-    return {"conditions": conditions, "observedGeneration": generation}
+    return {keys.INSTANCE_STATUS.conditions: conditions, keys.INSTANCE_STATUS.observed_generation: generation}
 
 
 def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
@@ -345,13 +345,14 @@ def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
     A change here is written at once (the system's rollout reads it); anything else (a stage's
     message, a pod's phase or restarts) waits to ride along with the next write.
     """
-    conditions = status.get("conditions") or []
-    stalled = next((c for c in conditions if c.get("type") == C.STALLED), {})
-    robot = status.get("robot") or {}
+    conditions = status.get(keys.INSTANCE_STATUS.conditions) or []
+    kind, state, why = keys.CONDITION.type, keys.CONDITION.status, keys.CONDITION.reason
+    stalled = next((c for c in conditions if c.get(kind) == C.STALLED), {})
+    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
     return (
-        status.get("observedGeneration"),
-        robot.get("reachable"),
-        robot.get("nodeReady"),
-        tuple((c.get("type"), c.get("status")) for c in conditions),
-        stalled.get("reason") if stalled.get("status") == "True" else None,
+        status.get(keys.INSTANCE_STATUS.observed_generation),
+        robot.get(keys.ROBOT.reachable),
+        robot.get(keys.ROBOT.node_ready),
+        tuple((c.get(kind), c.get(state)) for c in conditions),
+        stalled.get(why) if stalled.get(state) == "True" else None,
     )

@@ -14,10 +14,11 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
+from coral_operator.api import names
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import instances, naming
+from coral_operator.planning import instances
 from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
@@ -187,7 +188,7 @@ class Harness:
         """Every created pod as the kubelet reports it: Running, Ready when its component is in `ready`."""
         bodies = []
         for name, manifest in self.kube.pods.items():
-            component = manifest["metadata"]["labels"][naming.LABEL_COMPONENT]
+            component = manifest["metadata"]["labels"][names.LABEL_COMPONENT]
             status = {
                 "phase": "Running",
                 "conditions": [{"type": "Ready", "status": "True" if component in ready else "False"}],
