@@ -46,3 +46,34 @@ def test_heartbeats_survive_the_wire_and_garbage_is_ignored() -> None:
     assert topics.Heartbeat.decode(beat.encode()) == beat
     assert topics.Heartbeat.decode("not json") is None
     assert topics.CancelRequest.decode('{"service": "/a"}') is None
+
+
+def test_a_component_back_as_a_new_process_is_degraded_for_a_while_even_without_silence() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5, restart_s=5.0)
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "first"))
+    clock.now += 0.4
+    # The same pid (a container's pid 1) but another process: a restart quicker than the timeout.
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.state("examples") == "degraded"
+    assert "restarted" in monitor.degraded(["examples"])["examples"]
+    clock.now += 4.0
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.failure("examples") is not None
+    clock.now += 1.1
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.state("examples") == "alive"
+
+
+def test_beats_of_one_process_never_count_as_a_restart() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5)
+    for _ in range(5):
+        monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "only"))
+        clock.now += 0.2
+    assert monitor.state("examples") == "alive"
+
+
+def test_a_heartbeat_without_an_instance_still_decodes() -> None:
+    old = '{"component":"examples","kind":"skillset","state":"alive","pid":7}'
+    assert topics.Heartbeat.decode(old) == topics.Heartbeat("examples", "skillset", "alive", 7, "")
