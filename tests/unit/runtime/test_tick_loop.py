@@ -122,3 +122,37 @@ def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
         "root": "HALTED",
         "exit_code": 143,
     }
+
+
+class Refused(StatefulAction):
+    """Fails at once and says why, as a behavior whose skillset is gone does."""
+
+    def on_start(self) -> Status:
+        self.context.failures[self.path] = "skillset slam is unavailable: it restarted"
+        return Status.FAILURE
+
+    def on_running(self) -> Status:
+        return Status.FAILURE
+
+
+def test_the_failure_that_says_why_is_reported_over_a_condition_that_said_no_first() -> None:
+    registry = NodeRegistry.with_builtins()
+    registry.register("Refused", Refused)
+    failures: dict[str, str] = {}
+    context = SimpleNamespace(
+        health=HealthMonitor(time.monotonic),
+        failures=failures,
+        failure_message=lambda path: failures.pop(path, ""),
+    )
+    xml = (
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        "<Fallback><AlwaysFailure/><Refused/></Fallback>"
+        "</BehaviorTree></root>"
+    )
+    tree = load_tree_text(xml).build(registry, context=context)
+    state = plugins_phase.PluginState(used=set(), builtin_ids=set())
+    loop = TickLoop(tree, context, sinks.SinkFanout([Collect()]), state, rate_hz=50.0)
+    assert loop.run(threading.Event(), lambda: 143) != 0
+    assert loop.last_failure is not None
+    assert "Refused" in loop.last_failure["path"], loop.last_failure
+    assert loop.last_failure["message"] == "skillset slam is unavailable: it restarted"
