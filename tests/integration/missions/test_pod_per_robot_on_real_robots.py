@@ -143,7 +143,7 @@ def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
     assert max(sidecars.values()) <= mains["bag-player"]
 
 
-# Published from inside the executor's container (its ROS domain and network): the example's
+# Published from inside the pod (its ROS domain and network): the example's
 # documented way to end its mission early (`ros2 topic pub -1 /slam/stop std_msgs/msg/Empty`).
 STOP_REQUEST = """
 import time
@@ -234,12 +234,16 @@ def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
         message=lambda: f"the restarted skillset's refusal in the status: {current()}",
     )
 
-    cluster.kubectl(
-        "exec", "-n", namespace, pod.metadata.name, "-c", "executor", "--", "python", "-c", STOP_REQUEST,
-        timeout=90,
+    # From the snapshot sidecar: the request ends the tree, the executor's container then exits
+    # and the kubelet stops the sidecars, which may cut this process short once it has published.
+    request = cluster.kubectl(
+        "exec", "-n", namespace, pod.metadata.name, "-c", "snapshot", "--", "python", "-c", STOP_REQUEST,
+        timeout=90, check=False,
     )  # fmt: skip
     finished = wait_for(
-        lambda: _finished(custom, namespace, "slam-kill"), timeout=120, message="the tree to end"
+        lambda: _finished(custom, namespace, "slam-kill"),
+        timeout=120,
+        message=lambda: f"the tree to end after the stop request ({request.returncode}: {request.stderr})",
     )
     tree = finished["status"]["tree"]
     # The map died with the killed process: the mission says so instead of saving an empty one.
