@@ -2,8 +2,10 @@
 
 The kubelet's side of the layout, which kwok cannot show: the mission ends in SUCCESS with the same
 CoralInstance status as the default layout; the containers' start times show drivers before
-skillsets before the executor; killing the SLAM skillset's container reports `LibraryDegraded` and
-the tree takes its fallback instead of waiting on the dead skillset.
+skillsets before the executor; killing the SLAM skillset's container through the robot's CRI
+reports `LibraryDegraded` and the tree takes its fallback instead of waiting on the dead skillset;
+the kubelet restarts only that container and the library recovers, but the new process lost the
+map, so the mission, once asked to stop, ends in FAILURE at `SaveMap` instead of saving nothing.
 
 The operator is installed by Helm (`helm_operator`); the components run from the images in the
 session's registry; the short test bag is copied into the robot. Skipped, with its reason, where
