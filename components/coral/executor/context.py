@@ -156,8 +156,11 @@ class ExecutorContext:
             self.failures[path] = message
 
     def failure_message(self, path: str) -> str:
+        """Why the node at `path` failed, as noted for this failure; read once, so a later failure
+        of the same node that noted nothing (a refusal from the skillset, say) does not repeat an
+        old reason, such as a skillset that was unavailable and has since come back."""
         with self._lock:
-            return self.failures.get(path, "")
+            return self.failures.pop(path, "")
 
     def flush(self, timeout_s: float = 1.0) -> None:
         """Waits (bounded) until peers acknowledged what we published, so a cancel or a trigger

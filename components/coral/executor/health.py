@@ -17,23 +17,41 @@ from coral.sdk import topics
 class _Seen:
     last_beat: float
     stopping: bool
+    instance: str
+    restarted_at: float | None = None
 
 
 class HealthMonitor:
     """Remembers each component's last heartbeat; a component is degraded once it was seen alive
-    and then fell silent for `timeout_s` or announced it is stopping. Never-seen components are
-    not degraded: their calls wait for the service within their own timeout instead.
+    and then fell silent for `timeout_s`, announced it is stopping, or came back as a new process
+    (for `restart_s` after the new one's first beat). Never-seen components are not degraded:
+    their calls wait for the service within their own timeout instead.
     """
 
-    def __init__(self, clock: Callable[[], float], timeout_s: float = topics.HEARTBEAT_TIMEOUT_S) -> None:
+    def __init__(
+        self,
+        clock: Callable[[], float],
+        timeout_s: float = topics.HEARTBEAT_TIMEOUT_S,
+        restart_s: float = topics.RESTART_DEGRADED_S,
+    ) -> None:
         self._clock = clock
         self._timeout_s = timeout_s
+        self._restart_s = restart_s
         self._seen: dict[str, _Seen] = {}
         self._lock = threading.Lock()
 
     def observe(self, heartbeat: topics.Heartbeat) -> None:
+        now = self._clock()
         with self._lock:
-            self._seen[heartbeat.component] = _Seen(self._clock(), heartbeat.state == "stopping")
+            before = self._seen.get(heartbeat.component)
+            restarted_at = before.restarted_at if before else None
+            # A kubelet restarts a killed container within about a second, sooner than the
+            # silence would be noticed; the new instance says the old one is gone.
+            if before and before.instance and heartbeat.instance and before.instance != heartbeat.instance:
+                restarted_at = now
+            self._seen[heartbeat.component] = _Seen(
+                now, heartbeat.state == "stopping", heartbeat.instance, restarted_at
+            )
 
     def failure(self, component: str) -> str | None:
         """Why calls into `component` must fail now, or None while it looks alive (or was never seen)."""
@@ -43,9 +61,12 @@ class HealthMonitor:
             return None
         if seen.stopping:
             return "it shut down"
-        silent_s = self._clock() - seen.last_beat
+        now = self._clock()
+        silent_s = now - seen.last_beat
         if silent_s > self._timeout_s:
             return f"no heartbeat for {silent_s:.1f} s"
+        if seen.restarted_at is not None and now - seen.restarted_at < self._restart_s:
+            return "it restarted (a new process; its state is lost)"
         return None
 
     def state(self, component: str) -> str:

@@ -64,13 +64,20 @@ class TickLoop:
             status=status,
             tick=self.tree.tick_count,
         )
-        # Transitions propagate leaf-first, so the first FAILURE of a tick is where it started.
-        if status == "FAILURE" and self._failure_tick != self.tree.tick_count:
+        if status != "FAILURE":
+            return
+        message = self.context.failure_message(transition.path)
+        # Transitions propagate leaf-first, so the first FAILURE of a tick is where it started;
+        # but a condition that said no before a Fallback went on to its next child explains
+        # nothing, so a later failure of the same tick that says why it failed (a behavior whose
+        # skillset is gone) takes its place.
+        first = self._failure_tick != self.tree.tick_count
+        if first or (message and not (self.last_failure or {}).get("message")):
             self._failure_tick = self.tree.tick_count
             self.last_failure = {
                 "path": transition.path,
                 "node_id": transition.node_id,
-                "message": self.context.failure_message(transition.path),
+                "message": message,
                 "time": self.last_transition_time,
             }
 

@@ -43,9 +43,15 @@ class ServiceBehavior(StatefulAction):
         return self._after(self.call.poll())
 
     def _after(self, status: Status) -> Status:
-        if status == Status.SUCCESS:
-            return self.on_response(self.call.response)
-        return status
+        if status != Status.SUCCESS:
+            return status
+        result = self.on_response(self.call.response)
+        if result == Status.FAILURE:
+            # The skillset answered and refused: its reason (the feedback `on_response` left) is
+            # the failure's message in the tree status.
+            reason = getattr(self, "feedback_message", "") or f"{self.call.service} refused the request"
+            calls.note_refusal(self, reason)
+        return result
 
     def on_halted(self) -> None:
         call = getattr(self, "call", None)

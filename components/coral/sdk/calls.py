@@ -59,6 +59,11 @@ def _context_of(behavior: Any) -> CallContext:
     return context  # type: ignore[no-any-return]
 
 
+def note_refusal(behavior: Any, message: str) -> None:
+    """Records why a behavior failed after its skillset answered (no call failed, the answer did)."""
+    _context_of(behavior).note_failure(behavior, message)
+
+
 def _fail(behavior: Any, context: CallContext, message: str) -> Status:
     if hasattr(behavior, "feedback_message"):
         behavior.feedback_message = message

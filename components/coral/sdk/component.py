@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import threading
+import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
@@ -87,6 +88,7 @@ class Component(Node):
             **node_kwargs,
         )
         self.component_name = component_name
+        self.instance_id = uuid.uuid4().hex[:12]
         self.exit_code: int | None = None
         self.stop_requested = threading.Event()
         self._cancel_group = ReentrantCallbackGroup()
@@ -123,7 +125,7 @@ class Component(Node):
         )
 
     def heartbeat(self, state: str) -> topics.Heartbeat:
-        return topics.Heartbeat(self.component_name, self.KIND, state, os.getpid())
+        return topics.Heartbeat(self.component_name, self.KIND, state, os.getpid(), self.instance_id)
 
     def create_cancellable_service(self, srv_type: Any, name: str, handler: CancellableHandler) -> Any:
         """A service whose handler gets a `CancelToken`, set when the calling behavior is halted.

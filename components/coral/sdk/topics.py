@@ -14,6 +14,10 @@ HEARTBEAT_TOPIC = "/coral/heartbeat"
 HEARTBEAT_PERIOD_S = 0.2
 # A component silent for this long is considered gone (several missed beats, not one slow one).
 HEARTBEAT_TIMEOUT_S = 1.5
+# A component that came back as a new process stays degraded this long after its first beat: a
+# container restarted quicker than the heartbeat timeout lost its state all the same, and the
+# condition must last long enough to be reported.
+RESTART_DEGRADED_S = 5.0
 
 # Executors publish `CancelRequest`s here when a behavior is halted with a request in flight.
 CANCEL_TOPIC = "/coral/cancel"
@@ -25,6 +29,9 @@ class Heartbeat:
     kind: str
     state: str  # "alive" while running, "stopping" once on a clean shutdown
     pid: int
+    # Random per process: tells a restarted component from the one before it even where both have
+    # the same pid (pid 1 of a container).
+    instance: str = ""
 
     def encode(self) -> str:
         return json.dumps(asdict(self), separators=(",", ":"))
@@ -33,7 +40,13 @@ class Heartbeat:
     def decode(cls, text: str) -> Heartbeat | None:
         try:
             raw = json.loads(text)
-            return cls(str(raw["component"]), str(raw["kind"]), str(raw["state"]), int(raw["pid"]))
+            return cls(
+                str(raw["component"]),
+                str(raw["kind"]),
+                str(raw["state"]),
+                int(raw["pid"]),
+                str(raw.get("instance", "")),
+            )
         except (ValueError, KeyError, TypeError):
             return None
 

@@ -372,6 +372,14 @@ class SlamSkillset(Skillset):
 
     def serve_save_map(self, request: Any, response: Any, token: CancelToken) -> Any:
         path = output_path(self.map_path)
+        if self.core.scans_processed == 0 and not len(self.core.global_map()):
+            # A process that registered nothing (one restarted mid-mission lost its map, or the data
+            # never came) would write an empty map and let the mission report success.
+            response.success = False
+            response.message = json.dumps(
+                {"error": "no map to save: this SLAM process has registered no scan and loaded no map"}
+            )
+            return response
         try:
             points = self.core.save_map(path)
         except MapFileError as err:

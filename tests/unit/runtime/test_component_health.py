@@ -61,3 +61,34 @@ def test_the_next_failure_is_when_the_earliest_live_component_would_turn_silent(
     assert monitor.next_failure_at(["slam", "snapshot"]) == 102.0
     monitor.observe(_beat("snapshot", "stopping"))
     assert monitor.next_failure_at(["slam", "snapshot"]) is None
+
+
+def test_a_component_back_as_a_new_process_is_degraded_for_a_while_even_without_silence() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5, restart_s=5.0)
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "first"))
+    clock.now += 0.4
+    # The same pid (a container's pid 1) but another process: a restart quicker than the timeout.
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.state("examples") == "degraded"
+    assert "restarted" in monitor.degraded(["examples"])["examples"]
+    clock.now += 4.0
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.failure("examples") is not None
+    clock.now += 1.1
+    monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
+    assert monitor.state("examples") == "alive"
+
+
+def test_beats_of_one_process_never_count_as_a_restart() -> None:
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5)
+    for _ in range(5):
+        monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "only"))
+        clock.now += 0.2
+    assert monitor.state("examples") == "alive"
+
+
+def test_a_heartbeat_without_an_instance_still_decodes() -> None:
+    old = '{"component":"examples","kind":"skillset","state":"alive","pid":7}'
+    assert topics.Heartbeat.decode(old) == topics.Heartbeat("examples", "skillset", "alive", 7, "")

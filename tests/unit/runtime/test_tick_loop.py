@@ -278,3 +278,37 @@ def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(k
     loop.tree.wake_up()
     assert ended and loop.tree.last_status == expected
     assert took < 0.75, f"{kind}: the tree ended after {took:.2f} s, as if a wake-up was missed"
+
+
+class Refused(StatefulAction):
+    """Fails at once and says why, as a behavior whose skillset is gone does."""
+
+    def on_start(self) -> Status:
+        self.context.failures[self.path] = "skillset slam is unavailable: it restarted"
+        return Status.FAILURE
+
+    def on_running(self) -> Status:
+        return Status.FAILURE
+
+
+def test_the_failure_that_says_why_is_reported_over_a_condition_that_said_no_first() -> None:
+    registry = NodeRegistry.with_builtins()
+    registry.register("Refused", Refused)
+    failures: dict[str, str] = {}
+    context = SimpleNamespace(
+        health=HealthMonitor(time.monotonic),
+        failures=failures,
+        failure_message=lambda path: failures.pop(path, ""),
+    )
+    xml = (
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        "<Fallback><AlwaysFailure/><Refused/></Fallback>"
+        "</BehaviorTree></root>"
+    )
+    tree = load_tree_text(xml).build(registry, context=context)
+    state = plugins_phase.PluginState(used=set(), builtin_ids=set())
+    loop = TickLoop(tree, context, sinks.SinkFanout([Collect()]), state, rate_hz=50.0)
+    assert loop.run(threading.Event(), lambda: 143) != 0
+    assert loop.last_failure is not None
+    assert "Refused" in loop.last_failure["path"], loop.last_failure
+    assert loop.last_failure["message"] == "skillset slam is unavailable: it restarted"
