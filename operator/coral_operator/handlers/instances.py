@@ -1,4 +1,4 @@
-"""Reconciles a CoralInstance: the executor's identity, ordered pod startup, per-robot status.
+"""Reconciles a CoralInstance: ordered pod startup, per-robot status.
 
 A fleet has thousands of instances whose pods change in bursts, so the passes do not run inside
 kopf's per-event handlers. The handlers here only name the instance that needs a pass (its own
@@ -28,7 +28,7 @@ from coral_operator.handlers import events
 from coral_operator.handlers.indexing import read_index
 from coral_operator.kube import applying, leases
 from coral_operator.kube.workqueue import WorkQueue
-from coral_operator.planning import naming, pods, rbac, startup
+from coral_operator.planning import naming, pods, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 from coral_operator.status import instance_status, ownership
 from coral_operator.status.conditions import ConditionType, Reason
@@ -59,8 +59,6 @@ _inputs: dict[str, tuple[Any, ...]] = {}
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
 # outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
 REFUSED_RETRY_S = 30.0
-# Executor identities created by this process, so each robot's is created once, not per pass.
-_accounts: set[str] = set()
 _node_ready: dict[str, tuple[bool, bool] | None] = {}
 # The pods an instance's spec asks for, per uid, with the generation they were built for: a spec
 # changes only with its generation, and hashing every pod on every pass is the pass's main cost.
@@ -121,7 +119,6 @@ async def instance_changed(
             _inputs.pop(uid, None)
             _desired.pop(uid, None)
             _last_write.pop(uid, None)
-            _accounts.discard(uid)
         QUEUE.forget(key)
         return
     owned = ownership.operator_part(status)
@@ -197,32 +194,8 @@ def _invalid(error: ValidationError, record: InstanceRecord, status: dict[str, A
 
 def _apply(record: InstanceRecord, spec: CoralInstanceSpec, plan: startup.StartupPlan) -> dict[str, str]:
     """Carry out the plan; returns the pods the API server refused for good, with its messages."""
-    namespace, name = record.namespace, record.name
+    namespace = record.namespace
     refused: dict[str, str] = {}
-    executors = [m for m in plan.create if any(role == "executor" for _, role in naming.pod_members(m))]
-    if executors:
-        with _lock:
-            known = record.uid in _accounts
-        if not known:
-            # The ServiceAccount must exist before a pod naming it is admitted.
-            try:
-                applying.apply_rbac(
-                    rbac.build_executor_rbac(
-                        instance=name,
-                        namespace=namespace,
-                        instance_uid=record.uid,
-                        system=spec.system,
-                        robot=spec.robot,
-                    )
-                )
-                with _lock:
-                    _accounts.add(record.uid)
-            except Exception as error:
-                message = applying.refusal(error)
-                if message is None:
-                    raise
-                for manifest in executors:
-                    refused[_pod_component(manifest)] = message
     for pod_name in plan.delete:
         applying.delete_pod(namespace, pod_name)
     if plan.delete:

@@ -13,6 +13,7 @@ from typing import Any
 import kopf
 
 from coral_operator.kube import applying
+from coral_operator.planning import rbac
 
 
 class EssenceFreeDiffBase(kopf.AnnotationsDiffBaseStorage):
@@ -54,3 +55,10 @@ def wait_for_the_coral_api(settings: kopf.OperatorSettings, memo: kopf.Memo, **_
     problem = applying.coral_api_served(list(memo.get("namespaces", [])))
     if problem is not None:
         raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
+
+
+@kopf.on.startup()
+def confine_the_executors(**_: Any) -> None:
+    # Before any system's account exists: its Role alone would let an executor patch every
+    # instance of its namespace; the policy narrows that to its own robot's (`planning.rbac`).
+    applying.apply_admission_policy(rbac.build_admission_policy())

@@ -20,7 +20,7 @@ from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.handlers import events, rollouts, triggers
 from coral_operator.handlers.indexing import ALL_ROBOTS
 from coral_operator.kube import applying
-from coral_operator.planning import configmaps, instances, policy, selection, validation
+from coral_operator.planning import configmaps, instances, policy, rbac, selection, validation
 from coral_operator.status import system_status
 from coral_operator.status.conditions import Reason
 
@@ -274,6 +274,8 @@ def _deploy(
     plan = instances.plan_instances(fleet.desired, observed, reachable)
     if plan.empty:
         return len(robots), fleet
+    # The executors' account before their instances: a pod naming it is admitted only once it exists.
+    applying.apply_rbac(rbac.build_executor_rbac(system=name, namespace=namespace, system_uid=uid))
     # ConfigMaps first: an instance must never point at a file that does not exist yet.
     applying.create_config_map(tree_cm)
     applying.create_config_map(params_cm)

@@ -138,7 +138,7 @@ def delete_config_map(namespace: str, name: str) -> None:
 
 
 def apply_rbac(objects: list[dict[str, Any]]) -> None:
-    """Create the executor's ServiceAccount, Role and RoleBinding unless they exist."""
+    """Create the executors' ServiceAccount, Role and RoleBinding unless they exist."""
     for manifest in objects:
         namespace = manifest["metadata"]["namespace"]
         try:
@@ -150,6 +150,28 @@ def apply_rbac(objects: list[dict[str, Any]]) -> None:
                 client.rbac().create_namespaced_role_binding(namespace, manifest)
         except ApiException as error:
             _ignore(error, 409)
+
+
+def apply_admission_policy(objects: list[dict[str, Any]]) -> None:
+    """Server-side apply of a ValidatingAdmissionPolicy and its binding: created, or brought back
+    to this operator's version, in one request each (every operator applies the same content)."""
+    api = client.admission()
+    for manifest in objects:
+        apply = (
+            api.patch_validating_admission_policy
+            if manifest["kind"] == "ValidatingAdmissionPolicy"
+            else api.patch_validating_admission_policy_binding
+        )
+        _drain(
+            apply(
+                manifest["metadata"]["name"],
+                manifest,
+                field_manager=naming.FIELD_MANAGER,
+                force=True,
+                _content_type="application/apply-patch+yaml",
+                _preload_content=False,
+            )
+        )
 
 
 def create_instance(manifest: dict[str, Any]) -> bool:

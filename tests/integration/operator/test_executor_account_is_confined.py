@@ -6,7 +6,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import GROUP, VERSION, Coral, client_as, fleet_mission, is_current_and_true
+from coral_api import GROUP, VERSION, Coral, executor_client, executor_pod, fleet_mission, is_current_and_true
 from coral_operator.sink import kubernetes as sink
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
@@ -35,7 +35,8 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(
     coral.create_system(fleet_mission("fleet", fleet_label))
     wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the system to become Ready")
     instance = f"fleet-{mine}"
-    as_executor = client_as(cluster, namespace, f"{instance}-executor")
+    executor = executor_pod(cluster, namespace, instance)
+    as_executor = executor_client(cluster, namespace, instance)
 
     status_sink = sink.KubernetesStatusSink(
         sink.build_patcher(as_executor, namespace, instance), background=False
@@ -89,7 +90,7 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(
     ), "patching its own instance's spec must be denied"
     assert _denied(
         lambda: core.patch_namespaced_pod(
-            f"{instance}-executor", namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
+            executor.metadata.name, namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
         )
     ), "patching a pod must be denied"
     assert coral.instances()[f"fleet-{other}"]["status"].get("tree") is None

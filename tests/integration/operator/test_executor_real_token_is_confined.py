@@ -80,8 +80,10 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     pod = wait(running_executor, "the guard's executor container to run", timeout=180)
     mine = f"guard-{robot}"
     wait(
-        lambda: ((coral.instances().get(mine) or {}).get("status") or {}).get("tree", {}).get("rootStatus")
-        == "RUNNING",
+        lambda: (
+            ((coral.instances().get(mine) or {}).get("status") or {}).get("tree", {}).get("rootStatus")
+            == "RUNNING"
+        ),
         "the executor's own tree status on its instance",
         timeout=120,
     )

@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 from coral_api import Coral, fleet_mission, is_current_and_true, pod_ready_since
+from coral_operator.planning import naming
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -65,7 +66,7 @@ def test_the_fleet_example_runs_on_every_matching_robot(
         # Ordered startup: each stage is created only after the previous one reported Ready.
         assert slam.metadata.creation_timestamp >= pod_ready_since(driver)
         assert executor.metadata.creation_timestamp >= pod_ready_since(slam)
-        assert executor.spec.service_account_name == f"fleet-{robot}-executor"
+        assert executor.spec.service_account_name == naming.executor_account_name("fleet")
         config = [
             s.config_map.name for s in {v.name: v for v in executor.spec.volumes}["config"].projected.sources
         ]

@@ -59,4 +59,3 @@ def test_the_operator_pod_serves_a_system_with_only_the_charts_rbac(
     # The same pod, never restarted: the liveness probe passes against the real kubelet.
     again = core.read_namespaced_pod(pod.metadata.name, helm_operator.release.namespace)
     assert again.status.container_statuses[0].restart_count == 0
-
