@@ -153,6 +153,7 @@ def run_size(count: int, work: Path) -> SizeFigures:
             ("PodPerRobot", "daemonset", TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE),
         ):
             result, apiserver = _coral_run(api, state, log, operator, count, timeout, layout)
+            cpu[layout] = apiserver
             tag = "fleet" if layout == "PodPerComponent" else "fleet_robot_pod"
             bench(
                 f"{tag}_ready_ratio_{count}",

@@ -274,18 +274,20 @@ def _deploy(
     plan = instances.plan_instances(fleet.desired, observed, reachable)
     if plan.empty:
         return len(robots), fleet
-    # The executors' account before their instances: a pod naming it is admitted only once it exists.
-    applying.apply_rbac(rbac.build_executor_rbac(system=name, namespace=namespace, system_uid=uid))
-    # ConfigMaps first: an instance must never point at a file that does not exist yet.
-    applying.create_config_map(tree_cm)
-    applying.create_config_map(params_cm)
+    if plan.create:
+        # The executors' account before new instances: their pods are admitted only once it exists.
+        applying.apply_rbac(rbac.build_executor_rbac(system=name, namespace=namespace, system_uid=uid))
+    # ConfigMaps first: an instance must never point at a file that does not exist yet. Named by
+    # content, so one already listed is already right: no create that would answer 409.
+    existing = applying.list_system_config_maps(namespace, name)
+    for manifest in (tree_cm, params_cm):
+        if manifest["metadata"]["name"] not in existing:
+            applying.create_config_map(manifest)
     _apply_plan(body, namespace, plan)
     in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"], *fleet.in_use}
     for instance in observed:
         in_use.add((instance.spec.get("tree") or {}).get("configMap", ""))
         in_use.add((instance.spec.get("parameters") or {}).get("configMap", ""))
-    for stale in configmaps.plan_config_map_cleanup(
-        applying.list_system_config_maps(namespace, name), in_use
-    ):
+    for stale in configmaps.plan_config_map_cleanup(existing, in_use):
         applying.delete_config_map(namespace, stale)
     return len(robots), fleet
