@@ -61,4 +61,13 @@ def wait_for_the_coral_api(settings: kopf.OperatorSettings, memo: kopf.Memo, **_
 def confine_the_executors(**_: Any) -> None:
     # Before any system's account exists: its Role alone would let an executor patch every
     # instance of its namespace; the policy narrows that to its own robot's (`planning.rbac`).
-    applying.apply_admission_policy(rbac.build_admission_policy())
+    try:
+        applying.ensure_admission_policy(rbac.build_admission_policy(), rbac.POLICY_HASH_ANNOTATION)
+    except Exception as error:
+        refused = applying.refusal(error)
+        if refused is None:
+            raise
+        raise kopf.PermanentError(
+            f"The executors' admission policy {rbac.POLICY_NAME} is missing or out of date and this "
+            f"operator may not write it ({refused}); install it with the chart or deploy/coral-operator.yaml."
+        ) from error

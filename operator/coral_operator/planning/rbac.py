@@ -12,17 +12,22 @@ one Role per instance (`resourceNames`), three objects per robot. Instead:
   Node's name in the user's extra field `authentication.kubernetes.io/node-name`, which only the
   API server sets.
 
-Pure; the system's objects are applied by the system handler, the policy at operator start-up.
+Pure; the system's objects are applied by the system handler. The policy is rendered into the Helm
+chart by `make crds` (a namespaced install grants no cluster-wide writes) and checked at operator
+start-up: applied when its `coral.dev/policy-hash` annotation differs from this module's.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import yaml
+
 from coral_operator.api.base import API_VERSION, GROUP
 from coral_operator.planning import naming
 
 POLICY_NAME = "coral-executor-own-instance.coral.dev"
+POLICY_HASH_ANNOTATION = "coral.dev/policy-hash"
 NODE_NAME_EXTRA = "authentication.kubernetes.io/node-name"
 _ADMISSION = "admissionregistration.k8s.io/v1"
 # CEL over the admission request. `oldObject` is the instance before the patch: the executor's
@@ -109,4 +114,13 @@ def build_admission_policy() -> list[dict[str, Any]]:
         "metadata": {"name": POLICY_NAME, "labels": labels},
         "spec": {"policyName": POLICY_NAME, "validationActions": ["Deny"]},
     }
+    for manifest in (policy, binding):
+        manifest["metadata"]["annotations"] = {POLICY_HASH_ANNOTATION: naming.content_hash(manifest)}
     return [policy, binding]
+
+
+def render_admission_policy() -> str:
+    """The policy and its binding as the chart's template (no Helm directives: the same everywhere)."""
+    header = "# Generated from coral_operator/planning/rbac.py by hack/generate-crds.py; do not edit.\n"
+    documents = [yaml.safe_dump(m, sort_keys=True, width=100) for m in build_admission_policy()]
+    return header + "---\n".join(documents)
