@@ -43,7 +43,11 @@ def fleet_times(points: Sequence[FleetPoint], folder: Path) -> Path:
     for axes, title, coral, reference in panels:
         axes.plot(robots, [getattr(p, coral) for p in ordered], "o-", color="tab:blue", label="Coral")
         axes.plot(
-            robots, [getattr(p, reference) for p in ordered], "s--", color="tab:gray", label="DaemonSet"
+            robots,
+            [getattr(p, reference) for p in ordered],
+            "s--",
+            color="tab:gray",
+            label="three DaemonSets",
         )
         axes.set_title(title)
         axes.set_xlabel("robots")

@@ -1,4 +1,5 @@
-"""Writes the CRDs of coral.dev into crds/ and the Helm chart from the pydantic models.
+"""Writes the CRDs of coral.dev into crds/ and the Helm chart from the pydantic models, and the
+executors' admission policy into the chart from `planning.rbac`.
 
 Usage: python hack/generate-crds.py [--check]   (--check: exit 1 when a file is stale)
 """
@@ -9,9 +10,11 @@ import sys
 from pathlib import Path
 
 from coral_operator.api import crdgen
+from coral_operator.planning import rbac
 
 ROOT = Path(__file__).resolve().parent.parent
 TARGETS = [ROOT / "crds", ROOT / "charts" / "coral-operator" / "crds"]
+POLICY = ROOT / "charts" / "coral-operator" / "templates" / "executor-policy.yaml"
 
 
 def main(argv: list[str]) -> int:
@@ -27,6 +30,11 @@ def main(argv: list[str]) -> int:
             if not check:
                 folder.mkdir(parents=True, exist_ok=True)
                 path.write_text(text)
+    policy = rbac.render_admission_policy()
+    if not (POLICY.exists() and POLICY.read_text() == policy):
+        stale.append(POLICY)
+        if not check:
+            POLICY.write_text(policy)
     for path in stale:
         print(f"{'stale' if check else 'wrote'}: {path.relative_to(ROOT)}")
     return 1 if check and stale else 0

@@ -15,6 +15,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -169,7 +170,10 @@ def run_coral(
     operator: OperatorProcess,
     timeout: float,
     layout: str = "PodPerComponent",
+    between: Callable[[], None] | None = None,
 ) -> CoralResult:
+    """Deploy, wait until settled, call `between` (the benchmark counts the first deployment's
+    requests there), then roll the update and wait again."""
     custom = k8s.CustomObjectsApi(api)
 
     def settled() -> bool:
@@ -183,6 +187,8 @@ def run_coral(
     ready, done = _timed(settled, timeout, f"CoralSystem on {count} robots to become Ready")
     if not done:
         return CoralResult(ready_seconds=ready, update_seconds=float("inf"), stalled="ready")
+    if between is not None:
+        between()
     custom.patch_namespaced_custom_object(
         GROUP,
         VERSION,

@@ -1,13 +1,20 @@
-"""The baseline: a DaemonSet running the same three containers on every robot.
+"""The baselines: DaemonSets running the same three components on every robot.
 
-Same images, host network and IPC, and DaemonSet tolerations as the Coral pods; one pod with three
-containers per robot, as Kubernetes would run the mission without Coral. `run_daemonset` measures
-the time until every pod is Ready and the time of a rolling update at the same `maxUnavailable`.
+Same images, host network and IPC, and DaemonSet tolerations as the Coral pods. Two shapes, as
+Kubernetes would run the mission without Coral:
+
+- the floor, one DaemonSet whose pod holds the three containers (one pod per robot);
+- the same shape as Coral's default layout, three DaemonSets, one per component (three pods per
+  robot).
+
+`run_daemonsets` measures the time until every pod of the given DaemonSets is Ready and the time
+of a rolling update at the same `maxUnavailable` after one environment variable changes.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,16 +36,22 @@ TOLERATIONS = [
 ]
 
 
-def build_daemonset(namespace: str, revision: str, max_unavailable: str) -> dict[str, Any]:
-    labels = {"app": NAME}
+def build_daemonset(
+    namespace: str,
+    revision: str,
+    max_unavailable: str,
+    name: str = NAME,
+    components: tuple[tuple[str, str], ...] = COMPONENTS,
+) -> dict[str, Any]:
+    labels = {"app": name}
     containers = [
-        {"name": name, "image": image, "env": [{"name": "MISSION_REVISION", "value": revision}]}
-        for name, image in COMPONENTS
+        {"name": component, "image": image, "env": [{"name": "MISSION_REVISION", "value": revision}]}
+        for component, image in components
     ]
     return {
         "apiVersion": "apps/v1",
         "kind": "DaemonSet",
-        "metadata": {"name": NAME, "namespace": namespace},
+        "metadata": {"name": name, "namespace": namespace},
         "spec": {
             "selector": {"matchLabels": labels},
             "updateStrategy": {"type": "RollingUpdate", "rollingUpdate": {"maxUnavailable": max_unavailable}},
@@ -59,59 +72,77 @@ def build_daemonset(namespace: str, revision: str, max_unavailable: str) -> dict
     }
 
 
+def single(namespace: str, revision: str, max_unavailable: str) -> list[dict[str, Any]]:
+    """The floor: one DaemonSet, one pod with the three containers per robot."""
+    return [build_daemonset(namespace, revision, max_unavailable)]
+
+
+def per_component(namespace: str, revision: str, max_unavailable: str) -> list[dict[str, Any]]:
+    """Coral's shape: one DaemonSet per component, three pods per robot."""
+    return [
+        build_daemonset(namespace, revision, max_unavailable, name=name, components=((name, image),))
+        for name, image in COMPONENTS
+    ]
+
+
 @dataclass
 class DaemonSetResult:
     ready_seconds: float
     update_seconds: float
 
 
-def _status(apps: k8s.AppsV1Api, namespace: str) -> Any:
-    return apps.read_namespaced_daemon_set_status(NAME, namespace)
+def _settled(apps: k8s.AppsV1Api, namespace: str, names: list[str], count: int) -> bool:
+    for name in names:
+        ds = apps.read_namespaced_daemon_set_status(name, namespace)
+        s = ds.status
+        if not (
+            s
+            and (s.observed_generation or 0) >= ds.metadata.generation
+            and s.desired_number_scheduled == count
+            and (s.updated_number_scheduled or 0) == count
+            and (s.number_ready or 0) == count
+            and (s.number_available or 0) == count
+        ):
+            return False
+    return True
 
 
-def _settled(apps: k8s.AppsV1Api, namespace: str, count: int) -> bool:
-    ds = _status(apps, namespace)
-    s = ds.status
-    return bool(
-        s
-        and (s.observed_generation or 0) >= ds.metadata.generation
-        and s.desired_number_scheduled == count
-        and (s.updated_number_scheduled or 0) == count
-        and (s.number_ready or 0) == count
-        and (s.number_available or 0) == count
-    )
-
-
-def run_daemonset(api: k8s.ApiClient, namespace: str, count: int, timeout: float) -> DaemonSetResult:
+def run_daemonsets(
+    api: k8s.ApiClient, namespace: str, count: int, timeout: float, build: Callable[..., list[dict[str, Any]]]
+) -> DaemonSetResult:
+    """Create the DaemonSets `build` gives, wait until all are Ready, then roll an update through all."""
     apps = k8s.AppsV1Api(api)
+    first = build(namespace, "1", "10%")
+    names = [manifest["metadata"]["name"] for manifest in first]
     began = time.monotonic()
-    apps.create_namespaced_daemon_set(namespace, build_daemonset(namespace, "1", "10%"))
+    for manifest in first:
+        apps.create_namespaced_daemon_set(namespace, manifest)
     wait_for(
-        lambda: _settled(apps, namespace, count),
+        lambda: _settled(apps, namespace, names, count),
         timeout=timeout,
         interval=0.5,
-        message=f"DaemonSet on {count} robots to become Ready",
+        message=f"DaemonSets {names} on {count} robots to become Ready",
     )
     ready = time.monotonic() - began
     began = time.monotonic()
-    patch = build_daemonset(namespace, "2", "10%")
-    apps.patch_namespaced_daemon_set(NAME, namespace, {"spec": patch["spec"]})
+    for manifest in build(namespace, "2", "10%"):
+        apps.patch_namespaced_daemon_set(manifest["metadata"]["name"], namespace, {"spec": manifest["spec"]})
     wait_for(
-        lambda: _settled(apps, namespace, count),
+        lambda: _settled(apps, namespace, names, count),
         timeout=timeout,
         interval=0.5,
-        message=f"DaemonSet rolling update over {count} robots",
+        message=f"DaemonSets {names}: rolling update over {count} robots",
     )
     return DaemonSetResult(ready_seconds=ready, update_seconds=time.monotonic() - began)
 
 
-def delete_daemonset(api: k8s.ApiClient, namespace: str, timeout: float) -> None:
-    """Deletes the DaemonSet and waits until its pods are gone, so the next run starts clean."""
+def delete_daemonsets(api: k8s.ApiClient, namespace: str, timeout: float) -> None:
+    """Deletes every DaemonSet of the namespace and waits until their pods are gone."""
     apps, core = k8s.AppsV1Api(api), k8s.CoreV1Api(api)
-    apps.delete_namespaced_daemon_set(NAME, namespace, propagation_policy="Background")
+    apps.delete_collection_namespaced_daemon_set(namespace, propagation_policy="Background")
     wait_for(
         lambda: not core.list_namespaced_pod(namespace, limit=1).items,
         timeout=timeout,
         interval=2.0,
-        message="the DaemonSet's pods to be deleted",
+        message="the DaemonSets' pods to be deleted",
     )

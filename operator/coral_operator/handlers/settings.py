@@ -15,6 +15,7 @@ import kopf
 from coral_operator import config
 from coral_operator.api import names
 from coral_operator.kube import applying
+from coral_operator.planning import rbac
 from coral_operator.reconcile.controller import Controller
 
 
@@ -76,3 +77,19 @@ def stop_controller(memo: kopf.Memo, **_: Any) -> None:
     controller = memo.get("controller")
     if controller is not None:
         controller.stop()
+
+
+@kopf.on.startup()
+def confine_the_executors(**_: Any) -> None:
+    # Before any system's account exists: its Role alone would let an executor patch every
+    # instance of its namespace; the policy narrows that to its own robot's (`planning.rbac`).
+    try:
+        applying.ensure_admission_policy(rbac.build_admission_policy(), rbac.POLICY_HASH_ANNOTATION)
+    except Exception as error:
+        refused = applying.refusal(error)
+        if refused is None:
+            raise
+        raise kopf.PermanentError(
+            f"The executors' admission policy {rbac.POLICY_NAME} is missing or out of date and this "
+            f"operator may not write it ({refused}); install it with the chart or deploy/coral-operator.yaml."
+        ) from error

@@ -147,7 +147,7 @@ def delete_config_map(namespace: str, name: str) -> None:
 
 
 def apply_rbac(objects: list[dict[str, Any]]) -> None:
-    """Create the executor's ServiceAccount, Role and RoleBinding unless they exist."""
+    """Create the executors' ServiceAccount, Role and RoleBinding unless they exist."""
     for manifest in objects:
         namespace = manifest["metadata"]["namespace"]
         try:
@@ -159,6 +159,45 @@ def apply_rbac(objects: list[dict[str, Any]]) -> None:
                 client.rbac().create_namespaced_role_binding(namespace, manifest)
         except ApiException as error:
             _ignore(error, 409)
+
+
+def ensure_admission_policy(objects: list[dict[str, Any]], hash_annotation: str) -> list[str]:
+    """Bring a ValidatingAdmissionPolicy and its binding to `objects`; returns the names applied.
+
+    One read each; a server-side apply only where the object is missing or its `hash_annotation`
+    differs (an older operator's, or none): a Helm install renders them already, and a namespaced
+    install may read them but not write them.
+    """
+    api = client.admission()
+    applied = []
+    for manifest in objects:
+        policy = manifest["kind"] == "ValidatingAdmissionPolicy"
+        name = manifest["metadata"]["name"]
+        read = (
+            api.read_validating_admission_policy if policy else api.read_validating_admission_policy_binding
+        )
+        try:
+            current = (read(name).metadata.annotations or {}).get(hash_annotation)
+        except ApiException as error:
+            _ignore(error, 404)
+            current = None
+        if current == manifest["metadata"]["annotations"][hash_annotation]:
+            continue
+        apply = (
+            api.patch_validating_admission_policy if policy else api.patch_validating_admission_policy_binding
+        )
+        _drain(
+            apply(
+                name,
+                manifest,
+                field_manager=naming.FIELD_MANAGER,
+                force=True,
+                _content_type="application/apply-patch+yaml",
+                _preload_content=False,
+            )
+        )
+        applied.append(name)
+    return applied
 
 
 def create_instance(manifest: dict[str, Any]) -> bool:

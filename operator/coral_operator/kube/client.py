@@ -37,5 +37,9 @@ def rbac() -> client.RbacAuthorizationV1Api:
     return client.RbacAuthorizationV1Api(api_client())
 
 
+def admission() -> client.AdmissionregistrationV1Api:
+    return client.AdmissionregistrationV1Api(api_client())
+
+
 def custom() -> client.CustomObjectsApi:
     return client.CustomObjectsApi(api_client())

@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.planning import naming, pods, rbac, startup
+from coral_operator.planning import naming, pods, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 
 
@@ -35,9 +35,6 @@ class InstancePlan:
     startup: startup.StartupPlan | None = None
     desired: list[dict[str, Any]] = field(default_factory=list)
     transient: set[str] = field(default_factory=set)
-    identity: list[dict[str, Any]] = field(default_factory=list)
-    """The executor's ServiceAccount, Role and RoleBinding, when an executor pod is to be created:
-    they must exist before a pod naming the account is admitted."""
 
 
 def parse_instance_spec(record: InstanceRecord) -> CoralInstanceSpec | str:
@@ -85,25 +82,9 @@ def plan_instance(
     plan = startup.plan_startup(
         desired=desired, observed=observed, transient=transient, startup=spec.startup, now=now
     )
-    identity = (
-        rbac.build_executor_rbac(
-            instance=record.name,
-            namespace=record.namespace,
-            instance_uid=record.uid,
-            system=spec.system,
-            robot=spec.robot,
-        )
-        if any(starts_executor(manifest) for manifest in plan.create)
-        else []
-    )
-    return InstancePlan(spec=spec, startup=plan, desired=desired, transient=transient, identity=identity)
+    return InstancePlan(spec=spec, startup=plan, desired=desired, transient=transient)
 
 
 def refusal_key(manifest: dict[str, Any]) -> str:
     """What a refusal of this pod is reported under: its component, or the whole robot's pod."""
     return manifest["metadata"]["labels"].get(names.LABEL_COMPONENT, naming.ROBOT_POD)
-
-
-def starts_executor(manifest: dict[str, Any]) -> bool:
-    """Whether the pod runs an executor, which needs the executor's identity to be admitted."""
-    return any(role == "executor" for _, role in naming.pod_members(manifest))

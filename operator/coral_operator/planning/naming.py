@@ -73,9 +73,16 @@ def _name_suffix(pod_hash: str) -> str:
     return "".join(digits)
 
 
-def executor_account_name(instance: str) -> str:
-    """ServiceAccount (and Role, RoleBinding) of the executors of one robot."""
-    return f"{instance}-executor"
+EXECUTOR_ACCOUNT_PREFIX = "coral-executor-"
+
+
+def executor_account_name(system: str) -> str:
+    """ServiceAccount (and Role, RoleBinding) of every executor of one system.
+
+    The prefix followed by the system's label value: the admission policy (`planning.rbac`) tells an
+    executor by the prefix and its system by the rest, which must equal the instance's system label.
+    """
+    return EXECUTOR_ACCOUNT_PREFIX + label_value(system)
 
 
 def config_map_name(system: str, kind: str, digest: str) -> str:

@@ -285,7 +285,7 @@ def build_pod(
     if not (component.run_as_root or component.privileged):
         pod_spec["initContainers"] = [_plugins_owner(spec, component)]
     if role == "executor":
-        pod_spec["serviceAccountName"] = naming.executor_account_name(instance)
+        pod_spec["serviceAccountName"] = naming.executor_account_name(spec.system)
     return _pod(
         name_part=component.name,
         labels=naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision),
@@ -389,7 +389,7 @@ def build_robot_pod(
         "restartPolicy": "OnFailure",
         "enableServiceLinks": False,
         "automountServiceAccountToken": False,
-        "serviceAccountName": naming.executor_account_name(instance),
+        "serviceAccountName": naming.executor_account_name(spec.system),
         "initContainers": sidecars,
         "containers": mains,
         "volumes": volumes,

@@ -19,7 +19,16 @@ from pydantic import ValidationError
 from coral_operator.api import names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
-from coral_operator.planning import configmaps, instances, policy, revisions, rollout, selection, validation
+from coral_operator.planning import (
+    configmaps,
+    instances,
+    policy,
+    rbac,
+    revisions,
+    rollout,
+    selection,
+    validation,
+)
 from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
 from coral_operator.status.conditions import Reason
 from coral_operator.status.system_status import Problem
@@ -76,6 +85,10 @@ class SystemPlan:
     config_maps: list[dict[str, Any]] = field(default_factory=list)
     """The validated tree and parameters; created before any instance points at them."""
     changes: instances.InstanceChanges = field(default_factory=instances.InstanceChanges)
+    identity: list[dict[str, Any]] = field(default_factory=list)
+    """The executors' ServiceAccount, Role and RoleBinding, when instances are created: their
+    executor pods are admitted only once it exists (one per system, narrowed per robot by the
+    admission policy of `planning.rbac`)."""
     in_use: set[str] = field(default_factory=set)
     """ConfigMaps some revision or instance still points at (never cleaned up)."""
     rollout: RolloutPlan | None = None
@@ -209,11 +222,18 @@ def _plan_deployment(
     for kept in [*templates.values(), *(i.spec for i in observed)]:
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
+    changes = instances.plan_instances(desired, observed, reachable)
+    identity = (
+        rbac.build_executor_rbac(system=system.name, namespace=system.namespace, system_uid=system.uid)
+        if changes.create
+        else []
+    )
     return SystemPlan(
         matched=len(robots),
         history=history,
         config_maps=[tree_cm, params_cm],
-        changes=instances.plan_instances(desired, observed, reachable),
+        changes=changes,
+        identity=identity,
         in_use=in_use,
         rollout=RolloutPlan(
             status=decision.status,

@@ -122,17 +122,6 @@ class InstanceReconciler:
         assert plan.startup is not None
         namespace = record.namespace
         refused: dict[str, str] = {}
-        if plan.identity and not self.memory.has_identity(record.uid):
-            try:
-                applying.apply_rbac(plan.identity)
-                self.memory.remember_identity(record.uid)
-            except Exception as error:
-                message = applying.refusal(error)
-                if message is None:
-                    raise
-                for manifest in plan.startup.create:
-                    if instance_pass.starts_executor(manifest):
-                        refused[instance_pass.refusal_key(manifest)] = message
         for pod_name in plan.startup.delete:
             applying.delete_pod(namespace, pod_name)
         for manifest in plan.startup.create:

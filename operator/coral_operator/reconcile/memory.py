@@ -37,7 +37,6 @@ class Memory:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _status_written: dict[str, tuple[str, dict[str, Any], float]] = field(default_factory=dict)
     _desired_pods: dict[str, tuple[int | None, list[dict[str, Any]]]] = field(default_factory=dict)
-    _identities: set[str] = field(default_factory=set)
     _history: dict[tuple[str, str, str], list[StoredRevision]] = field(default_factory=dict)
     _expected: dict[tuple[str, str], dict[str, tuple[str, float]]] = field(default_factory=dict)
     _rollout_written: dict[str, RolloutStatus] = field(default_factory=dict)
@@ -79,20 +78,10 @@ class Memory:
             self._desired_pods[uid] = (generation, desired)
         return desired
 
-    def has_identity(self, uid: str) -> bool:
-        """Whether this process created the instance's executor identity (created once, not per pass)."""
-        with self._lock:
-            return uid in self._identities
-
-    def remember_identity(self, uid: str) -> None:
-        with self._lock:
-            self._identities.add(uid)
-
     def forget_instance(self, uid: str) -> None:
         with self._lock:
             self._status_written.pop(uid, None)
             self._desired_pods.pop(uid, None)
-            self._identities.discard(uid)
 
     # --- systems -----------------------------------------------------------------------------
 

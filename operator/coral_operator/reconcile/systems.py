@@ -149,11 +149,15 @@ class SystemReconciler:
         changes = plan.changes
         if changes.empty:
             return
-        # ConfigMaps first: an instance must never point at a file that does not exist yet.
-        for manifest in plan.config_maps:
-            applying.create_config_map(manifest)
-        self._apply_instances(system, changes)
+        if plan.identity:
+            applying.apply_rbac(plan.identity)
+        # ConfigMaps first: an instance must never point at a file that does not exist yet. Named
+        # by content, so one already listed is already right: no create that would answer 409.
         existing = applying.list_system_config_maps(system.namespace, system.name)
+        for manifest in plan.config_maps:
+            if manifest["metadata"]["name"] not in existing:
+                applying.create_config_map(manifest)
+        self._apply_instances(system, changes)
         for stale in configmaps.plan_config_map_cleanup(existing, plan.in_use):
             applying.delete_config_map(system.namespace, stale)
 

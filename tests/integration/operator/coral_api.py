@@ -8,7 +8,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from coral_operator.api import names
 from coral_operator.api.names import GROUP, VERSION
+from coral_operator.planning.naming import EXECUTOR_ACCOUNT_PREFIX
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
@@ -24,9 +26,21 @@ def fleet_mission(name: str, fleet: str) -> dict[str, Any]:
     return manifest
 
 
-def client_as(cluster: Any, namespace: str, account: str) -> k8s.ApiClient:
-    """An API client authenticated as a ServiceAccount, as a pod running under it would be."""
-    token = cluster.kubectl("create", "token", account, "-n", namespace, "--duration=10m").stdout.strip()
+def client_as(cluster: Any, namespace: str, account: str, pod: k8s.V1Pod | None = None) -> k8s.ApiClient:
+    """An API client authenticated as a ServiceAccount; with `pod`, by a token bound to that pod, as
+    the kubelet projects one (the API server then names the pod's Node in the user's extra fields)."""
+    bound = (
+        [
+            "--bound-object-kind=Pod",
+            f"--bound-object-name={pod.metadata.name}",
+            f"--bound-object-uid={pod.metadata.uid}",
+        ]
+        if pod is not None
+        else []
+    )
+    token = cluster.kubectl(
+        "create", "token", account, "-n", namespace, "--duration=10m", *bound
+    ).stdout.strip()
     return client_with_token(cluster, token)
 
 
@@ -48,6 +62,22 @@ def denied(call: Callable[[], Any]) -> bool:
     except ApiException as error:
         return error.status == 403
     return False
+
+
+def executor_pod(cluster: Any, namespace: str, instance: str) -> k8s.V1Pod:
+    """The pod running the executor of one CoralInstance (either layout)."""
+    pods = (
+        k8s.CoreV1Api(cluster.api_client)
+        .list_namespaced_pod(namespace, label_selector=f"{names.LABEL_INSTANCE}={instance}")
+        .items
+    )
+    return next(p for p in pods if (p.spec.service_account_name or "").startswith(EXECUTOR_ACCOUNT_PREFIX))
+
+
+def executor_client(cluster: Any, namespace: str, instance: str) -> k8s.ApiClient:
+    """An API client holding the identity of one instance's executor, bound to its pod."""
+    pod = executor_pod(cluster, namespace, instance)
+    return client_as(cluster, namespace, pod.spec.service_account_name, pod)
 
 
 class Coral:

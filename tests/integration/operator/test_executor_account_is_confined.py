@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 from coral.executor import kubernetes_sink as sink
-from coral_api import GROUP, VERSION, client_as, denied
+from coral_api import GROUP, VERSION, denied, executor_client, executor_pod
 from kubernetes import client as k8s
 from scenarios import Scenario
 
@@ -16,7 +16,8 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(scenario: 
     mine, other = scenario.robots(2)
     scenario.deploy()
     instance = f"fleet-{mine}"
-    as_executor = client_as(cluster, namespace, f"{instance}-executor")
+    executor = executor_pod(cluster, namespace, instance)
+    as_executor = executor_client(cluster, namespace, instance)
 
     status_sink = sink.KubernetesStatusSink(
         sink.build_patcher(as_executor, namespace, instance), background=False
@@ -70,7 +71,7 @@ def test_the_executor_account_writes_its_tree_status_and_nothing_else(scenario: 
     ), "patching its own instance's spec must be denied"
     assert denied(
         lambda: core.patch_namespaced_pod(
-            f"{instance}-executor", namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
+            executor.metadata.name, namespace, {"metadata": {"labels": {"x": "y"}}}, _content_type=merge
         )
     ), "patching a pod must be denied"
     assert coral.instances()[f"fleet-{other}"]["status"].get("tree") is None

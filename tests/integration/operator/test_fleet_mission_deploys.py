@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 from coral_api import is_current_and_true, pod_ready_since
+from coral_operator.planning import naming
 from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
@@ -56,7 +57,7 @@ def test_the_fleet_example_runs_on_every_matching_robot(scenario: Scenario) -> N
         # Ordered startup: each stage is created only after the previous one reported Ready.
         assert slam.metadata.creation_timestamp >= pod_ready_since(driver)
         assert executor.metadata.creation_timestamp >= pod_ready_since(slam)
-        assert executor.spec.service_account_name == f"fleet-{robot}-executor"
+        assert executor.spec.service_account_name == naming.executor_account_name("fleet")
         config = [
             s.config_map.name for s in {v.name: v for v in executor.spec.volumes}["config"].projected.sources
         ]

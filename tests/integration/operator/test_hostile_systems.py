@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from coral_api import Coral, client_as, condition, fleet_mission, is_current_and_true
+from coral_api import Coral, condition, executor_client, fleet_mission, is_current_and_true
 from coral_testbed.cluster import processes
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
@@ -374,7 +374,7 @@ def test_settled_statuses_are_not_rewritten(stage: Stage) -> None:
 def test_a_condition_forged_with_the_executors_own_identity_is_overwritten(stage: Stage) -> None:
     coral = stage.coral(stage.healthy)
     (name,) = [n for n, i in coral.instances().items() if i["spec"]["system"] == "healthy"]
-    as_executor = k8s.CustomObjectsApi(client_as(stage.cluster, stage.healthy, f"{name}-executor"))
+    as_executor = k8s.CustomObjectsApi(executor_client(stage.cluster, stage.healthy, name))
     instance = coral.instances()[name]
     forged = [
         {**entry, "reason": "Forged", "message": "forged by the executor", "observedGeneration": 999}

@@ -132,7 +132,7 @@ def test_the_host_network_and_host_paths_carry_over_to_the_robot_pod(
 def test_only_the_executors_get_the_api_identity(spec_dict: Callable[..., dict[str, Any]]) -> None:
     pod = _robot_pod(spec_dict())
     assert pod["spec"]["automountServiceAccountToken"] is False
-    assert pod["spec"]["serviceAccountName"] == naming.executor_account_name("sys-r1")
+    assert pod["spec"]["serviceAccountName"] == naming.executor_account_name("sys")
     for container in pod["spec"]["initContainers"]:
         assert pods.SERVICE_ACCOUNT_DIR not in {m["mountPath"] for m in container["volumeMounts"]}
     (executor,) = pod["spec"]["containers"]

@@ -110,7 +110,7 @@ def test_only_executors_get_the_tree_and_a_service_account(spec_dict: Callable[.
     executor, driver = built["executor"], built["lidar"]
     sources = [s["configMap"]["name"] for s in executor["spec"]["volumes"][1]["projected"]["sources"]]
     assert sources == ["sys-params-1", "sys-tree-1"]
-    assert executor["spec"]["serviceAccountName"] == "sys-r1-executor"
+    assert executor["spec"]["serviceAccountName"] == "coral-executor-sys"
     assert executor["spec"]["automountServiceAccountToken"] is True
     assert _env(executor)["CORAL_INSTANCE"] == "sys-r1"
     assert "--sink" in executor["spec"]["containers"][0]["command"]
