@@ -3,6 +3,7 @@ admission policy that confines each executor to its own robot's instance is fail
 
 from __future__ import annotations
 
+from coral_operator.api.names import LABEL_SYSTEM
 from coral_operator.planning import naming, rbac
 
 
@@ -33,5 +34,5 @@ def test_the_policy_refuses_on_error_and_checks_system_and_node() -> None:
     assert rule["resources"] == ["coralinstances/status"]
     checks = " ".join(v["expression"] for v in policy["spec"]["validations"])
     assert rbac.NODE_NAME_EXTRA in checks and "oldObject.spec.nodeName" in checks
-    assert f"oldObject.metadata.labels['{naming.LABEL_SYSTEM}']" in checks
+    assert f"oldObject.metadata.labels['{LABEL_SYSTEM}']" in checks
     assert all(v["reason"] == "Forbidden" for v in policy["spec"]["validations"])

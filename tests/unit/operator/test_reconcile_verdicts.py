@@ -18,7 +18,7 @@ from coral_operator.api import names
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import instances
+from coral_operator.planning import instances, naming
 from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
@@ -294,7 +294,6 @@ def test_instance_ready_once_every_component_is_ready(harness: Harness) -> None:
     for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
         harness.pods_are(ready=ready)
         status = harness.pass_instance(spec)
-    assert harness.kube.of("apply rbac"), "the executor's identity is made before its pod"
     assert _conditions(status)["Ready"] == ("True", "Ready")
     assert _conditions(status)["Reconciling"][0] == "False"
     assert [c["ready"] for c in status["components"]] == [True, True, True]
@@ -372,6 +371,11 @@ def test_system_reconciling_creates_one_instance_per_robot_and_counts_them_in_on
     harness.add_robot(robot("r2"))
     status = harness.pass_system(_spec())
     assert sorted(harness.kube.of("create instance")) == ["sys-r1", "sys-r2"]
+    verbs = [verb for verb, _ in harness.kube.writes]
+    assert harness.kube.of("apply rbac") == [naming.executor_account_name("sys")]
+    assert verbs.index("apply rbac") < verbs.index("create instance"), (
+        "the executors' identity exists before any instance whose pods use it"
+    )
     assert len(harness.kube.of("create configmap")) == 2, "the validated tree and parameters"
     assert harness.kube.of("create revision") == [""]
     assert _conditions(status)["Reconciling"][0] == "True"
