@@ -190,7 +190,7 @@ def ensure_admission_policy(objects: list[dict[str, Any]], hash_annotation: str)
             apply(
                 name,
                 manifest,
-                field_manager=naming.FIELD_MANAGER,
+                field_manager=names.MANAGER,
                 force=True,
                 _content_type="application/apply-patch+yaml",
                 _preload_content=False,
