@@ -121,7 +121,23 @@ def build_admission_policy() -> list[dict[str, Any]]:
 
 
 def render_admission_policy() -> str:
-    """The policy and its binding as the chart's template (no Helm directives: the same everywhere)."""
+    """The policy and its binding as the chart's template.
+
+    Both are cluster-scoped, one per cluster, while the chart may be installed once per namespace
+    (and the operator applies them itself when it may). So each is rendered only when the cluster
+    has none yet or this release made it: a second release, or a policy the operator applied,
+    is left as it is instead of failing the install. `helm template` (no cluster) renders both.
+    """
     header = "# Generated from coral_operator/planning/rbac.py by hack/generate-crds.py; do not edit.\n"
-    documents = [yaml.safe_dump(m, sort_keys=True, width=100) for m in build_admission_policy()]
-    return header + "---\n".join(documents)
+    documents = []
+    for manifest in build_admission_policy():
+        guard = (
+            f'{{{{- $found := lookup "{manifest["apiVersion"]}" "{manifest["kind"]}" "" '
+            f'"{manifest["metadata"]["name"]}" }}}}\n'
+            '{{- $owner := dig "metadata" "annotations" "meta.helm.sh/release-name" "" $found }}\n'
+            '{{- $home := dig "metadata" "annotations" "meta.helm.sh/release-namespace" "" $found }}\n'
+            "{{- if or (not $found) (and (eq $owner .Release.Name) (eq $home .Release.Namespace)) }}\n"
+        )
+        body = yaml.safe_dump(manifest, sort_keys=True, width=100)
+        documents.append(guard + "---\n" + body + "{{- end }}\n")
+    return header + "".join(documents)
