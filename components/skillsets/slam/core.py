@@ -14,6 +14,7 @@ import math
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from coral.lidar import trajectory
@@ -112,10 +113,8 @@ class SlamCore:
         self.reset()
 
     def reset(self) -> None:
-        from kiss_icp.kiss_icp import KissICP
-
         with self._odometry_lock, self._state_lock:
-            self._odometry = KissICP(config=self.config.kiss_config())
+            self._odometry = _odometry(self.config.kiss_config())
             self._stamps: list[int] = []
             self._poses: list[np.ndarray] = []
             self._map_chunks: list[np.ndarray] = []
@@ -162,13 +161,20 @@ class SlamCore:
         if keyframe:
             # Keyframes only: consecutive scans overlap almost entirely, and thinning every one
             # would cost registration time for no new map content.
-            from kiss_icp.voxelization import voxel_down_sample
-
-            thinned = voxel_down_sample(np.asarray(frame), self.config.map_voxel_size)
+            thinned = self._thinned_for_map(frame)
             chunk = thinned @ pose[:3, :3].T + pose[:3, 3]
             with self._state_lock:
                 self._map_chunks.append(chunk)
         return ScanResult(index, pose, len(clean.points), clean.dropped, clean.deskew)
+
+    def _thinned_for_map(self, frame: np.ndarray) -> np.ndarray:
+        """The scan at the map's resolution; at the default resolution, half KISS-ICP's voxel,
+        KISS-ICP has just thinned it so for its own local map, and that result is reused."""
+        if math.isclose(self.config.map_voxel_size, self._odometry.config.mapping.voxel_size * 0.5):
+            return self._odometry.map_points
+        from kiss_icp.voxelization import voxel_down_sample
+
+        return np.asarray(voxel_down_sample(np.asarray(frame), self.config.map_voxel_size))
 
     def _is_keyframe(self, pose: np.ndarray) -> bool:
         if self._keyframe is None:
@@ -228,3 +234,18 @@ class SlamCore:
             self._odometry.local_map.add_points(points)
             self._prior_map = points
         return len(points)
+
+
+def _odometry(config: object) -> Any:
+    """KISS-ICP's odometry, keeping the points each scan adds to its local map (`map_points`)."""
+    from kiss_icp.kiss_icp import KissICP
+
+    class Odometry(KissICP):
+        map_points: np.ndarray = np.empty((0, 3))
+
+        def voxelize(self, iframe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            source, frame_downsample = super().voxelize(iframe)
+            self.map_points = np.asarray(frame_downsample)
+            return source, frame_downsample
+
+    return Odometry(config=config)

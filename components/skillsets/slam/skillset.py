@@ -35,6 +35,7 @@ from typing import Any
 
 from coral.lidar import clouds
 from coral.sdk import CancelToken, Skillset
+from coral.sdk.streams import RawStream
 from coral_skillsets.slam import behaviors
 from coral_skillsets.slam.core import MapFileError, ScanRejected, SlamConfig, SlamCore
 from nav_msgs.srv import LoadMap
@@ -113,7 +114,7 @@ class SlamSkillset(Skillset):
         self.points_qos = QoSProfile(
             depth=queue_size, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
         )
-        self.points_subscription: Any = None
+        self.points_subscription: RawStream | None = None
         self.subscribe_on_enable = bool(self.param("subscribe_on_enable", False))
         if not self.subscribe_on_enable:
             self._subscribe_points()
@@ -140,8 +141,8 @@ class SlamSkillset(Skillset):
     def _subscribe_points(self) -> None:
         with self.arrived:
             if self.points_subscription is None:
-                self.points_subscription = self.create_subscription(
-                    PointCloud2, self.points_topic, self.on_scan, self.points_qos, raw=True
+                self.points_subscription = RawStream(
+                    self, PointCloud2, self.points_topic, self.points_qos, self.on_scan, suffix="points"
                 )
 
     def on_scan(self, message: bytes) -> None:
@@ -428,6 +429,8 @@ class SlamSkillset(Skillset):
     def on_stop(self) -> None:
         self.worker_stop.set()
         self.worker.join(timeout=10.0)
+        if self.points_subscription is not None:
+            self.points_subscription.close()
         status = self.status()
         self.get_logger().info(
             f"SLAM stopping: {status['processed']} scan(s) processed, {status['failed']} rejected, "
