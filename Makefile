@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -32,6 +32,14 @@ node-runtime:
 images: venv node-runtime
 	@$(VENV)/bin/coral images build
 
+# The images the tests run, built before pytest (with progress) so a first build of about five
+# minutes counts against no test's timeout; the tests' fixtures then find them unchanged and only
+# push them to their session's registry. Skipped where images cannot be built (the tests say why).
+test-images: venv node-runtime
+	@if [ "$$(id -u)" -eq 0 ] && command -v buildah >/dev/null && command -v mmdebstrap >/dev/null; then \
+		echo "==> images (unchanged ones are not rebuilt)"; \
+		$(VENV)/bin/coral images build --no-push || echo "==> the image build failed; the tests that need images will say why"; fi
+
 # coral-verdicts: kstatus, Argo CD's Lua runtime and Flux's CEL for the verdict tests (docs/verdicts.md);
 # the tests build it on first use too. Cached under ~/.cache/coral-on-kubernetes by version.
 verdict-tools:
@@ -49,7 +57,7 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane node-runtime verdict-tools
+test: venv control-plane node-runtime verdict-tools test-images
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"
