@@ -64,7 +64,10 @@ class HealthMonitor:
         now = self._clock()
         silent_s = now - seen.last_beat
         if silent_s > self._timeout_s:
-            return f"no heartbeat for {silent_s:.1f} s"
+            # The timeout, not the growing silence: the reason ends up in `LibraryDegraded`'s
+            # message, and a message that changed every tick would rewrite the condition (and
+            # patch the CoralInstance) every tick for as long as the component stays away.
+            return f"no heartbeat for over {self._timeout_s:g} s"
         if seen.restarted_at is not None and now - seen.restarted_at < self._restart_s:
             return "it restarted (a new process; its state is lost)"
         return None

@@ -30,9 +30,21 @@ def test_a_silent_component_is_degraded_after_the_timeout_and_recovers_on_a_beat
     clock.now += 1.4
     assert monitor.degraded(["examples"]) == {}
     clock.now += 0.2
-    assert monitor.degraded(["examples"]) == {"examples": "no heartbeat for 1.6 s"}
+    assert monitor.degraded(["examples"]) == {"examples": "no heartbeat for over 1.5 s"}
     monitor.observe(_beat("examples"))
     assert monitor.failure("examples") is None
+
+
+def test_the_reason_stays_the_same_while_the_silence_grows() -> None:
+    """So `LibraryDegraded` is written once when a component goes, not once per tick after."""
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5)
+    monitor.observe(_beat("examples"))
+    reasons = set()
+    for _ in range(50):
+        clock.now += 0.1
+        reasons.add(monitor.failure("examples"))
+    assert reasons == {None, "no heartbeat for over 1.5 s"}
 
 
 def test_a_stopping_component_is_degraded_at_once() -> None:
