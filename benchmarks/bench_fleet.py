@@ -139,6 +139,11 @@ def run_size(count: int, work: Path) -> SizeFigures:
                 f"{run} n={count}: ready {ds.ready_seconds:.1f} s, rolling update {ds.update_seconds:.1f} s, "
                 f"apiserver CPU {cpu[run]:.1f} s, requests {dict(requests)}"
             )
+            everyone = log.count_since_mark(audit.client_and_kind)
+            note(
+                f"{run} n={count}: all requests by client: "
+                + ", ".join(f"{k}={v}" for k, v in everyone.most_common(16))
+            )
             times[f"{run}_ready"], times[f"{run}_update"] = ds.ready_seconds, ds.update_seconds
             daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
 
@@ -203,12 +208,14 @@ def _coral_run(
     cpu_before = coral.cpu_seconds(operator.process.pid)
     cpu_mark = _cpu(state)
     kinds: dict[str, Counter[str]] = {}
+    everyone: dict[str, Counter[str]] = {}
 
     def count_phase(phase: str) -> None:
         time.sleep(2)  # let the batched audit backend flush the phase's last requests before counting
         kinds[phase] = log.count_since_mark(
             lambda e: audit.request_kind(e) if audit.classify(e) == "operator" else None
         )
+        everyone[phase] = log.count_since_mark(audit.client_and_kind)
         log.mark()
 
     log.mark()
@@ -240,6 +247,10 @@ def _coral_run(
             + ", ".join(f"{k}={v}" for k, v in counted.most_common(10))
         )
         writes = {kind: n for kind, n in counted.items() if kind.split(" ", 1)[0] in WRITE_VERBS}
+        note(
+            f"all requests by client ({layout}, {phase}): "
+            + ", ".join(f"{k}={v}" for k, v in everyone.get(phase, Counter()).most_common(16))
+        )
         note(
             f"operator writes per robot ({layout}, {phase}): "
             + ", ".join(f"{k}={v / count:.2f}" for k, v in sorted(writes.items(), key=lambda kv: -kv[1]))

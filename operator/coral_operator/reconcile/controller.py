@@ -108,8 +108,9 @@ class Controller:
     def on_instance(
         self, *, deleted: bool, namespace: str, name: str, uid: str, body: Mapping[str, Any]
     ) -> None:
-        """Pass the instance on any change (its own status writes find nothing to do), and its
-        system when something the system reads of it changed."""
+        """Pass the instance on any change but the echo of this process's own status write (which
+        the pass that wrote it already accounted for), and its system when something the system
+        reads of it changed."""
         key = (INSTANCE, namespace, name)
         system = (body.get("spec") or {}).get("system")
         if deleted:
@@ -119,7 +120,8 @@ class Controller:
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return
-        self.queue.add(key)
+        if not self.memory.is_own_write(uid, (body.get("metadata") or {}).get("resourceVersion")):
+            self.queue.add(key)
         if system and self.memory.changed(key, observing.instance_summary(body)):
             self.queue.add((SYSTEM, namespace, system))
 

@@ -60,6 +60,12 @@ class Memory:
             return status
         return {**status, **written}
 
+    def is_own_write(self, uid: str, resource_version: str | None) -> bool:
+        """Whether the object at `resource_version` is exactly what this process's last status
+        write made: nothing else has changed it since, so it holds nothing a pass has not seen."""
+        version, _, _ = self.status_written(uid)
+        return bool(version) and version == resource_version
+
     def remember_status(self, uid: str, version: str, status: dict[str, Any]) -> None:
         with self._lock:
             self._status_written[uid] = (version, status, self.clock())
