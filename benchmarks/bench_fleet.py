@@ -97,7 +97,7 @@ class SizeFigures:
     times: dict[str, float]
 
 
-def run_size(count: int, work: Path) -> SizeFigures:
+def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -150,7 +150,7 @@ def run_size(count: int, work: Path) -> SizeFigures:
         if not _apply_crds(_env(state.kubeconfig)):
             raise RuntimeError("kubectl apply -f crds/ failed")
         operator = coral.OperatorProcess(
-            _env(state.kubeconfig), "bench-coral", work / f"operator-{count}.log"
+            _env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
         )
         coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
         for layout, reference, ready_target, update_target in (
@@ -322,11 +322,14 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sizes", nargs="*", type=int, help=f"robot counts (default: {SIZES})")
     parser.add_argument("--plot", type=Path, metavar="DIR", help="also write fleet.png into DIR")
+    parser.add_argument("--logs", type=Path, metavar="DIR", help="keep the operator logs in DIR")
     args = parser.parse_args(argv)
     figures = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
         for count in args.sizes or SIZES:
-            figures.append(run_size(count, Path(folder) / f"n{count}"))
+            if args.logs is not None:
+                args.logs.mkdir(parents=True, exist_ok=True)
+            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs))
     report_growth(figures)
     if args.plot is not None:
         points = [

@@ -122,8 +122,11 @@ class InstanceReconciler:
         assert plan.startup is not None
         namespace = record.namespace
         refused: dict[str, str] = {}
-        for pod_name in plan.startup.delete:
-            applying.delete_pod(namespace, pod_name)
+        if plan.startup.delete_selector is not None:
+            applying.delete_pods(namespace, plan.startup.delete_selector)
+        else:
+            for pod_name in plan.startup.delete:
+                applying.delete_pod(namespace, pod_name)
         for manifest in plan.startup.create:
             if instance_pass.refusal_key(manifest) in refused:
                 continue

@@ -68,6 +68,11 @@ class FakeKube:
             self.writes.append(("delete pod", name))
             self.pods.pop(name, None)
 
+        def delete_pods(namespace: str, labels: dict[str, str]) -> None:
+            for name, manifest in list(self.pods.items()):
+                if labels.items() <= manifest["metadata"]["labels"].items():
+                    delete_pod(namespace, name)
+
         def patch_status(namespace: str, name: str, changes: dict[str, Any]) -> str:
             self.writes.append(("patch status", name))
             merged = self.status.setdefault(name, {})
@@ -94,6 +99,7 @@ class FakeKube:
         patches = {
             "create_pod": create_pod,
             "delete_pod": delete_pod,
+            "delete_pods": delete_pods,
             "patch_pod_labels": lambda ns, name, labels: self.writes.append(("relabel pod", name)),
             "patch_pod": lambda ns, name, patch: self.writes.append(("patch pod", name)),
             "apply_rbac": lambda objects: self.writes.append(("apply rbac", objects[0]["metadata"]["name"])),
