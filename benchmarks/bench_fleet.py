@@ -57,7 +57,7 @@ TARGET_WRITES_PER_ROBOT = 8.0
 TARGET_APISERVER_CPU = 1.5
 # Seconds per robot at one size over the size before: near linear.
 TARGET_GROWTH = 1.25
-WRITE_VERBS = ("create", "update", "patch", "delete")
+WRITE_VERBS = ("create", "update", "patch", "delete", "deletecollection")
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT_LIMITS = ["--kube-api-qps=500", "--kube-api-burst=1000"]
 # With a thousand kwok Nodes on a busy 2-core machine, kwok's lease renewals can fall more than the

@@ -285,6 +285,18 @@ def test_instance_reconciling_a_new_robot_starts_its_drivers_and_writes_status_o
     assert harness.kube.of("patch status") == ["sys-r1"], "nothing a verdict reads changed"
 
 
+def test_instance_pass_before_the_index_caught_up_makes_no_write_twice(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.pass_instance(spec)
+    harness.pass_instance(spec)  # the index does not show the driver's pod yet
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"], "created once, as the watch will show"
+    harness.pods_are(ready=set())
+    harness.pass_instance(spec)  # the watch shows the pod
+    harness.tables["coral_pods"][(NS, "sys-r1")] = []  # and then someone deletes it
+    harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"] * 2, "a pod seen and gone is made again"
+
+
 def test_instance_progress_without_a_verdict_change_waits_instead_of_writing(harness: Harness) -> None:
     spec = _instance_spec()
     harness.pass_instance(spec)
