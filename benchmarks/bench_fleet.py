@@ -2,8 +2,11 @@
 
 Run by `make bench-fleet` (part of `make bench`); `python benchmarks/bench_fleet.py 100` runs one
 size (`make bench-fleet SIZES=100` likewise); `--plot DIR` also draws the times against robot
-count into DIR/fleet.png. For each size, on a fresh local control plane (etcd, kube-apiserver,
-controller manager, scheduler, kwok) with that many kwok robots, in the same run:
+count into DIR/fleet.png, and `--logs DIR` keeps the operator's log of each size in DIR (its work
+queue says every 10 s how many passes ran, how long they took and how late they started).
+
+For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
+scheduler, kwok) with that many kwok robots, in the same run:
 
 1. One DaemonSet, one pod with the three containers per robot: the floor, and the reference of
    `PodPerRobot`. Time until every pod is Ready, then a rolling update (`maxUnavailable: 10%`)
@@ -16,8 +19,9 @@ controller manager, scheduler, kwok) with that many kwok robots, in the same run
 4. Coral with `layout: PodPerRobot`: the same system once the first is deleted, one pod (two
    native sidecars and the executor) and one CoralInstance per robot.
 
-For each run it prints the API server's CPU seconds, and for the Coral runs the operator's writes
-per robot by kind, for the first deployment and for the update separately. After the last size it
+For each run it prints the API server's CPU seconds and every client's requests by kind, and for
+the Coral runs the operator's writes per robot by kind (a collection delete counts as one), for
+the first deployment and for the update separately. After the last size it
 prints the growth of each time from one size to the next, per robot (1.0 is linear).
 
 Fairness: all runs share the apiserver, etcd and kwok (16 pod-stage workers instead of its
