@@ -2,8 +2,11 @@
 
 Run by `make bench-fleet` (part of `make bench`); `python benchmarks/bench_fleet.py 100` runs one
 size (`make bench-fleet SIZES=100` likewise); `--plot DIR` also draws the times against robot
-count into DIR/fleet.png. For each size, on a fresh local control plane (etcd, kube-apiserver,
-controller manager, scheduler, kwok) with that many kwok robots, in the same run:
+count into DIR/fleet.png, and `--logs DIR` keeps the operator's log of each size in DIR (its work
+queue says every 10 s how many passes ran, how long they took and how late they started).
+
+For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
+scheduler, kwok) with that many kwok robots, in the same run:
 
 1. One DaemonSet, one pod with the three containers per robot: the floor, and the reference of
    `PodPerRobot`. Time until every pod is Ready, then a rolling update (`maxUnavailable: 10%`)
@@ -16,8 +19,9 @@ controller manager, scheduler, kwok) with that many kwok robots, in the same run
 4. Coral with `layout: PodPerRobot`: the same system once the first is deleted, one pod (two
    native sidecars and the executor) and one CoralInstance per robot.
 
-For each run it prints the API server's CPU seconds, and for the Coral runs the operator's writes
-per robot by kind, for the first deployment and for the update separately. After the last size it
+For each run it prints the API server's CPU seconds and every client's requests by kind, and for
+the Coral runs the operator's writes per robot by kind (a collection delete counts as one), for
+the first deployment and for the update separately. After the last size it
 prints the growth of each time from one size to the next, per robot (1.0 is linear).
 
 Fairness: all runs share the apiserver, etcd and kwok (16 pod-stage workers instead of its
@@ -57,7 +61,7 @@ TARGET_WRITES_PER_ROBOT = 8.0
 TARGET_APISERVER_CPU = 1.5
 # Seconds per robot at one size over the size before: near linear.
 TARGET_GROWTH = 1.25
-WRITE_VERBS = ("create", "update", "patch", "delete")
+WRITE_VERBS = ("create", "update", "patch", "delete", "deletecollection")
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT_LIMITS = ["--kube-api-qps=500", "--kube-api-burst=1000"]
 # With a thousand kwok Nodes on a busy 2-core machine, kwok's lease renewals can fall more than the
@@ -97,7 +101,7 @@ class SizeFigures:
     times: dict[str, float]
 
 
-def run_size(count: int, work: Path) -> SizeFigures:
+def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -139,13 +143,18 @@ def run_size(count: int, work: Path) -> SizeFigures:
                 f"{run} n={count}: ready {ds.ready_seconds:.1f} s, rolling update {ds.update_seconds:.1f} s, "
                 f"apiserver CPU {cpu[run]:.1f} s, requests {dict(requests)}"
             )
+            everyone = log.count_since_mark(audit.client_and_kind)
+            note(
+                f"{run} n={count}: all requests by client: "
+                + ", ".join(f"{k}={v}" for k, v in everyone.most_common(16))
+            )
             times[f"{run}_ready"], times[f"{run}_update"] = ds.ready_seconds, ds.update_seconds
             daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
 
         if not _apply_crds(_env(state.kubeconfig)):
             raise RuntimeError("kubectl apply -f crds/ failed")
         operator = coral.OperatorProcess(
-            _env(state.kubeconfig), "bench-coral", work / f"operator-{count}.log"
+            _env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
         )
         coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
         for layout, reference, ready_target, update_target in (
@@ -203,12 +212,14 @@ def _coral_run(
     cpu_before = coral.cpu_seconds(operator.process.pid)
     cpu_mark = _cpu(state)
     kinds: dict[str, Counter[str]] = {}
+    everyone: dict[str, Counter[str]] = {}
 
     def count_phase(phase: str) -> None:
         time.sleep(2)  # let the batched audit backend flush the phase's last requests before counting
         kinds[phase] = log.count_since_mark(
             lambda e: audit.request_kind(e) if audit.classify(e) == "operator" else None
         )
+        everyone[phase] = log.count_since_mark(audit.client_and_kind)
         log.mark()
 
     log.mark()
@@ -240,6 +251,10 @@ def _coral_run(
             + ", ".join(f"{k}={v}" for k, v in counted.most_common(10))
         )
         writes = {kind: n for kind, n in counted.items() if kind.split(" ", 1)[0] in WRITE_VERBS}
+        note(
+            f"all requests by client ({layout}, {phase}): "
+            + ", ".join(f"{k}={v}" for k, v in everyone.get(phase, Counter()).most_common(16))
+        )
         note(
             f"operator writes per robot ({layout}, {phase}): "
             + ", ".join(f"{k}={v / count:.2f}" for k, v in sorted(writes.items(), key=lambda kv: -kv[1]))
@@ -311,11 +326,14 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sizes", nargs="*", type=int, help=f"robot counts (default: {SIZES})")
     parser.add_argument("--plot", type=Path, metavar="DIR", help="also write fleet.png into DIR")
+    parser.add_argument("--logs", type=Path, metavar="DIR", help="keep the operator logs in DIR")
     args = parser.parse_args(argv)
     figures = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
         for count in args.sizes or SIZES:
-            figures.append(run_size(count, Path(folder) / f"n{count}"))
+            if args.logs is not None:
+                args.logs.mkdir(parents=True, exist_ok=True)
+            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs))
     report_growth(figures)
     if args.plot is not None:
         points = [

@@ -75,6 +75,12 @@ def request_kind(event: dict) -> str:
     return f"{event.get('verb', '?')} {resource}"
 
 
+def client_and_kind(event: dict) -> str:
+    """`client: verb resource` of any request: the whole control plane's share of a run."""
+    agent = (event.get("userAgent") or "?").split("/", 1)[0]
+    return f"{agent}: {request_kind(event)}"
+
+
 def classify(event: dict) -> str | None:
     """Which client made a request: `daemonset`, `scheduler`, `operator`, or None for the rest."""
     agent = event.get("userAgent") or ""

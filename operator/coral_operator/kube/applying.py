@@ -79,6 +79,17 @@ def delete_pod(namespace: str, name: str) -> None:
         _ignore(error, 404)
 
 
+def delete_pods(namespace: str, labels: dict[str, str]) -> None:
+    """Delete every pod carrying `labels` in one request (none left is success)."""
+    selector = ",".join(f"{key}={value}" for key, value in sorted(labels.items()))
+    # No resourceVersion: on a collection delete it is a precondition on every pod, not a cache hint.
+    _drain(
+        client.core().delete_collection_namespaced_pod(
+            namespace, label_selector=selector, _preload_content=False
+        )
+    )
+
+
 def patch_pod_labels(namespace: str, name: str, labels: dict[str, str]) -> None:
     try:
         client.core().patch_namespaced_pod(

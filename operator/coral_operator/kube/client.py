@@ -10,7 +10,7 @@ import functools
 from kubernetes import client, config
 from kubernetes.config.config_exception import ConfigException
 
-CONNECTIONS = 32
+CONNECTIONS = 64
 """Pooled connections to the API server: more than the handler threads plus the parallel writers."""
 
 

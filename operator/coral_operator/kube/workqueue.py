@@ -21,6 +21,26 @@ from typing import Generic, TypeVar
 
 K = TypeVar("K", bound=Hashable)
 LOG = logging.getLogger(__name__)
+# How often the queue logs what it did (passes, time spent in them, how late they started): at
+# fleet scale the line tells whether passes wait for a worker or for the API.
+REPORT_INTERVAL_S = 10.0
+
+
+class _Tally:
+    """Passes since the last report: how many, how long they ran and how late they started."""
+
+    def __init__(self) -> None:
+        self.since = time.monotonic()
+        self.passes = 0
+        self.busy = 0.0
+        self.late = 0.0
+        self.latest = 0.0
+
+    def add(self, late: float, busy: float) -> None:
+        self.passes += 1
+        self.busy += busy
+        self.late += late
+        self.latest = max(self.latest, late)
 
 
 class WorkQueue(Generic[K]):
@@ -56,6 +76,7 @@ class WorkQueue(Generic[K]):
         self._failures: dict[K, int] = {}
         self._threads: list[threading.Thread] = []
         self._stopping = False
+        self._tally = _Tally()
 
     def start(self) -> None:
         """Start the workers, each in a copy of the caller's context variables.
@@ -119,7 +140,8 @@ class WorkQueue(Generic[K]):
         with self._cond:
             return len(self._due) + len(self._processing)
 
-    def _take(self) -> K | None:
+    def _take(self) -> tuple[K, float] | None:
+        """The next due key and how late it is taken (waiting for a free worker), or None to stop."""
         with self._cond:
             while not self._stopping:
                 while self._heap and self._due.get(self._heap[0][2]) != self._heap[0][0]:
@@ -131,13 +153,13 @@ class WorkQueue(Generic[K]):
                         heapq.heappop(self._heap)
                         del self._due[key]
                         self._processing.add(key)
-                        return key
+                        return key, -wait
                     self._cond.wait(wait)
                 else:
                     self._cond.wait()
             return None
 
-    def _done(self, key: K, failed: bool) -> None:
+    def _done(self, key: K, failed: bool, late: float, busy: float) -> None:
         now = time.monotonic()
         self._last_run[key] = now
         if failed:
@@ -150,6 +172,22 @@ class WorkQueue(Generic[K]):
         with self._cond:
             self._processing.discard(key)
             again = self._again.pop(key, None)
+            self._tally.add(late, busy)
+            report, depth = None, len(self._due)
+            if now - self._tally.since >= REPORT_INTERVAL_S:
+                report, self._tally = self._tally, _Tally()
+        if report is not None:
+            LOG.info(
+                "%s: %d passes in %.0f s, %.1f s of them in passes, started %.0f ms late on average "
+                "(at most %.0f ms); %d due",
+                self._name,
+                report.passes,
+                now - report.since,
+                report.busy,
+                report.late / report.passes * 1000,
+                report.latest * 1000,
+                depth,
+            )
         if retry is not None:
             self.add(key, retry)
         elif again is not None:
@@ -157,13 +195,15 @@ class WorkQueue(Generic[K]):
 
     def _loop(self) -> None:
         while True:
-            key = self._take()
-            if key is None:
+            taken = self._take()
+            if taken is None:
                 return
+            key, late = taken
             failed = False
+            began = time.monotonic()
             try:
                 self._process(key)
             except Exception:
                 failed = True
                 LOG.exception("%s pass for %s failed; retrying with backoff", self._name, key)
-            self._done(key, failed)
+            self._done(key, failed, late, time.monotonic() - began)

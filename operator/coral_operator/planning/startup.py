@@ -39,6 +39,9 @@ class StartupPlan:
 
     create: list[dict[str, Any]] = field(default_factory=list)
     delete: list[str] = field(default_factory=list)
+    delete_selector: dict[str, str] | None = None
+    """Labels that select exactly the pods of `delete`, when these are two or more pods of one
+    replaced revision: one request then deletes them all (a DeleteAllOf, in Go's terms)."""
     relabel: list[tuple[str, dict[str, str]]] = field(default_factory=list)
     set_images: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
     """Robot pods whose change is images only, with the strategic merge patch that brings them up to
@@ -203,7 +206,32 @@ def plan_startup(
         # previous revision, and its age says nothing about how long the new one has waited.
         if _wait(plan, stage, unready, [current[c] for c in unready], startup, now):
             gate_open = False
+    plan.delete_selector = _replaced_revision(plan.delete, observed, desired)
     return plan
+
+
+def _replaced_revision(
+    delete: list[str], observed: list[ObservedPod], desired: list[dict[str, Any]]
+) -> dict[str, str] | None:
+    """The labels of the pods to delete when they are all the instance's pods of one revision, and
+    that revision is not the one its pods move to (so no pod made for the new one carries it)."""
+    if len(delete) < 2 or not desired:
+        return None
+    doomed = set(delete)
+    revisions = {pod.revision for pod in observed if pod.name in doomed}
+    labels = desired[0]["metadata"]["labels"]
+    if len(revisions) != 1:
+        return None
+    (revision,) = revisions
+    if not revision or revision == labels[names.LABEL_REVISION]:
+        return None
+    if any(pod.revision == revision and pod.name not in doomed and not pod.deleting for pod in observed):
+        return None
+    return {
+        names.LABEL_INSTANCE: labels[names.LABEL_INSTANCE],
+        names.LABEL_REVISION: revision,
+        names.LABEL_MANAGED_BY: names.MANAGER,
+    }
 
 
 def _plan_robot_pod(

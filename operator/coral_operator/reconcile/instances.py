@@ -85,7 +85,7 @@ class InstanceReconciler:
             self._retire(record, plan)
             return
         assert plan.startup is not None
-        refused = self._apply(record, plan)
+        refused = self._apply(record, plan, observed)
         if refused:
             self.requeue(key, REFUSED_RETRY_S)
         if plan.startup.wake_at is not None:
@@ -116,24 +116,35 @@ class InstanceReconciler:
             )
         return node
 
-    def _apply(self, record: InstanceRecord, plan: instance_pass.InstancePlan) -> dict[str, str]:
-        """Carry out the startup plan; returns the pods the API server refused for good, with its
-        messages, keyed by `instance_pass.refusal_key`."""
+    def _apply(
+        self, record: InstanceRecord, plan: instance_pass.InstancePlan, observed: list[ObservedPod]
+    ) -> dict[str, str]:
+        """Carry out the startup plan, but for the creates and deletes of earlier passes the index
+        does not show yet; returns the pods the API server refused for good, with its messages,
+        keyed by `instance_pass.refusal_key`."""
         assert plan.startup is not None
         namespace = record.namespace
         refused: dict[str, str] = {}
-        for pod_name in plan.startup.delete:
-            applying.delete_pod(namespace, pod_name)
+        created, deleted = self.memory.pods_in_flight(record.uid, observed)
+        delete = [name for name in plan.startup.delete if name not in deleted]
+        if delete and plan.startup.delete_selector is not None:
+            applying.delete_pods(namespace, plan.startup.delete_selector)
+        else:
+            for pod_name in delete:
+                applying.delete_pod(namespace, pod_name)
+        made = []
         for manifest in plan.startup.create:
-            if instance_pass.refusal_key(manifest) in refused:
+            if instance_pass.refusal_key(manifest) in refused or manifest["metadata"]["name"] in created:
                 continue
             try:
                 applying.create_pod(manifest)
+                made.append(manifest["metadata"]["name"])
             except Exception as error:
                 message = applying.refusal(error)
                 if message is None:
                     raise
                 refused[instance_pass.refusal_key(manifest)] = message
+        self.memory.expect_pods(record.uid, made, delete)
         for pod_name, labels in plan.startup.relabel:
             applying.patch_pod_labels(namespace, pod_name, labels)
         for pod_name, patch in plan.startup.set_images:

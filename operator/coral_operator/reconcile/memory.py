@@ -22,11 +22,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from coral_operator.api.rollout import RolloutStatus
+from coral_operator.planning.observed import ObservedPod
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.status import ownership
 
 # A rollout move not seen in the index after this long is forgotten (the write failed or was replaced).
 EXPECTATION_SECONDS = 60.0
+# A pod written but not seen after this long is written again: the cost of a late watch is one
+# request that answers 409, while a pod deleted before the index ever saw it must come back.
+POD_EXPECTATION_SECONDS = 15.0
 
 
 @dataclass
@@ -41,6 +45,7 @@ class Memory:
     _expected: dict[tuple[str, str], dict[str, tuple[str, float]]] = field(default_factory=dict)
     _rollout_written: dict[str, RolloutStatus] = field(default_factory=dict)
     _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
+    _pod_writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -60,6 +65,12 @@ class Memory:
             return status
         return {**status, **written}
 
+    def is_own_write(self, uid: str, resource_version: str | None) -> bool:
+        """Whether the object at `resource_version` is exactly what this process's last status
+        write made: nothing else has changed it since, so it holds nothing a pass has not seen."""
+        version, _, _ = self.status_written(uid)
+        return bool(version) and version == resource_version
+
     def remember_status(self, uid: str, version: str, status: dict[str, Any]) -> None:
         with self._lock:
             self._status_written[uid] = (version, status, self.clock())
@@ -78,10 +89,35 @@ class Memory:
             self._desired_pods[uid] = (generation, desired)
         return desired
 
+    def pods_in_flight(self, uid: str, observed: list[ObservedPod]) -> tuple[set[str], set[str]]:
+        """(created, deleted): pods of an instance this process created or deleted that `observed`
+        (the index) does not show so yet. A pass that runs before the watch caught up must not
+        create or delete them again, as Kubernetes' own controllers keep "expectations"."""
+        now = self.clock()
+        seen = {pod.name: pod.deleting for pod in observed}
+        with self._lock:
+            writes = self._pod_writes.get(uid, {})
+            for name, (created, since) in list(writes.items()):
+                landed = name in seen if created else seen.get(name, True)
+                if landed or now - since > POD_EXPECTATION_SECONDS:
+                    del writes[name]
+            return (
+                {name for name, (created, _) in writes.items() if created},
+                {name for name, (created, _) in writes.items() if not created},
+            )
+
+    def expect_pods(self, uid: str, created: list[str], deleted: list[str]) -> None:
+        now = self.clock()
+        with self._lock:
+            writes = self._pod_writes.setdefault(uid, {})
+            writes.update({name: (True, now) for name in created})
+            writes.update({name: (False, now) for name in deleted})
+
     def forget_instance(self, uid: str) -> None:
         with self._lock:
             self._status_written.pop(uid, None)
             self._desired_pods.pop(uid, None)
+            self._pod_writes.pop(uid, None)
 
     # --- systems -----------------------------------------------------------------------------
 

@@ -145,6 +145,31 @@ def test_a_changed_component_is_deleted_then_recreated_when_gone(
     assert plan.create[0]["metadata"]["name"] != old.name
 
 
+def test_the_pods_of_a_replaced_revision_go_in_one_request(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    env = [{"name": "MODE", "value": "2"}]
+    old = [_observed(m, ready=True, revision="older") for m in _desired(spec_dict())]
+    changed = {
+        "drivers": [{"name": "lidar", "image": "example/lidar:1", "env": env}],
+        "skillsets": [{"name": "slam", "image": "example/slam:1", "env": env}],
+    }
+    plan = _plan(_desired(spec_dict(**changed)), old)
+    assert sorted(plan.delete) == sorted(p.name for p in old[:2])
+    # The executor did not change and is relabelled: a selector on the old revision would take it too.
+    assert plan.delete_selector is None
+    everything = _desired(
+        spec_dict(**changed, executors=[{"name": "executor", "image": "example/executor:2", "env": env}])
+    )
+    plan = _plan(everything, old)
+    assert sorted(plan.delete) == sorted(p.name for p in old)
+    assert plan.delete_selector == {
+        names.LABEL_INSTANCE: "sys-r1",
+        names.LABEL_REVISION: "older",
+        names.LABEL_MANAGED_BY: names.MANAGER,
+    }
+    one = _plan(everything, old[:1])
+    assert one.delete == [old[0].name] and one.delete_selector is None, "one pod is deleted by name"
+
+
 def test_a_changed_driver_never_runs_beside_its_replacement(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:

@@ -68,6 +68,18 @@ def test_an_instance_change_queues_its_system_only_when_the_system_reads_it() ->
     assert (SYSTEM, "ns", "fleet") in _drain(controller), "a tree's root status gates rollouts"
 
 
+def test_the_echo_of_its_own_status_write_costs_an_instance_no_pass() -> None:
+    controller = _controller()
+    instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
+    written = {**_instance(), "metadata": {"generation": 1, "labels": {}, "resourceVersion": "7"}}
+    controller.memory.remember_status("i1", "7", written["status"])
+    controller.on_instance(**instance, body=written)
+    assert (INSTANCE, "ns", "fleet-r1") not in _drain(controller), "the pass that wrote it saw it all"
+    changed = {**written, "metadata": {**written["metadata"], "resourceVersion": "8"}}
+    controller.on_instance(**instance, body=changed)
+    assert (INSTANCE, "ns", "fleet-r1") in _drain(controller), "someone else's change is an input"
+
+
 def test_a_robot_heartbeat_queues_nothing_and_a_readiness_change_queues_its_instances() -> None:
     controller = _controller()
     controller.indexes.attach(

@@ -68,6 +68,11 @@ class FakeKube:
             self.writes.append(("delete pod", name))
             self.pods.pop(name, None)
 
+        def delete_pods(namespace: str, labels: dict[str, str]) -> None:
+            for name, manifest in list(self.pods.items()):
+                if labels.items() <= manifest["metadata"]["labels"].items():
+                    delete_pod(namespace, name)
+
         def patch_status(namespace: str, name: str, changes: dict[str, Any]) -> str:
             self.writes.append(("patch status", name))
             merged = self.status.setdefault(name, {})
@@ -94,6 +99,7 @@ class FakeKube:
         patches = {
             "create_pod": create_pod,
             "delete_pod": delete_pod,
+            "delete_pods": delete_pods,
             "patch_pod_labels": lambda ns, name, labels: self.writes.append(("relabel pod", name)),
             "patch_pod": lambda ns, name, patch: self.writes.append(("patch pod", name)),
             "apply_rbac": lambda objects: self.writes.append(("apply rbac", objects[0]["metadata"]["name"])),
@@ -277,6 +283,18 @@ def test_instance_reconciling_a_new_robot_starts_its_drivers_and_writes_status_o
     harness.pods_are(ready=set())
     harness.pass_instance(spec)
     assert harness.kube.of("patch status") == ["sys-r1"], "nothing a verdict reads changed"
+
+
+def test_instance_pass_before_the_index_caught_up_makes_no_write_twice(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.pass_instance(spec)
+    harness.pass_instance(spec)  # the index does not show the driver's pod yet
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"], "created once, as the watch will show"
+    harness.pods_are(ready=set())
+    harness.pass_instance(spec)  # the watch shows the pod
+    harness.tables["coral_pods"][(NS, "sys-r1")] = []  # and then someone deletes it
+    harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"] * 2, "a pod seen and gone is made again"
 
 
 def test_instance_progress_without_a_verdict_change_waits_instead_of_writing(harness: Harness) -> None:
