@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet test-kind
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -76,9 +76,9 @@ test-kind: venv
 	kind create cluster --name coral --config tests/kind/cluster.yaml
 	KUBECONFIG=$$(mktemp) && kind get kubeconfig --name coral > $$KUBECONFIG && KUBECONFIG=$$KUBECONFIG $(PY) -m pytest; rc=$$?; kind delete cluster --name coral; exit $$rc
 
-bench: bench-bt bench-calls bench-slam bench-fleet
+bench: bench-bt bench-calls bench-slam bench-fleet bench-writes
 
 # `make bench PLOT=figures` also writes the fleet and SLAM figures as PNGs into figures/;
 # `make bench-fleet SIZES=100` runs the fleet benchmark at 100 robots only (default 100 500 1000).
-bench-bt bench-calls bench-slam bench-fleet: venv
+bench-bt bench-calls bench-slam bench-fleet bench-writes: venv
 	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f $(if $(and $(PLOT),$(filter bench-fleet bench-slam,$@)),--plot $(PLOT)) $(if $(filter bench-fleet,$@),$(SIZES)); else echo "$$f: not written yet"; fi

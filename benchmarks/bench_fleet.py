@@ -151,10 +151,10 @@ def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
             times[f"{run}_ready"], times[f"{run}_update"] = ds.ready_seconds, ds.update_seconds
             daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
 
-        if not _apply_crds(_env(state.kubeconfig)):
+        if not coral.apply_crds(coral.kube_env(state.kubeconfig)):
             raise RuntimeError("kubectl apply -f crds/ failed")
         operator = coral.OperatorProcess(
-            _env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
+            coral.kube_env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
         )
         coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
         for layout, reference, ready_target, update_target in (
@@ -293,33 +293,6 @@ def _cpu_since(state: controlplane.State, mark: dict[str, float]) -> str:
     """CPU each control-plane process spent since `mark`: where a 2-core machine's time went."""
     now = _cpu(state)
     return ", ".join(f"{name}={now[name] - mark.get(name, 0.0):.1f}" for name in sorted(now))
-
-
-def _env(kubeconfig: Path) -> dict[str, str]:
-    import os
-
-    return {**os.environ, "KUBECONFIG": str(kubeconfig)}
-
-
-def _apply_crds(env: dict[str, str]) -> bool:
-    import subprocess
-
-    from coral_testbed.cluster import binaries
-
-    kubectl = binaries.find_kubectl(None)
-    result = subprocess.run(
-        [kubectl, "apply", "--server-side", "-f", str(ROOT / "crds")], env=env, capture_output=True, text=True
-    )
-    if result.returncode != 0:
-        print(result.stderr, file=sys.stderr)
-        return False
-    subprocess.run(
-        [kubectl, "wait", "--for=condition=Established", "--timeout=60s", "crd", "--all"],
-        env=env,
-        capture_output=True,
-        text=True,
-    )
-    return True
 
 
 def main(argv: list[str]) -> int:

@@ -222,3 +222,28 @@ def cpu_seconds(pid: int) -> float:
     except OSError:
         return 0.0
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def kube_env(kubeconfig: Path) -> dict[str, str]:
+    """This process's environment, pointed at the benchmark's control plane."""
+    return {**os.environ, "KUBECONFIG": str(kubeconfig)}
+
+
+def apply_crds(env: dict[str, str]) -> bool:
+    """`kubectl apply` of crds/ and a wait until they are established; False (stderr printed) on failure."""
+    from coral_testbed.cluster import binaries
+
+    kubectl = binaries.find_kubectl(None)
+    result = subprocess.run(
+        [kubectl, "apply", "--server-side", "-f", str(ROOT / "crds")], env=env, capture_output=True, text=True
+    )
+    if result.returncode != 0:
+        print(result.stderr, file=sys.stderr)
+        return False
+    subprocess.run(
+        [kubectl, "wait", "--for=condition=Established", "--timeout=60s", "crd", "--all"],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    return True
