@@ -37,6 +37,10 @@ class SlamConfig:
     map_keyframe_m: float = 0.5  # a scan joins the global map after this much motion (or 10 degrees)
     max_threads: int = 0
 
+    @property
+    def kiss_voxel_size(self) -> float:
+        return self.voxel_size or self.max_range / 100.0
+
     def kiss_config(self) -> object:
         from kiss_icp.config import KISSConfig
 
@@ -44,7 +48,7 @@ class SlamConfig:
         config.data.max_range = self.max_range
         config.data.min_range = self.min_range
         config.data.deskew = self.deskew
-        config.mapping.voxel_size = self.voxel_size or self.max_range / 100.0
+        config.mapping.voxel_size = self.kiss_voxel_size
         config.mapping.max_points_per_voxel = self.max_points_per_voxel
         config.registration.max_num_threads = self.max_threads
         return config
@@ -147,6 +151,8 @@ class SlamCore:
             )
         with self._odometry_lock:
             frame, _ = self._odometry.register_frame(clean.points, clean.times)
+            # Taken under the lock: the next registration replaces it.
+            kiss_thinned = self._odometry.map_points
             pose = np.array(self._odometry.last_pose)
             if not np.isfinite(pose).all():
                 raise ScanRejected("registration produced a non-finite pose")
@@ -161,17 +167,17 @@ class SlamCore:
         if keyframe:
             # Keyframes only: consecutive scans overlap almost entirely, and thinning every one
             # would cost registration time for no new map content.
-            thinned = self._thinned_for_map(frame)
+            thinned = self._thinned_for_map(frame, kiss_thinned)
             chunk = thinned @ pose[:3, :3].T + pose[:3, 3]
             with self._state_lock:
                 self._map_chunks.append(chunk)
         return ScanResult(index, pose, len(clean.points), clean.dropped, clean.deskew)
 
-    def _thinned_for_map(self, frame: np.ndarray) -> np.ndarray:
+    def _thinned_for_map(self, frame: np.ndarray, kiss_thinned: np.ndarray) -> np.ndarray:
         """The scan at the map's resolution; at the default resolution, half KISS-ICP's voxel,
-        KISS-ICP has just thinned it so for its own local map, and that result is reused."""
-        if math.isclose(self.config.map_voxel_size, self._odometry.config.mapping.voxel_size * 0.5):
-            return self._odometry.map_points
+        KISS-ICP has just thinned it so for its own local map (`kiss_thinned`), and that is reused."""
+        if math.isclose(self.config.map_voxel_size, self.config.kiss_voxel_size * 0.5):
+            return kiss_thinned
         from kiss_icp.voxelization import voxel_down_sample
 
         return np.asarray(voxel_down_sample(np.asarray(frame), self.config.map_voxel_size))
