@@ -25,6 +25,11 @@ def test_sigint_mid_mission_stops_every_component_and_exits_non_zero(
     wait_for(lambda: tree_running(run_env), timeout=120, message="the mission to be running")
     pids = component_pids(run_env)
     assert len(pids) == 4 and all(alive(pid) for pid in pids)
+    # Each component leads its own process group (a stop reaches whatever it started) inside the
+    # run's session: the kernel's autogroup scheduler shares the CPU between sessions, so the whole
+    # mission is one share, like any other program, rather than one share per component.
+    assert all(os.getpgid(pid) == pid for pid in pids)
+    assert {os.getsid(pid) for pid in pids} == {os.getsid(process.pid)}
     interrupt(process)
     log, _ = process.communicate(timeout=60)
     assert process.returncode == 128 + signal.SIGINT, log

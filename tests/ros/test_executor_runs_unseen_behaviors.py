@@ -3,6 +3,7 @@ a synchronous action, a service-backed asynchronous action, a condition, and a t
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
@@ -72,3 +73,40 @@ def test_the_executor_waits_for_a_late_skillset_and_names_what_is_missing(
     ready = [r for r in records_of(status, "condition") if r["type"] == "PluginsReady"]
     assert [r["status"] for r in ready] == ["False", "True"]
     assert "Waiting for node types: Count, Greet, IsAtLeast, WaitForCount" in log.read_text()
+
+
+def test_the_executor_opens_its_service_clients_with_the_tree_before_the_first_call(
+    tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
+) -> None:
+    """Discovering a service takes a new client about a tenth of a second: opened at the first
+    call, that wait would land in the middle of the mission, so the clients exist from the start."""
+    import rclpy
+    from rclpy.context import Context
+
+    plugins = tmp_path / "plugins"
+    start_skillset(spawned, ros_env, plugins, tmp_path / "skillset.log")
+    body = '    <Sequence>\n      <Sleep msec="600000"/>\n      <Count count="{count}"/>\n    </Sequence>'
+    tree = write_tree(tmp_path / "tree.xml", body)
+    status = tmp_path / "status.jsonl"
+    log = tmp_path / "executor.log"
+    executor = start_executor(spawned, ros_env, tree, plugins, status, log)
+    sleeping = lambda: any(t["node_id"] == "Sleep" for t in records_of(status, "transition"))  # noqa: E731
+    wait_until(sleeping, 60, "the Sleep to start")
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        graph = rclpy.create_node("graph_reader", context=context)
+
+        def executor_clients() -> set[str]:
+            try:
+                return {name for name, _ in graph.get_client_names_and_types_by_node("coral_executor", "/")}
+            except rclpy.node.NodeNameNonExistentError:
+                return set()
+
+        wait_until(lambda: "/examples/count" in executor_clients(), 30, "the executor's client of ~/count")
+        graph.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+    assert not [t for t in records_of(status, "transition") if t["node_id"] == "Count"], "Count never ran"
+    executor.send_signal(signal.SIGINT)
+    assert finish(executor, 30, log) == 128 + signal.SIGINT, log.read_text()

@@ -16,6 +16,7 @@ from typing import Any
 from coral.executor.health import HealthMonitor
 from coral.executor.wakeups import WakeSchedule
 from coral.sdk import topics
+from coral.sdk.spinning import Spinner
 
 
 class _Latest:
@@ -75,18 +76,7 @@ class ExecutorContext:
         self.coordination: Any = None
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
-        self._stop_spinning = threading.Event()
-        self._spinner = threading.Thread(target=self._spin, name="ros-spin", daemon=True)
-        self._spinner.start()
-
-    def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
-        try:
-            while not self._stop_spinning.is_set():
-                self._executor.spin_once(timeout_sec=0.1)
-        except ExternalShutdownException:
-            pass
+        self._spinner = Spinner(self._executor, "ros-spin").start()
 
     def _on_heartbeat(self, message: Any) -> None:
         heartbeat = topics.Heartbeat.decode(message.data)
@@ -183,9 +173,7 @@ class ExecutorContext:
         # rclpy's Executor.shutdown destroys its guard condition without waiting for a spinning
         # thread (Jazzy), which can abort the process (exit 134) after the mission succeeded; so the
         # spin thread is stopped and joined first.
-        self._stop_spinning.set()
-        self._executor.wake()
-        self._spinner.join(timeout=2.0)
+        self._spinner.stop(timeout_s=2.0)
         self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         if rclpy.ok():

@@ -124,6 +124,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
     from coral.coordination.hub import CoordinationHub
     from coral.executor.context import ExecutorContext
     from coral.plugins import compat
+    from coral.sdk import calls
 
     wake = threading.Event()
     waker: dict[str, Any] = {"tree": None}
@@ -173,6 +174,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             _emit(fanout, "error", message=str(err))
             _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
             return EXIT_BAD_INPUT
+        calls.open_clients(tree.nodes)
         waker["tree"] = tree
         loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
         loop.wait_for_components(options.liveness_wait_s, stop.event)

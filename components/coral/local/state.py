@@ -139,7 +139,7 @@ def _runs_command(pid: int, command: list[str]) -> bool:
 
 
 def kill_group(pid: int | None) -> None:
-    """SIGKILLs the process group a component leads (each component runs in its own session).
+    """SIGKILLs the process group a component leads (each component leads its own process group).
 
     Stays on os.killpg: psutil signals single processes, and the group also holds whatever the
     component started that psutil's children() would miss once reparented."""

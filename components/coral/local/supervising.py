@@ -95,6 +95,11 @@ class Supervisor:
         )
         argv = components.command_for(self.project, service, paths, self.known)
         log_path = self.run.folder / f"{service.name}.log"
+        # Each component leads a process group of its own, so a stop signals it and whatever it
+        # started, but stays in the supervisor's session. The kernel's autogroup scheduler gives
+        # each session one share of a loaded CPU: a session per component gave the single-threaded
+        # bag player as much CPU as the SLAM skillset's registration threads together, and the
+        # mission ran about a tenth slower (docs/architecture.md, "Where the SLAM mission's CPU goes").
         process = subprocess.Popen(
             argv,
             stdout=subprocess.PIPE,
@@ -102,7 +107,7 @@ class Supervisor:
             stdin=subprocess.DEVNULL,
             env=self._environment(service),
             cwd=str(self.project.root),
-            start_new_session=True,
+            process_group=0,
         )
         pump = threading.Thread(target=self._pump, args=(service.name, process.stdout, log_path), daemon=True)
         pump.start()

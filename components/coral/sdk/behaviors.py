@@ -28,6 +28,14 @@ class ServiceBehavior(StatefulAction):
     SERVICE_TYPE: ClassVar[Any] = None
     SERVICE_NAME: ClassVar[str] = ""
     TIMEOUT_S: ClassVar[float] = 5.0
+    # The services this behavior calls, whose clients the executor opens with the tree
+    # (`calls.open_clients`); derived from SERVICE_TYPE and SERVICE_NAME unless a subclass sets it.
+    CALLS: ClassVar[tuple[tuple[Any, str], ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "CALLS" not in cls.__dict__ and cls.SERVICE_TYPE is not None and cls.SERVICE_NAME:
+            cls.CALLS = ((cls.SERVICE_TYPE, cls.SERVICE_NAME),)
 
     def make_request(self) -> Any:
         return self.SERVICE_TYPE.Request()

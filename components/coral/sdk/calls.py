@@ -10,7 +10,7 @@ gives a cached publisher. The executor supplies the `CallContext` as `self.conte
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Protocol
 
 from coral.bt import Status
@@ -50,6 +50,27 @@ def resolve_name(behavior: Any, name: str) -> str:
             f"name {name!r} is relative to a skillset, but this behavior was not loaded from one"
         )
     return component.node_fqn + name[1:]
+
+
+def open_clients(nodes: Iterable[Any]) -> int:
+    """Creates the service clients of every node whose class declares the services it calls
+    (`CALLS`: (service type, name) pairs), before the tree's first tick; returns how many.
+
+    A new client is matched with its service by DDS discovery, about a tenth of a second after it
+    is created. Created on first use, that delay lands in the middle of the mission, once per
+    service (the SLAM example's first map save held its loop for 0.3 s); created with the tree, it
+    passes while the tree starts. A name that cannot be resolved is left to the call itself, which
+    fails with the reason.
+    """
+    opened = 0
+    for node in nodes:
+        for srv_type, name in getattr(type(node), "CALLS", ()):
+            try:
+                _context_of(node).service_client(srv_type, resolve_name(node, name))
+            except (ValueError, RuntimeError):
+                continue
+            opened += 1
+    return opened
 
 
 def _context_of(behavior: Any) -> CallContext:

@@ -20,6 +20,7 @@ from typing import Any
 
 from coral.plugins import exporting
 from coral.sdk import params, topics
+from coral.sdk.spinning import Spinner
 
 EXIT_BAD_INPUT = 2
 EXIT_CRASHED = 3
@@ -128,8 +129,18 @@ def run_component(
 
         executor = MultiThreadedExecutor(num_threads=threads)
         executor.add_node(component)
-        while not stop.is_set() and not component.stop_requested.is_set():
-            executor.spin_once(timeout_sec=0.1)
+        # From here a signal is a stop request like the component's own, so one event ends the wait.
+        _install_signal_handlers(component.stop_requested)
+        if stop.is_set():
+            component.stop_requested.set()
+        spinner = Spinner(executor, "ros-spin", on_error=component.stop_requested.set).start()
+        # The main thread only waits: a signal interrupts the wait, and the bound keeps a missed
+        # one from holding the process.
+        while not component.stop_requested.wait(timeout=1.0):
+            pass
+        spinner.stop()
+        if spinner.error is not None:
+            raise spinner.error
         if plugin_dir is not None:
             exporting.clear_ready(plugin_dir)
         beat("stopping")

@@ -11,7 +11,10 @@ from dataclasses import asdict, dataclass
 
 # Every component publishes `Heartbeat` records here; executors watch it to detect dead skillsets.
 HEARTBEAT_TOPIC = "/coral/heartbeat"
-HEARTBEAT_PERIOD_S = 0.2
+# Three beats per timeout. Every beat wakes the executors and the beating component's own rclpy
+# executor; at 5 a second per component those wake-ups cost a busy robot computer measurably
+# (docs/architecture.md, "Where the SLAM mission's CPU goes").
+HEARTBEAT_PERIOD_S = 0.5
 # A component silent for this long is considered gone (several missed beats, not one slow one).
 HEARTBEAT_TIMEOUT_S = 1.5
 # A component that came back as a new process stays degraded this long after its first beat: a

@@ -93,6 +93,7 @@ class GetMappingDisplacement(StatefulAction):
     radians since the last success (which then restarts the count); FAILURE otherwise."""
 
     SIGNALS_WAKE_UP = True  # RUNNING only while its ServiceCall waits
+    CALLS = ((Trigger, "~/displacement"), (Trigger, "~/mark_displacement"))
 
     PORTS = [
         input_port("linear_target", "double", default=10.0, description="Metres"),

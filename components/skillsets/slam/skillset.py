@@ -44,6 +44,8 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
+STATUS_PERIOD_S = 1.0
+
 
 def output_path(value: str) -> Path:
     path = Path(os.path.expanduser(value))
@@ -126,7 +128,9 @@ class SlamSkillset(Skillset):
         )
         self.status_publisher = self.create_publisher(String, "~/status", latched)
         self.published_state: tuple[bool, bool, bool] | None = None
-        self.create_timer(0.2, self.publish_status)
+        # A change the tree's conditions read is published at once (`publish_status`); the periodic
+        # message only refreshes the counters, and each one wakes the executors' trees.
+        self.create_timer(STATUS_PERIOD_S, self.publish_status)
         self.create_cancellable_service(SetBool, "~/set_localization", self.serve_set_localization)
         self.create_cancellable_service(Trigger, "~/process_scan", self.serve_process_scan)
         self.create_cancellable_service(Trigger, "~/displacement", self.serve_displacement)

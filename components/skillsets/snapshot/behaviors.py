@@ -20,6 +20,7 @@ class TakeSnapshot(StatefulAction):
     `synchronized` mode, no set of messages lies within the skillset's slop)."""
 
     SIGNALS_WAKE_UP = True  # RUNNING only while its ServiceCall waits
+    CALLS = tuple((Trigger, service) for service in SERVICES.values())
 
     PORTS = [
         input_port("mode", "string", default="latest", description="latest | synchronized"),
