@@ -8,9 +8,10 @@ the same bag:
 - KISS-ICP: its own `kiss_icp.pipeline.OdometryPipeline._run_pipeline`, unmodified, with its own
   rosbag dataloader: per scan, read the bag and deserialise the message, `read_point_cloud`
   (message -> numpy, NaN removal), `register_frame`, pose bookkeeping. Wall time of that loop
-  (its progress bar goes to a buffer). It runs in a child process leading its own session, as
-  every Coral component does (`coral run` starts each in a new session): the kernel's autogroup
-  scheduler gives each session one share of a loaded CPU, so otherwise Coral would get more.
+  (its progress bar goes to a buffer). It runs in a child process leading its own session: the
+  kernel's autogroup scheduler gives each session one share of a loaded CPU, and the Coral side's
+  mission is one session too (`coral run`'s components share the run's), so neither side gets
+  more than one share.
 - Coral: `coral run` of examples/lidar-slam with the bag player at full speed and the SLAM
   skillset subscribing at EnableLocalization (`subscribe_on_enable`), so the bag player, which
   waits for its subscribers, starts playing when SLAM starts. The SLAM skillset's clock runs from
@@ -136,8 +137,8 @@ def cpu_table(title: str, runs: list[Run]) -> list[str]:
 
 
 def kiss_icp_process(dataset: Path, scratch: Path, threads: int) -> Run:
-    """`kiss_icp_pipeline` in a child process that leads its own session, as each Coral component
-    does: with the kernel's autogroup scheduling a session is one share of the CPU, so under load
+    """`kiss_icp_pipeline` in a child process that leads its own session, as a Coral mission runs
+    in one: with the kernel's autogroup scheduling a session is one share of the CPU, so under load
     both sides must get the same kind of share."""
     command = [sys.executable, __file__, "--kiss-only", str(dataset), str(scratch), str(threads)]
     with sampler_for_window() as sampler:
