@@ -129,14 +129,11 @@ def run_component(
 
         executor = MultiThreadedExecutor(num_threads=threads)
         executor.add_node(component)
-        # From here a signal is a stop request like the component's own, so one event ends the wait.
-        _install_signal_handlers(component.stop_requested)
-        if stop.is_set():
-            component.stop_requested.set()
         spinner = Spinner(executor, "ros-spin", on_error=component.stop_requested.set).start()
-        # The main thread only waits: a signal interrupts the wait, and the bound keeps a missed
-        # one from holding the process.
-        while not component.stop_requested.wait(timeout=1.0):
+        # The main thread only waits. A stop request wakes it at once; a signal sets `stop`, seen
+        # within the wait's bound (the handler must not set the event this thread waits on: it
+        # runs on this thread, which may hold that event's lock).
+        while not stop.is_set() and not component.stop_requested.wait(timeout=0.1):
             pass
         spinner.stop()
         if spinner.error is not None:
