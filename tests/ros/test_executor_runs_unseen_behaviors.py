@@ -90,7 +90,10 @@ def test_the_executor_opens_its_service_clients_with_the_tree_before_the_first_c
     status = tmp_path / "status.jsonl"
     log = tmp_path / "executor.log"
     executor = start_executor(spawned, ros_env, tree, plugins, status, log)
-    sleeping = lambda: any(t["node_id"] == "Sleep" for t in records_of(status, "transition"))  # noqa: E731
+
+    def sleeping() -> bool:
+        return any(t["node_id"] == "Sleep" for t in records_of(status, "transition"))
+
     wait_until(sleeping, 60, "the Sleep to start")
     context = Context()
     rclpy.init(context=context)

@@ -52,9 +52,9 @@ def resolve_name(behavior: Any, name: str) -> str:
     return component.node_fqn + name[1:]
 
 
-def open_clients(nodes: Iterable[Any]) -> int:
+def open_clients(nodes: Iterable[Any]) -> None:
     """Creates the service clients of every node whose class declares the services it calls
-    (`CALLS`: (service type, name) pairs), before the tree's first tick; returns how many.
+    (`CALLS`: (service type, name) pairs), before the tree's first tick.
 
     A new client is matched with its service by DDS discovery, about a tenth of a second after it
     is created. Created on first use, that delay lands in the middle of the mission, once per
@@ -62,15 +62,12 @@ def open_clients(nodes: Iterable[Any]) -> int:
     passes while the tree starts. A name that cannot be resolved is left to the call itself, which
     fails with the reason.
     """
-    opened = 0
     for node in nodes:
         for srv_type, name in getattr(type(node), "CALLS", ()):
             try:
                 _context_of(node).service_client(srv_type, resolve_name(node, name))
             except (ValueError, RuntimeError):
                 continue
-            opened += 1
-    return opened
 
 
 def _context_of(behavior: Any) -> CallContext:

@@ -93,7 +93,9 @@ class GetMappingDisplacement(StatefulAction):
     radians since the last success (which then restarts the count); FAILURE otherwise."""
 
     SIGNALS_WAKE_UP = True  # RUNNING only while its ServiceCall waits
-    CALLS = ((Trigger, "~/displacement"), (Trigger, "~/mark_displacement"))
+    DISPLACEMENT = "~/displacement"
+    MARK = "~/mark_displacement"
+    CALLS = ((Trigger, DISPLACEMENT), (Trigger, MARK))
 
     PORTS = [
         input_port("linear_target", "double", default=10.0, description="Metres"),
@@ -104,7 +106,7 @@ class GetMappingDisplacement(StatefulAction):
 
     def on_start(self) -> Status:
         self.reached = False
-        self.call = ServiceCall(self, Trigger, "~/displacement", timeout_s=5.0)
+        self.call = ServiceCall(self, Trigger, self.DISPLACEMENT, timeout_s=5.0)
         return self._step(self.call.send(Trigger.Request()))
 
     def on_running(self) -> Status:
@@ -125,7 +127,7 @@ class GetMappingDisplacement(StatefulAction):
         ):
             return Status.FAILURE
         self.reached = True
-        self.call = ServiceCall(self, Trigger, "~/mark_displacement", timeout_s=5.0)
+        self.call = ServiceCall(self, Trigger, self.MARK, timeout_s=5.0)
         return self._step(self.call.send(Trigger.Request()))
 
     def on_halted(self) -> None:
