@@ -82,6 +82,15 @@ def _finished(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict
     return instance if tree.get("rootStatus") in ("SUCCESS", "FAILURE") else None
 
 
+def _finished_and_settled(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
+    """Finished, with the operator's conditions caught up. The executor writes the tree's end and
+    the operator writes the conditions from the pods, so a mission can finish while its transient
+    bag player is still between exiting and `Succeeded` (Ready False, `WaitingForDrivers`, for a
+    moment): the layouts are compared once Ready says True."""
+    instance = _finished(custom, namespace, system)
+    return instance if _condition(instance, "Ready").get("status") == "True" else None
+
+
 def _summary(instance: dict[str, Any]) -> dict[str, Any]:
     status = instance["status"]
     return {
@@ -99,7 +108,9 @@ def _run(cluster: Cluster, namespace: str, manifest: dict[str, Any]) -> dict[str
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
     name = manifest["metadata"]["name"]
     instance = wait_for(
-        lambda: _finished(custom, namespace, name), timeout=420, message=f"{name}'s tree to finish"
+        lambda: _finished_and_settled(custom, namespace, name),
+        timeout=420,
+        message=f"{name}'s tree to finish and its instance to be Ready",
     )
     custom.delete_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", name)
     return instance
@@ -130,9 +141,9 @@ def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
     manifest = _system(root, "slam-one-pod", real_robot_name, "PodPerRobot", domain)
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
     one_pod = wait_for(
-        lambda: _finished(custom, namespace, "slam-one-pod"),
+        lambda: _finished_and_settled(custom, namespace, "slam-one-pod"),
         timeout=420,
-        message="the one-pod tree to finish",
+        message="the one-pod tree to finish and its instance to be Ready",
     )
     assert one_pod["status"]["tree"]["rootStatus"] == "SUCCESS"
     assert _summary(one_pod) == _summary(default)
