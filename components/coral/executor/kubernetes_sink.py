@@ -111,6 +111,9 @@ class KubernetesStatusSink:
         self._written: dict[str, Any] = {}
         self._last_write = float("-inf")
         self._lock = threading.Lock()
+        # One patch at a time, so patches land in the order their states were taken: a stale patch
+        # still in flight must not overwrite the final one.
+        self._sending = threading.Lock()
         self._wake = threading.Event()
         self._closed = False
         self._errors: set[str] = set()
@@ -126,7 +129,19 @@ class KubernetesStatusSink:
         self.flush(force=False)
 
     def flush(self, *, force: bool) -> bool:
-        """Patch if the summary changed and the rate limit allows (or `force`); True if it patched."""
+        """Patch if the summary changed and the rate limit allows (or `force`); True if it patched.
+
+        A forced flush waits for a patch in flight; otherwise a flush that finds one leaves the
+        change to the background loop, so the tick thread never waits on the API server."""
+        if not self._sending.acquire(blocking=force):
+            self._wake.set()
+            return False
+        try:
+            return self._send(force)
+        finally:
+            self._sending.release()
+
+    def _send(self, force: bool) -> bool:
         with self._lock:
             if self._state == self._written:
                 return False
@@ -165,6 +180,8 @@ class KubernetesStatusSink:
     def close(self) -> None:
         self._closed = True
         self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=self._interval + 5.0)
         self.flush(force=True)
 
 
