@@ -118,22 +118,7 @@ def _write_dataset(params: BagParams, folder: Path, progress: Progress) -> None:
             stamp_ns = START_NS + int(round(start * 1e9))
             scan = sweep(scene, motion, sensor, float(start), rng)
             header = _header(store, stamp_ns, "lidar")
-            cloud = store.types["sensor_msgs/msg/PointCloud2"](
-                header=header,
-                height=1,
-                width=len(scan.points),
-                fields=[
-                    store.types["sensor_msgs/msg/PointField"](
-                        name=f.name, offset=f.offset, datatype=f.datatype, count=f.count
-                    )
-                    for f in clouds.XYZT_FIELDS
-                ],
-                is_bigendian=False,
-                point_step=clouds.XYZT_POINT_STEP,
-                row_step=clouds.XYZT_POINT_STEP * len(scan.points),
-                data=clouds.encode_xyzt(scan.points, scan.times),
-                is_dense=True,
-            )
+            cloud = clouds.xyzt_cloud(store, header, scan.points, scan.times)
             writer.write(points_conn, stamp_ns, store.serialize_cdr(cloud, cloud.__msgtype__))
             odometry = _odometry(store, header, relative[index])
             writer.write(truth_conn, stamp_ns, store.serialize_cdr(odometry, odometry.__msgtype__))

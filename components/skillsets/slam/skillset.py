@@ -87,6 +87,7 @@ class SlamSkillset(Skillset):
         # Scans stay serialised (CDR) until the worker decodes them, straight into numpy.
         self.queue: collections.deque[bytes] = collections.deque(maxlen=queue_size)
         self.typestore = clouds.cdr_typestore()
+        clouds.warm_up(self.typestore)
         self.arrived = threading.Condition()
         self.enabled = False
         self.source_done = False

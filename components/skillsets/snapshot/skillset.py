@@ -10,14 +10,17 @@ Messages are kept as raw CDR, so buffering a LiDAR topic costs no deserialisatio
 a folder with one `.cdr` file per topic and `snapshot.json`.
 
 With `subscribe: always` the topics are buffered from the start and a snapshot holds the newest
-messages at the time of the request. With `subscribe: on_request` they are buffered from the start
-until the first snapshot is taken (answered at once from them, as with `always`), and after that
-only while a request is being served: such a request waits (cancellable) for the first messages
-that make a snapshot, saves them and unsubscribes. A mission that takes a snapshot now and then
-thus does not pay for receiving every LiDAR scan in between; the price is that a later snapshot
-holds the next messages after its request, not the last ones before it. The first snapshot sees
-what was sent before it was requested, so a source that plays once (a bag) cannot pass unseen
-while the mission starts up, and its tree's retries are not slowed by waits.
+messages at the time of the request; a request that finds no snapshot to make fails at once. With
+`subscribe: on_request` they are buffered from the start until the first snapshot is taken, and
+after that only while a request is being served. Every request is answered at once from what is
+buffered when that makes a snapshot, and otherwise waits (cancellable, up to `request_wait_s`) for
+the first messages that do; a request that subscribed for itself saves them and unsubscribes. A
+mission that takes a snapshot now and then thus does not pay for receiving every LiDAR scan in
+between; the price is that a later snapshot holds the next messages after its request, not the
+last ones before it. The first snapshot sees what was sent before it was requested, so a source
+that plays once (a bag) cannot pass unseen while the mission starts up; and a mission that asks
+for it before its data flows gets it as soon as the data arrives, after which the skillset stops
+receiving the stream (a LiDAR at full rate costs every process that receives it CPU).
 """
 
 from __future__ import annotations
@@ -158,10 +161,13 @@ class SnapshotSkillset(Skillset):
     def _wait_and_choose(
         self, synchronized: bool, token: CancelToken
     ) -> tuple[list[buffering.TopicBuffer], list[buffering.Sample] | str]:
-        """`on_request` after the first snapshot: subscribes, waits until the messages make a
-        snapshot, then unsubscribes (once no other request still waits)."""
+        """`on_request`: the snapshot the buffers make now, or else the first one the next messages
+        make, subscribing while it waits. Once a snapshot was chosen and no other request still
+        waits, the skillset unsubscribes; a first request that found none keeps listening, so its
+        retry still sees what arrives in between."""
         with self.lock:
             self.requests_in_flight += 1
+        chosen: list[buffering.Sample] | str = ""
         try:
             deadline = time.monotonic() + self.request_wait_s
             while True:
@@ -176,30 +182,18 @@ class SnapshotSkillset(Skillset):
         finally:
             with self.lock:
                 self.requests_in_flight -= 1
-                last = self.requests_in_flight == 0
-            if last:
+                if not isinstance(chosen, str):
+                    self.listening_from_start = False
+                release = self.requests_in_flight == 0 and not self.listening_from_start
+            if release:
                 self.unsubscribe_all()
 
-    def _stop_listening_from_start(self) -> None:
-        """`on_request`, once the first snapshot is chosen: from now on, listen only on request."""
-        with self.lock:
-            if not self.listening_from_start:
-                return
-            self.listening_from_start = False
-            waiting = self.requests_in_flight > 0
-        if not waiting:  # a waiting request unsubscribes when it ends
-            self.unsubscribe_all()
-
     def _snapshot(self, response: Any, synchronized: bool, token: CancelToken) -> Any:
-        # Until the first snapshot, `on_request` answers from what it buffered since the start,
-        # as `always` does: a request then never waits for messages that were already sent.
-        if self.mode == "on_request" and not self.listening_from_start:
+        if self.mode == "on_request":
             buffers, chosen = self._wait_and_choose(synchronized, token)
         else:
             with self.lock:
                 buffers, chosen = self._choose(synchronized)
-            if self.mode == "on_request" and not isinstance(chosen, str):
-                self._stop_listening_from_start()
         if isinstance(chosen, str):
             response.success, response.message = False, json.dumps({"error": chosen})
             return response

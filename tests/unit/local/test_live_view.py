@@ -80,18 +80,18 @@ def test_the_outline_of_the_example_gives_each_node_uid_its_depth() -> None:
     assert (outline[1].depth, outline[1].node_id) == (0, "Sequence")
     assert (outline[2].depth, outline[2].label) == (1, "SubTree StartSLAM")
     assert (outline[4].depth, outline[4].node_id) == (3, "EnableLocalization")
-    assert (outline[14].depth, outline[14].label) == (4, "SubTree IterateSLAM")
-    assert (outline[16].depth, outline[16].node_id) == (6, "ProcessScan")
+    assert (outline[15].depth, outline[15].label) == (4, "SubTree IterateSLAM")
+    assert (outline[17].depth, outline[17].node_id) == (6, "ProcessScan")
     view = TreeView(outline=outline)
     view.apply(
         {
             "event": "transition",
-            "path": "IterateSLAM::14/ProcessScan::16",
+            "path": "IterateSLAM::15/ProcessScan::17",
             "node_id": "ProcessScan",
             "status": "RUNNING",
         }
     )
-    view.apply({"event": "transition", "path": "IterateSLAM::14", "node_id": "SubTree", "status": "RUNNING"})
+    view.apply({"event": "transition", "path": "IterateSLAM::15", "node_id": "SubTree", "status": "RUNNING"})
     subtree, scan = _rendered(view)[1:]
     # Indented by the outline's depth (two spaces a level after the marker), statuses in one column.
     assert subtree.index("SubTree IterateSLAM") == 2 + 2 * 4 and scan.index("ProcessScan") == 2 + 2 * 6
