@@ -79,13 +79,21 @@ class BagPlayer(Driver):
         return True
 
     def play(self) -> None:
-        if self.wait_for > 0 and not self.wait_for_subscribers():
-            if not self.stop_playing.is_set():
-                self.get_logger().error(
-                    f"No subscriber on {self.topics[0]} within {self.wait_timeout_s:g} s; not playing"
-                )
-                self.request_stop(1)
-            return
+        if self.wait_for > 0:
+            waited = time.monotonic()
+            if not self.wait_for_subscribers():
+                if not self.stop_playing.is_set():
+                    self.get_logger().error(
+                        f"No subscriber on {self.topics[0]} within {self.wait_timeout_s:g} s; not playing"
+                    )
+                    self.request_stop(1)
+                return
+            # Says when the bag started, so a late start shows whether the player waited for its
+            # subscribers (and how long) or for something else.
+            self.get_logger().info(
+                f"{self.streams[self.topics[0]].get_subscription_count()} subscriber(s) on {self.topics[0]} "
+                f"after {time.monotonic() - waited:.2f} s: playing"
+            )
         try:
             report = playing.play(
                 playing.iterate(self.bag, self.topics),
