@@ -4,7 +4,9 @@ Run by the work queue's workers (`reconcile.controller`), never inside a kopf ha
 reads the instance, its pods and its robot's Node from the indexes, asks
 `planning.instance_pass.plan_instance` what to write, writes it through `kube.applying`, and
 computes the status with `status.instance_status`. The status is patched only when a verdict
-changed (`status.instance_status.verdict_of`); progress alone waits for `PROGRESS_INTERVAL_S`.
+changed (`status.instance_status.verdict_of`); progress alone waits for `PROGRESS_INTERVAL_S`, and
+so does "progressing" at a new generation while the status written for the old one already reads
+as in progress (`status.instance_status.stale_status_says_as_much`).
 The executor's fields (`tree`, `plugins`) are read, never written; whatever else it writes there
 is overwritten (`status.ownership`). See docs/architecture.md.
 """
@@ -163,11 +165,15 @@ class InstanceReconciler:
         changed = {key: value for key, value in new.items() if current.get(key) != value}
         if not changed:
             return
+        since: float | None = None
         if instance_status.verdict_of(current) == instance_status.verdict_of(new):
-            _, _, last = self.memory.status_written(record.uid)
-            wait = PROGRESS_INTERVAL_S - (self.memory.clock() - last)
+            _, _, since = self.memory.status_written(record.uid)  # progress only
+        elif instance_status.stale_status_says_as_much(current, new, record.generation):
+            since = self.memory.generation_seen_at(record.uid, record.generation)
+        if since is not None:
+            wait = PROGRESS_INTERVAL_S - (self.memory.clock() - since)
             if wait > 0:
-                # Progress only: it rides along with the next verdict, or goes out when this is due.
+                # It rides along with the next verdict, or goes out when this is due.
                 self.requeue((record.namespace, record.name), wait)
                 return
         changes = {key: _patch_value(current.get(key), value) for key, value in changed.items()}

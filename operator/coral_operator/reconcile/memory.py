@@ -46,6 +46,7 @@ class Memory:
     _rollout_written: dict[str, RolloutStatus] = field(default_factory=dict)
     _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
     _pod_writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
+    _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -74,6 +75,16 @@ class Memory:
     def remember_status(self, uid: str, version: str, status: dict[str, Any]) -> None:
         with self._lock:
             self._status_written[uid] = (version, status, self.clock())
+
+    def generation_seen_at(self, uid: str, generation: int | None) -> float:
+        """When this process first saw the instance at `generation` (monotonic): a status it does
+        not write at once must still go out within a bound of the spec's change."""
+        now = self.clock()
+        with self._lock:
+            seen = self._generation_seen.get(uid)
+            if seen is None or seen[0] != generation:
+                seen = self._generation_seen[uid] = (generation, now)
+            return seen[1]
 
     def desired_pods(
         self, uid: str, generation: int | None, build: Callable[[], list[dict[str, Any]]]
@@ -118,6 +129,7 @@ class Memory:
             self._status_written.pop(uid, None)
             self._desired_pods.pop(uid, None)
             self._pod_writes.pop(uid, None)
+            self._generation_seen.pop(uid, None)
 
     # --- systems -----------------------------------------------------------------------------
 

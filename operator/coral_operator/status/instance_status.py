@@ -356,3 +356,27 @@ def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
         tuple((c.get(kind), c.get(state)) for c in conditions),
         stalled.get(why) if stalled.get(state) == "True" else None,
     )
+
+
+def stale_status_says_as_much(
+    current: Mapping[str, Any], new: Mapping[str, Any], generation: int | None
+) -> bool:
+    """Whether writing `new` would tell no reader more than `current` already does.
+
+    `current` was written for an older generation, which kstatus, Argo CD's health check and the
+    system's rollout (`kube.observing.observed_instance`) all read as "in progress"; `new` says
+    only that this generation is progressing (Ready and Stalled both False) and leaves the robot's
+    reachability as it was. Such a write can wait like progress, so an update costs one status
+    write, when the robot is Ready or Stalled at its new revision, instead of two. An instance
+    with no status yet is not covered: kstatus reads a status-less object as Current.
+    """
+    written = current.get(keys.INSTANCE_STATUS.observed_generation)
+    if written is None or generation is None or written >= generation:
+        return False
+    kind, state = keys.CONDITION.type, keys.CONDITION.status
+    conditions = {c.get(kind): c.get(state) for c in new.get(keys.INSTANCE_STATUS.conditions) or []}
+    if conditions.get(C.READY) != "False" or conditions.get(C.STALLED) != "False":
+        return False
+    before = current.get(keys.INSTANCE_STATUS.robot) or {}
+    after = new.get(keys.INSTANCE_STATUS.robot) or {}
+    return all(before.get(key) == after.get(key) for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready))

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from datetime import timedelta
 from typing import Any
 
+import pytest
 from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
@@ -272,3 +273,38 @@ def test_a_tree_failure_written_before_the_executor_restarted_is_not_current(
     assert (fresh["TreeHealthy"]["status"], fresh["Stalled"]["reason"]) == ("False", "TreeFailed")
     restarted = _conditions(_view(spec_dict(), tree=tree | {"updatedAt": "2026-01-01T11:00:00Z"}))
     assert restarted["TreeHealthy"]["status"] == "Unknown" and restarted["Stalled"]["status"] == "False"
+
+
+def _written(
+    generation: int | None, ready: str, stalled: str = "False", reachable: bool = True
+) -> dict[str, Any]:
+    return {
+        "observedGeneration": generation,
+        "conditions": [
+            {"type": "Ready", "status": ready, "observedGeneration": generation},
+            {"type": "Stalled", "status": stalled, "observedGeneration": generation},
+        ],
+        "robot": {"reachable": reachable, "nodeReady": reachable},
+    }
+
+
+@pytest.mark.parametrize(
+    ("current", "new", "generation", "waits"),
+    [
+        # An update starting: the old generation's Ready reads as in progress already.
+        (_written(1, "True"), _written(2, "False"), 2, True),
+        # The same, written for the current generation already: a verdict like any other.
+        (_written(2, "True"), _written(2, "False"), 2, False),
+        # A new instance: kstatus reads an object without status as Current, so it is written.
+        ({}, _written(1, "False"), 1, False),
+        # The new generation is Ready, or Stalled: the news readers wait for.
+        (_written(1, "True"), _written(2, "True"), 2, False),
+        (_written(1, "True"), _written(2, "False", stalled="True"), 2, False),
+        # The robot went away meanwhile: the rollout reads reachability whatever the generation.
+        (_written(1, "True"), _written(2, "False", reachable=False), 2, False),
+    ],
+)
+def test_a_status_of_an_older_generation_stands_for_progressing_until_a_verdict_arrives(
+    current: dict[str, Any], new: dict[str, Any], generation: int, waits: bool
+) -> None:
+    assert instance_status.stale_status_says_as_much(current, new, generation) is waits

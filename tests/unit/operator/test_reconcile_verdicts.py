@@ -23,7 +23,7 @@ from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRe
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
-from coral_operator.reconcile.instances import InstanceReconciler
+from coral_operator.reconcile.instances import PROGRESS_INTERVAL_S, InstanceReconciler
 from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
 from kubernetes.client.exceptions import ApiException
@@ -176,14 +176,14 @@ class Harness:
 
     # --- instances ---------------------------------------------------------------------------
 
-    def instance(self, spec: dict[str, Any], name: str = "sys-r1") -> None:
+    def instance(self, spec: dict[str, Any], name: str = "sys-r1", generation: int = 1) -> None:
         status = self.kube.status.get(name, {})
         self.tables["instance_records"][(NS, name)] = [
             InstanceRecord(
                 name=name,
                 namespace=NS,
                 uid="uid-" + name,
-                generation=1,
+                generation=generation,
                 spec=spec,
                 status=copy.deepcopy(status),
                 resource_version=str(self.kube._version),
@@ -206,8 +206,10 @@ class Harness:
             assert name == manifest["metadata"]["name"]
         self.tables["coral_pods"][(NS, "sys-r1")] = [observing.observed_pods(body) for body in bodies]
 
-    def pass_instance(self, spec: dict[str, Any], name: str = "sys-r1") -> dict[str, Any]:
-        self.instance(spec, name)
+    def pass_instance(
+        self, spec: dict[str, Any], name: str = "sys-r1", generation: int = 1
+    ) -> dict[str, Any]:
+        self.instance(spec, name, generation)
         self.instances.reconcile((NS, name))
         return self.kube.status.get(name, {})
 
@@ -318,6 +320,26 @@ def test_instance_ready_once_every_component_is_ready(harness: Harness) -> None:
     assert len(harness.kube.of("patch status")) == 2, "one write when it started, one when Ready"
     harness.pass_instance(spec)
     assert len(harness.kube.of("patch status")) == 2, "an unchanged verdict is not written again"
+
+
+def test_instance_updated_writes_its_status_once_when_ready_at_the_new_generation(harness: Harness) -> None:
+    """While the status written for the old generation stands, every reader already sees the
+    update in progress: "progressing" is written only if it lasts, and Ready once it is."""
+    spec = _instance_spec()
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+        harness.pods_are(ready=ready)
+        harness.pass_instance(spec)
+    writes = len(harness.kube.of("patch status"))
+    updated = copy.deepcopy(spec)
+    updated["executors"][0]["image"] = "coral/executor:0.2.0"
+    updated["revision"] = "updated"
+    harness.pass_instance(updated, generation=2)
+    assert len(harness.kube.of("patch status")) == writes, "Ready at generation 1 reads as in progress"
+    assert harness.requeued[-1] == ((NS, "sys-r1"), PROGRESS_INTERVAL_S), "unless it lasts"
+    harness.seconds += PROGRESS_INTERVAL_S
+    status = harness.pass_instance(updated, generation=2)
+    assert len(harness.kube.of("patch status")) == writes + 1
+    assert status["observedGeneration"] == 2 and _conditions(status)["Reconciling"] == ("True", "Progressing")
 
 
 def test_instance_stalled_when_a_component_crash_loops(harness: Harness) -> None:
