@@ -53,6 +53,14 @@ def encode_xyzt(points: np.ndarray, times: np.ndarray) -> np.ndarray:
     return record.view(np.uint8).reshape(-1)
 
 
+def header(store: Any, stamp_ns: int, frame_id: str) -> Any:
+    """A rosbags `std_msgs/msg/Header` stamped `stamp_ns` (nanoseconds since the epoch)."""
+    stamp = store.types["builtin_interfaces/msg/Time"](
+        sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000
+    )
+    return store.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+
+
 def xyzt_cloud(store: Any, header: Any, points: np.ndarray, times: np.ndarray) -> Any:
     """A rosbags `sensor_msgs/msg/PointCloud2` of (N, 3) points with per-point times (XYZT_FIELDS)."""
     return store.types["sensor_msgs/msg/PointCloud2"](
@@ -77,10 +85,7 @@ def warm_up(store: Any) -> None:
     """Reads one tiny cloud the way a receiver reads every scan. rosbags generates a type's CDR
     reader at its first use (7 ms alone, tens of ms beside a busy mission): a component calls this
     when it starts, so its first scan is not the one that pays."""
-    header = store.types["std_msgs/msg/Header"](
-        stamp=store.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id=""
-    )
-    cloud = xyzt_cloud(store, header, np.zeros((1, 3)), np.zeros(1))
+    cloud = xyzt_cloud(store, header(store, 0, ""), np.zeros((1, 3)), np.zeros(1))
     message = store.deserialize_cdr(store.serialize_cdr(cloud, cloud.__msgtype__), cloud.__msgtype__)
     decode(message.fields, message.data, message.point_step, message.width, message.height)
 

@@ -117,7 +117,7 @@ def _write_dataset(params: BagParams, folder: Path, progress: Progress) -> None:
         for index, start in enumerate(starts):
             stamp_ns = START_NS + int(round(start * 1e9))
             scan = sweep(scene, motion, sensor, float(start), rng)
-            header = _header(store, stamp_ns, "lidar")
+            header = clouds.header(store, stamp_ns, "lidar")
             cloud = clouds.xyzt_cloud(store, header, scan.points, scan.times)
             writer.write(points_conn, stamp_ns, store.serialize_cdr(cloud, cloud.__msgtype__))
             odometry = _odometry(store, header, relative[index])
@@ -126,14 +126,6 @@ def _write_dataset(params: BagParams, folder: Path, progress: Progress) -> None:
             progress(index + 1, len(starts))
     trajectory.write_poses_csv(folder / "ground_truth.csv", np.asarray(stamps, dtype=np.int64), relative)
     (folder / "params.json").write_text(json.dumps(dataclasses.asdict(params), indent=2) + "\n")
-
-
-def _header(store: object, stamp_ns: int, frame_id: str) -> object:
-    types = store.types  # type: ignore[attr-defined]
-    stamp = types["builtin_interfaces/msg/Time"](
-        sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000
-    )
-    return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
 
 def _odometry(store: object, header: object, pose: np.ndarray) -> object:

@@ -17,7 +17,7 @@ from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
-from coral_operator.status.transitions import Verdict, merge_conditions, parse_rfc3339, rfc3339
+from coral_operator.status.transitions import Verdict, find, merge_conditions, parse_rfc3339, rfc3339
 
 
 @dataclass(frozen=True)
@@ -373,9 +373,11 @@ def stale_status_says_as_much(
     written = current.get(keys.INSTANCE_STATUS.observed_generation)
     if written is None or generation is None or written >= generation:
         return False
-    kind, state = keys.CONDITION.type, keys.CONDITION.status
-    conditions = {c.get(kind): c.get(state) for c in new.get(keys.INSTANCE_STATUS.conditions) or []}
-    if conditions.get(C.READY) != "False" or conditions.get(C.STALLED) != "False":
+    conditions = list(new.get(keys.INSTANCE_STATUS.conditions) or [])
+    if any(
+        (find(conditions, ctype) or {}).get(keys.CONDITION.status) != "False"
+        for ctype in (C.READY, C.STALLED)
+    ):
         return False
     before = current.get(keys.INSTANCE_STATUS.robot) or {}
     after = new.get(keys.INSTANCE_STATUS.robot) or {}
