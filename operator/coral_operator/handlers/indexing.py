@@ -15,11 +15,12 @@ from typing import Any
 import kopf
 
 from coral_operator.api import names
+from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
 from coral_operator.reconcile.indexes import ALL_ROBOTS
 
 
-@kopf.index("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
+@kopf.index("nodes", labels=ROBOT_NODE_LABELS)
 async def robot_nodes(
     name: str, labels: kopf.Labels, spec: kopf.Spec, status: kopf.Status, **_: Any
 ) -> dict[Any, Any]:
@@ -29,7 +30,7 @@ async def robot_nodes(
     return {ALL_ROBOTS: robot, ("node", name): robot}
 
 
-@kopf.index("pods", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT})
+@kopf.index("pods", labels=CORAL_POD_LABELS)
 async def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     # A robot pod (`PodPerRobot`) gives one record per component; readers flatten them.
     return {(namespace, labels[names.LABEL_INSTANCE]): observing.observed_pods(body)}

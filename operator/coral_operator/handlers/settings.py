@@ -14,6 +14,7 @@ import kopf
 
 from coral_operator import config
 from coral_operator.api import names
+from coral_operator.handlers.filters import watch_selectors
 from coral_operator.kube import applying
 from coral_operator.planning import rbac
 from coral_operator.reconcile.controller import Controller
@@ -48,6 +49,8 @@ def configure_operator(settings: kopf.OperatorSettings, **_: Any) -> None:
     settings.posting.level = logging.WARNING
     settings.execution.max_workers = 16
     settings.watching.server_timeout = 300
+    for resource, selector in watch_selectors().items():
+        settings.watching.label_selectors[resource] = selector
     settings.networking.request_timeout = 60
 
 

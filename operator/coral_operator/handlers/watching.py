@@ -12,6 +12,7 @@ from typing import Any
 import kopf
 
 from coral_operator.api import names
+from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.reconcile.controller import Controller
 
 CORAL_SYSTEMS = (names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
@@ -50,12 +51,12 @@ async def coral_instance_changed(
     )
 
 
-@kopf.on.event("pods", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT})
+@kopf.on.event("pods", labels=CORAL_POD_LABELS)
 async def coral_pod_changed(namespace: str, labels: kopf.Labels, memo: kopf.Memo, **kwargs: Any) -> None:
     _controller(memo, kwargs).on_pod(namespace=namespace, instance=labels[names.LABEL_INSTANCE])
 
 
-@kopf.on.event("nodes", labels={names.LABEL_ROBOT: kopf.PRESENT})
+@kopf.on.event("nodes", labels=ROBOT_NODE_LABELS)
 async def robot_node_changed(
     type: str | None,
     name: str,
