@@ -4,6 +4,6 @@ The operator's logic lives in `reconcile/` (passes), `planning/` (decisions) and
 calls); see docs/architecture.md.
 """
 
-from coral_operator.handlers import filters, indexing, settings, watching
+from coral_operator.handlers import indexing, settings, watching
 
-__all__ = ["filters", "indexing", "settings", "watching"]
+__all__ = ["indexing", "settings", "watching"]

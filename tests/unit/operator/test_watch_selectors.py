@@ -7,20 +7,21 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from coral_operator.api.common import LabelSelector
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.handlers import filters
-from coral_operator.planning import instances, pods
+from coral_operator.planning import instances, pods, selection
 from operator_specs import robot
 
 
 def _selects(selector: str, labels: dict[str, str]) -> bool:
-    """Kubernetes' meaning of a selector made of `key=value` and `key` (exists) terms."""
-    for term in selector.split(","):
-        key, _, value = term.partition("=")
-        if key not in labels or ("=" in term and labels[key] != value):
-            return False
-    return True
+    """The selector as sent (`key=value` and `key` terms), matched with the operator's own
+    label-selector semantics (`planning.selection.matches`)."""
+    equal = dict(term.split("=", 1) for term in selector.split(",") if "=" in term)
+    exists = [{"key": term, "operator": "Exists"} for term in selector.split(",") if "=" not in term]
+    parsed = LabelSelector.model_validate({"matchLabels": equal, "matchExpressions": exists})
+    return selection.matches(parsed, labels)
 
 
 def _selector(plural: str) -> str:
