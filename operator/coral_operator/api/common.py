@@ -6,7 +6,7 @@ Used by `api.system`, `api.instance` and the status helpers in `status/`.
 from __future__ import annotations
 
 import re
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -125,3 +125,30 @@ class Condition(CamelModel):
     """The resource generation the condition was computed from."""
     last_transition_time: str
     """When the status last changed (RFC 3339)."""
+
+
+READY = "Ready"
+"""The condition every kind has: the resource does what its spec asks."""
+RECONCILING = "Reconciling"
+"""The kstatus condition of work still under way."""
+PENDING = "Pending"
+"""The reason of the status a new object has before the operator writes one."""
+EPOCH = "1970-01-01T00:00:00Z"
+
+
+def pending_status() -> dict[str, Any]:
+    """The status of every new CoralSystem and CoralInstance until the operator writes one.
+
+    The CRDs default `status` to it, so a new object reads as in progress to every client:
+    kstatus sees Reconciling=True, Flux's expressions and Argo CD's health check see no
+    `observedGeneration`. Without it a new object has no status at all, which kstatus reads as
+    Current. It claims nothing more: no `observedGeneration`, since no generation was looked at,
+    and transition times at the epoch, which the operator never carries over
+    (`status.transitions.written_conditions`).
+    """
+    waiting = {"reason": PENDING, "message": "Waiting for the Coral operator", "last_transition_time": EPOCH}
+    conditions = [
+        Condition(type=READY, status="Unknown", **waiting),
+        Condition(type=RECONCILING, status="True", **waiting),
+    ]
+    return {"conditions": [condition.to_wire() for condition in conditions]}

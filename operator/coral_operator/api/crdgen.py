@@ -13,7 +13,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel
 
-from coral_operator.api import instance, keys, names, system
+from coral_operator.api import common, instance, keys, names, system
 
 _KEEP = {
     "type",
@@ -175,7 +175,8 @@ def _crd(
             "kind": {"type": "string", "description": "Kind of this object."},
             "metadata": {"type": "object"},
             "spec": spec_schema,
-            "status": status_schema,
+            # A new object is in progress until the operator says otherwise (api.common.pending_status).
+            "status": {**status_schema, "default": common.pending_status()},
         },
     }
     return {

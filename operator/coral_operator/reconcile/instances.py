@@ -6,7 +6,8 @@ reads the instance, its pods and its robot's Node from the indexes, asks
 computes the status with `status.instance_status`. The status is patched only when a verdict
 changed (`status.instance_status.verdict_of`); progress alone waits for `PROGRESS_INTERVAL_S`, and
 so does "progressing" at a new generation while the status written for the old one already reads
-as in progress (`status.instance_status.stale_status_says_as_much`).
+as in progress (`status.instance_status.stale_status_says_as_much`), and "starting" while a new
+instance still has the CRD's pending status (`status.instance_status.pending_status_says_as_much`).
 The executor's fields (`tree`, `plugins`) are read, never written; whatever else it writes there
 is overwritten (`status.ownership`). See docs/architecture.md.
 """
@@ -24,14 +25,15 @@ from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotN
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes
 from coral_operator.reconcile.memory import Memory
-from coral_operator.status import instance_status, ownership
+from coral_operator.status import instance_status, ownership, transitions
 
 Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
 # outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
 REFUSED_RETRY_S = 30.0
 # Status changes that change no verdict (a stage's message, a pod's phase) are written at most
-# this often; a robot's startup then costs a write when it starts and one when it is Ready.
+# this often. A new instance reads as pending meanwhile (the CRD's default status), so a robot
+# that starts within it costs one status write, when it is Ready.
 PROGRESS_INTERVAL_S = 10.0
 
 
@@ -64,7 +66,7 @@ class InstanceReconciler:
         if isinstance(spec, str):
             new = instance_status.build_invalid_status(
                 spec,
-                old_conditions=list(status.get("conditions") or []),
+                old_conditions=transitions.written_conditions(status),
                 generation=record.generation,
                 now=now,
             )
@@ -105,7 +107,7 @@ class InstanceReconciler:
             refused=refused,
         )
         new = instance_status.build_instance_status(
-            view, old_conditions=list(status.get("conditions") or []), generation=record.generation, now=now
+            view, old_conditions=transitions.written_conditions(status), generation=record.generation, now=now
         )
         self._write_status(record, status, new)
 
@@ -168,7 +170,9 @@ class InstanceReconciler:
         since: float | None = None
         if instance_status.verdict_of(current) == instance_status.verdict_of(new):
             _, _, since = self.memory.status_written(record.uid)  # progress only
-        elif instance_status.stale_status_says_as_much(current, new, record.generation):
+        elif instance_status.stale_status_says_as_much(
+            current, new, record.generation
+        ) or instance_status.pending_status_says_as_much(current, new):
             since = self.memory.generation_seen_at(record.uid, record.generation)
         if since is not None:
             wait = PROGRESS_INTERVAL_S - (self.memory.clock() - since)
@@ -185,7 +189,7 @@ class InstanceReconciler:
         # After the write, so a deferred or failed one cannot post the same transition twice. Only
         # warnings: the good news of a fleet is counted on its system, not told per robot.
         for kind, reason, message in events.condition_events(
-            list(current.get("conditions") or []), list(new.get("conditions") or []), warnings_only=True
+            transitions.written_conditions(current), list(new.get("conditions") or []), warnings_only=True
         ):
             self.post(record.reference, kind, reason, message)
 

@@ -28,7 +28,7 @@ from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
 from coral_operator.reconcile.memory import Memory
-from coral_operator.status import system_status
+from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
@@ -230,7 +230,7 @@ class SystemReconciler:
             rollout=evaluate_rollout(plan.rollout.status) if plan.rollout is not None else None,
             rolled_back=system_status.describe_rollback(rollout),
         )
-        old_conditions = list(status.get("conditions") or [])
+        old_conditions = transitions.written_conditions(status)
         new = system_status.build_system_status(
             view, old_conditions=old_conditions, generation=system.generation, now=now
         )

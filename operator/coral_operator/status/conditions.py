@@ -8,13 +8,15 @@ from __future__ import annotations
 
 from enum import StrEnum
 
+from coral_operator.api import common
+
 
 class ConditionType(StrEnum):
     """Condition types; `Ready` is always present, `Reconciling`/`Stalled` follow kstatus."""
 
-    READY = "Ready"
+    READY = common.READY
     """The resource does what its spec asks."""
-    RECONCILING = "Reconciling"
+    RECONCILING = common.RECONCILING
     """The operator is still working towards the spec (kstatus: in progress)."""
     STALLED = "Stalled"
     """The operator cannot make progress without a change to the spec or the cluster (kstatus: failed)."""

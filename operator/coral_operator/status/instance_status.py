@@ -367,18 +367,41 @@ def stale_status_says_as_much(
     system's rollout (`kube.observing.observed_instance`) all read as "in progress"; `new` says
     only that this generation is progressing (Ready and Stalled both False) and leaves the robot's
     reachability as it was. Such a write can wait like progress, so an update costs one status
-    write, when the robot is Ready or Stalled at its new revision, instead of two. An instance
-    with no status yet is not covered: kstatus reads a status-less object as Current.
+    write, when the robot is Ready or Stalled at its new revision, instead of two.
     """
     written = current.get(keys.INSTANCE_STATUS.observed_generation)
     if written is None or generation is None or written >= generation:
         return False
-    conditions = list(new.get(keys.INSTANCE_STATUS.conditions) or [])
-    if any(
-        (find(conditions, ctype) or {}).get(keys.CONDITION.status) != "False"
-        for ctype in (C.READY, C.STALLED)
-    ):
-        return False
     before = current.get(keys.INSTANCE_STATUS.robot) or {}
     after = new.get(keys.INSTANCE_STATUS.robot) or {}
-    return all(before.get(key) == after.get(key) for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready))
+    return _only_progressing(new) and all(
+        before.get(key) == after.get(key) for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready)
+    )
+
+
+def pending_status_says_as_much(current: Mapping[str, Any], new: Mapping[str, Any]) -> bool:
+    """Whether `current` is still the CRD's default for a new instance (`api.common.pending_status`:
+    Reconciling=True, no `observedGeneration`), which every client reads as in progress, and
+    `new` says only that the robot is starting: Ready and Stalled False, the robot reachable and
+    its Node Ready. Such a write can wait like progress, so a robot that starts within
+    `PROGRESS_INTERVAL_S` costs one status write, when it is Ready or Stalled, instead of two.
+    A status-less instance (a CRD from before the default) is not covered: kstatus reads it as
+    Current.
+    """
+    if current.get(keys.INSTANCE_STATUS.observed_generation) is not None:
+        return False
+    reconciling = find(list(current.get(keys.INSTANCE_STATUS.conditions) or []), C.RECONCILING) or {}
+    if reconciling.get(keys.CONDITION.status) != "True":
+        return False
+    robot = new.get(keys.INSTANCE_STATUS.robot) or {}
+    return _only_progressing(new) and all(
+        robot.get(key) is True for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready)
+    )
+
+
+def _only_progressing(status: Mapping[str, Any]) -> bool:
+    conditions = list(status.get(keys.INSTANCE_STATUS.conditions) or [])
+    return all(
+        (find(conditions, ctype) or {}).get(keys.CONDITION.status) == "False"
+        for ctype in (C.READY, C.STALLED)
+    )

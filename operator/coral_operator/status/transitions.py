@@ -52,6 +52,19 @@ def rfc3339(moment: datetime) -> str:
     return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+def written_conditions(status: dict[str, Any]) -> list[dict[str, Any]]:
+    """The conditions the operator wrote into `status`, which new verdicts are merged with.
+
+    None while `status` is still the CRD's default (`api.common.pending_status`, which has no
+    `observedGeneration`; every status the operator writes has one): its epoch transition times
+    must not outlive it, so the first written conditions all start now. Both kinds call the field
+    alike.
+    """
+    if status.get(keys.INSTANCE_STATUS.observed_generation) is None:
+        return []
+    return list(status.get(keys.INSTANCE_STATUS.conditions) or [])
+
+
 def merge_conditions(
     old: Iterable[dict[str, Any]],
     verdicts: Iterable[Verdict],

@@ -18,6 +18,7 @@ import pytest
 import verdict_clients
 import yaml
 from coral_operator import rollout_control
+from coral_operator.api import common
 from coral_operator.kube.observing import parse_time
 from coral_testbed.waiting import wait_for
 from fleet import GROUP, VERSION, Fleet, instance_ready, mission, wait_settled
@@ -127,7 +128,11 @@ class Builder:
             "coralsystems",
             mission("patrol", self.label, {"maxUnavailable": 1}),
         )
-        assert "status" not in created, "the apiserver returned the object before any status write"
+        status = created.get("status") or {}
+        assert status.get("conditions") == common.pending_status()["conditions"], (
+            "the apiserver returned the object with the CRD's pending status, before any status write"
+        )
+        assert "observedGeneration" not in status
         progress = rollout_control.evaluate_progress(created)
         word = "complete" if progress.done else ("failed" if progress.failure else "waiting")
         return Scene({"CoralSystem": created}, f"exit {1 if progress.failure else 0}: {word}")

@@ -7,7 +7,7 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import names
+from coral_operator.api import common, names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
 from coral_operator.planning import instances, pods
@@ -308,3 +308,26 @@ def test_a_status_of_an_older_generation_stands_for_progressing_until_a_verdict_
     current: dict[str, Any], new: dict[str, Any], generation: int, waits: bool
 ) -> None:
     assert instance_status.stale_status_says_as_much(current, new, generation) is waits
+
+
+@pytest.mark.parametrize(
+    ("current", "new", "waits"),
+    [
+        # The CRD's default for a new instance, and a robot that is starting: nothing new to read.
+        (common.pending_status(), _written(1, "False"), True),
+        # Ready, Stalled or away: the news readers wait for.
+        (common.pending_status(), _written(1, "True"), False),
+        (common.pending_status(), _written(1, "False", stalled="True"), False),
+        (common.pending_status(), _written(1, "False", reachable=False), False),
+        # No status at all (a CRD without the default): kstatus reads it as Current.
+        ({}, _written(1, "False"), False),
+        # The executor wrote its tree first: still the default's conditions, still in progress.
+        ({**common.pending_status(), "tree": {"rootStatus": "IDLE"}}, _written(1, "False"), True),
+        # A status the operator wrote is judged by its generation, not as pending.
+        (_written(1, "False"), _written(1, "False"), False),
+    ],
+)
+def test_the_pending_status_of_a_new_instance_stands_for_starting_until_a_verdict_arrives(
+    current: dict[str, Any], new: dict[str, Any], waits: bool
+) -> None:
+    assert instance_status.pending_status_says_as_much(current, new) is waits

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coral_operator.api import crdgen
+from coral_operator.api import common, crdgen, instance, system
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -90,3 +90,17 @@ def test_the_component_lists_are_keyed_by_name() -> None:
     for group in ("drivers", "skillsets", "executors"):
         assert spec["properties"][group]["x-kubernetes-list-type"] == "map"
         assert spec["properties"][group]["x-kubernetes-list-map-keys"] == ["name"]
+
+
+def test_a_new_object_of_either_kind_reads_as_pending_until_the_operator_writes_its_status() -> None:
+    """The API server fills in `status` from the schema's default on every read of a new object."""
+    for kind_file, status_model in (
+        ("coral.dev_coralsystems.yaml", system.CoralSystemStatus),
+        ("coral.dev_coralinstances.yaml", instance.CoralInstanceStatus),
+    ):
+        default = _schema(kind_file)["properties"]["status"]["default"]
+        assert default == common.pending_status()
+        conditions = {c.type: c for c in status_model.model_validate(default).conditions}
+        assert conditions["Reconciling"].status == "True", "kstatus: InProgress"
+        assert conditions["Ready"].status == "Unknown"
+        assert "observedGeneration" not in default, "Flux and Argo CD: no generation observed yet"

@@ -14,7 +14,7 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import names
+from coral_operator.api import common, names
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
@@ -342,6 +342,50 @@ def test_instance_updated_writes_its_status_once_when_ready_at_the_new_generatio
     assert status["observedGeneration"] == 2 and _conditions(status)["Reconciling"] == ("True", "Progressing")
 
 
+def test_instance_of_a_new_robot_writes_one_status_when_it_is_ready_within_the_interval(
+    harness: Harness,
+) -> None:
+    """The API server gives a new instance the CRD's pending status, which every client reads as in
+    progress: a robot that starts within PROGRESS_INTERVAL_S costs one status write, its Ready."""
+    harness.kube.status["sys-r1"] = common.pending_status()
+    spec = _instance_spec()
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}):
+        harness.pods_are(ready=ready)
+        harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == ["sys-r1-lidar", "sys-r1-slam", "sys-r1-executor"]
+    assert harness.kube.of("patch status") == [], "the pending status says all a reader needs"
+    assert harness.requeued[0] == ((NS, "sys-r1"), PROGRESS_INTERVAL_S), "unless the start lasts"
+    harness.pods_are(ready={"lidar", "slam", "executor"})
+    status = harness.pass_instance(spec)
+    assert harness.kube.of("patch status") == ["sys-r1"]
+    assert _conditions(status)["Ready"] == ("True", "Ready")
+    assert status["observedGeneration"] == 1
+    since = {c["lastTransitionTime"] for c in status["conditions"]}
+    assert since == {"2026-01-01T12:00:00Z"}, "no transition time is kept from the pending status"
+
+
+def test_instance_of_a_new_robot_says_how_its_start_goes_once_it_lasts(harness: Harness) -> None:
+    harness.kube.status["sys-r1"] = common.pending_status()
+    spec = _instance_spec()
+    harness.pass_instance(spec)
+    harness.pods_are(ready=set())
+    harness.seconds += PROGRESS_INTERVAL_S
+    status = harness.pass_instance(spec)
+    assert harness.kube.of("patch status") == ["sys-r1"]
+    assert _conditions(status)["Reconciling"] == ("True", "Progressing")
+    assert status["observedGeneration"] == 1
+    reconciling = next(c for c in status["conditions"] if c["type"] == "Reconciling")
+    assert reconciling["lastTransitionTime"] == "2026-01-01T12:00:00Z", "not the pending status's epoch"
+
+
+def test_instance_of_a_new_robot_that_is_away_says_so_at_once(harness: Harness) -> None:
+    harness.kube.status["sys-r1"] = common.pending_status()
+    harness.tables["robot_nodes"][("node", "r1")] = [robot("r1", ready=False)]
+    status = harness.pass_instance(_instance_spec())
+    assert harness.kube.of("patch status") == ["sys-r1"], "an unreachable robot is a verdict"
+    assert _conditions(status)["Stalled"] == ("True", "NodeUnreachable")
+
+
 def test_instance_stalled_when_a_component_crash_loops(harness: Harness) -> None:
     spec = _instance_spec()
     harness.pass_instance(spec)
@@ -433,6 +477,14 @@ def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
     writes = len(harness.kube.of("patch status"))
     harness.pass_system(_spec())
     assert len(harness.kube.of("patch status")) == writes, "an unchanged status is not written again"
+
+
+def test_system_first_status_replaces_the_pending_one_with_times_of_its_own(harness: Harness) -> None:
+    harness.kube.status["sys"] = common.pending_status()
+    status = harness.pass_system(_spec())
+    assert _conditions(status)["Reconciling"][0] == "True"
+    assert {c["lastTransitionTime"] for c in status["conditions"]} == {"2026-01-01T12:00:00Z"}
+    assert not any(c["reason"] == common.PENDING for c in status["conditions"])
 
 
 def test_system_stalled_when_its_spec_is_invalid(harness: Harness) -> None:
