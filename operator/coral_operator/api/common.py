@@ -146,7 +146,11 @@ def pending_status() -> dict[str, Any]:
     and transition times at the epoch, which the operator never carries over
     (`status.transitions.written_conditions`).
     """
-    waiting = {"reason": PENDING, "message": "Waiting for the Coral operator", "last_transition_time": EPOCH}
+    message = (
+        "No report from the Coral operator yet; a starting robot is reported once it is Ready or "
+        "Stalled, or if its start lasts"
+    )
+    waiting = {"reason": PENDING, "message": message, "last_transition_time": EPOCH}
     conditions = [
         Condition(type=READY, status="Unknown", **waiting),
         Condition(type=RECONCILING, status="True", **waiting),
