@@ -142,12 +142,87 @@ def _patch_status(plural: str, namespace: str, name: str, changes: dict[str, Any
     return str(version)
 
 
+def owned_by(owner_references: Iterable[Any] | None, uid: str) -> bool:
+    """Whether one of `owner_references` (client models or plain dicts) names the owner `uid`."""
+    for reference in owner_references or []:
+        found = reference.get("uid") if isinstance(reference, dict) else getattr(reference, "uid", None)
+        if found == uid:
+            return True
+    return False
+
+
+def _owner_uid(manifest: dict[str, Any]) -> str:
+    return str(manifest["metadata"]["ownerReferences"][0]["uid"])
+
+
+def _labels_match(current: Any, manifest: dict[str, Any]) -> bool:
+    labels = current.metadata.labels or {}
+    return all(labels.get(key) == value for key, value in manifest["metadata"]["labels"].items())
+
+
+def create_owned(
+    manifest: dict[str, Any],
+    create: Callable[[str, dict[str, Any]], Any],
+    read: Callable[[str, str], Any],
+    take_over: Callable[[Any, dict[str, Any]], None],
+) -> None:
+    """Create an object owned by a system, or make the one already there the system's.
+
+    A system deleted and created again under its name (`kubectl replace --force`, a GitOps tool
+    recreating it) finds the first one's objects still there until the garbage collector reaches
+    them: the same names, owned by the old uid. Taking the 409 as done would leave the new system
+    relying on objects the collector is about to delete, and its later pods refused for want of
+    their ServiceAccount. So an object with our labels but another owner is handed to the new
+    owner (the collector leaves an object alone once its owner exists), and one deleted between
+    the 409 and the read is created again. An object without our labels is not ours to take.
+    """
+    namespace, name = manifest["metadata"]["namespace"], manifest["metadata"]["name"]
+    uid = _owner_uid(manifest)
+    for _ in range(3):
+        try:
+            create(namespace, manifest)
+            return
+        except ApiException as error:
+            _ignore(error, 409)
+        try:
+            current = read(name, namespace)
+        except ApiException as error:
+            _ignore(error, 404)
+            continue
+        if owned_by(current.metadata.owner_references, uid) or not _labels_match(current, manifest):
+            return
+        try:
+            take_over(current, manifest)
+            return
+        except ApiException as error:
+            _ignore(error, 404, 409)
+    raise RuntimeError(f"{manifest['kind']} {namespace}/{name} kept changing while being created")
+
+
+def _patch_owner(patch: Callable[..., Any]) -> Callable[[Any, dict[str, Any]], None]:
+    def take_over(current: Any, manifest: dict[str, Any]) -> None:
+        metadata = current.metadata
+        # resourceVersion makes it a compare-and-swap: the collector may be deleting it right now.
+        body = {
+            "metadata": {
+                "ownerReferences": manifest["metadata"]["ownerReferences"],
+                "resourceVersion": metadata.resource_version,
+            }
+        }
+        patch(metadata.name, metadata.namespace, body, _content_type="application/merge-patch+json")
+
+    return take_over
+
+
 def create_config_map(manifest: dict[str, Any]) -> None:
     """Create an immutable ConfigMap unless it exists (its name is its content hash)."""
-    try:
-        client.core().create_namespaced_config_map(manifest["metadata"]["namespace"], manifest)
-    except ApiException as error:
-        _ignore(error, 409)
+    core = client.core()
+    create_owned(
+        manifest,
+        core.create_namespaced_config_map,
+        core.read_namespaced_config_map,
+        _patch_owner(core.patch_namespaced_config_map),
+    )
 
 
 def delete_config_map(namespace: str, name: str) -> None:
@@ -159,17 +234,24 @@ def delete_config_map(namespace: str, name: str) -> None:
 
 def apply_rbac(objects: list[dict[str, Any]]) -> None:
     """Create the executors' ServiceAccount, Role and RoleBinding unless they exist."""
+    core, rbac = client.core(), client.rbac()
     for manifest in objects:
-        namespace = manifest["metadata"]["namespace"]
-        try:
-            if manifest["kind"] == "ServiceAccount":
-                client.core().create_namespaced_service_account(namespace, manifest)
-            elif manifest["kind"] == "Role":
-                client.rbac().create_namespaced_role(namespace, manifest)
-            else:
-                client.rbac().create_namespaced_role_binding(namespace, manifest)
-        except ApiException as error:
-            _ignore(error, 409)
+        if manifest["kind"] == "ServiceAccount":
+            calls = (
+                core.create_namespaced_service_account,
+                core.read_namespaced_service_account,
+                core.patch_namespaced_service_account,
+            )
+        elif manifest["kind"] == "Role":
+            calls = (rbac.create_namespaced_role, rbac.read_namespaced_role, rbac.patch_namespaced_role)
+        else:
+            calls = (
+                rbac.create_namespaced_role_binding,
+                rbac.read_namespaced_role_binding,
+                rbac.patch_namespaced_role_binding,
+            )
+        create, read, patch = calls
+        create_owned(manifest, create, read, _patch_owner(patch))
 
 
 def ensure_admission_policy(objects: list[dict[str, Any]], hash_annotation: str) -> list[str]:
@@ -295,10 +377,11 @@ def read_config_map_key(namespace: str, name: str, key: str) -> str | None:
     return (config_map.data or {}).get(key)
 
 
-def list_system_config_maps(namespace: str, system: str) -> list[str]:
-    """Names of the revision ConfigMaps the operator made for one system."""
+def list_system_config_maps(namespace: str, system: str, uid: str) -> list[str]:
+    """Names of the revision ConfigMaps the operator made for one system, the one with owner `uid`
+    (not those of an earlier system of that name, which the garbage collector is about to delete)."""
     selector = (
         f"{names.LABEL_SYSTEM}={naming.label_value(system)},{names.LABEL_MANAGED_BY}={names.MANAGER}"
     )
     items = client.core().list_namespaced_config_map(namespace, label_selector=selector).items
-    return [item.metadata.name for item in items]
+    return [item.metadata.name for item in items if owned_by(item.metadata.owner_references, uid)]

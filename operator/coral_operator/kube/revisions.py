@@ -13,6 +13,7 @@ from kubernetes.client.exceptions import ApiException
 
 from coral_operator.api import names
 from coral_operator.kube import client
+from coral_operator.kube.applying import create_owned, owned_by
 from coral_operator.planning import naming
 from coral_operator.planning.revisions import StoredRevision
 
@@ -21,7 +22,9 @@ def _apps() -> k8s.AppsV1Api:
     return k8s.AppsV1Api(client.api_client())
 
 
-def read_revisions(namespace: str, system: str) -> list[StoredRevision]:
+def read_revisions(namespace: str, system: str, uid: str) -> list[StoredRevision]:
+    """The history of the system with owner `uid`; an earlier system of that name left its own for
+    the garbage collector, and it is not this one's to roll back to."""
     selector = (
         f"{names.LABEL_SYSTEM}={naming.label_value(system)},{names.LABEL_MANAGED_BY}={names.MANAGER}"
     )
@@ -35,15 +38,33 @@ def read_revisions(namespace: str, system: str) -> list[StoredRevision]:
         )
         for item in items
         if (item.metadata.labels or {}).get(names.LABEL_REVISION)
+        and owned_by(item.metadata.owner_references, uid)
     ]
 
 
 def create_revision(manifest: dict[str, Any]) -> None:
+    """Create a revision, or take over the one an earlier system of the same name left behind."""
+    apps = _apps()
+    create_owned(
+        manifest,
+        apps.create_namespaced_controller_revision,
+        apps.read_namespaced_controller_revision,
+        _take_over,
+    )
+
+
+def _take_over(current: k8s.V1ControllerRevision, manifest: dict[str, Any]) -> None:
+    """Give a revision its new owner and number, `data` left as stored (see `renumber_revision`)."""
+    apps = _apps()
+    current.metadata.owner_references = manifest["metadata"]["ownerReferences"]
+    current.revision = manifest["revision"]
     try:
-        _apps().create_namespaced_controller_revision(manifest["metadata"]["namespace"], manifest)
+        metadata = current.metadata
+        apps.replace_namespaced_controller_revision(metadata.name, metadata.namespace, current)
     except ApiException as error:
-        if error.status != 409:
+        if error.status != 422:
             raise
+        _recreate(apps, current)
 
 
 def renumber_revision(namespace: str, name: str, number: int) -> None:

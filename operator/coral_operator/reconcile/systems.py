@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import Executor
 from datetime import UTC, datetime
+from functools import partial
 from typing import Any
 
 from pydantic import ValidationError
@@ -70,6 +71,7 @@ class SystemReconciler:
         spec = system_pass.parse_spec(system.spec)
         parsed = isinstance(spec, CoralSystemSpec)
         history_key = (system.namespace, system.name, system.uid)
+        read_history = partial(stored_revisions.read_revisions, *history_key)
         observation = system_pass.SystemObservation(
             system=system,
             tree=self._read_source(system, spec.tree, "tree") if isinstance(spec, CoralSystemSpec) else None,
@@ -78,11 +80,7 @@ class SystemReconciler:
             else None,
             robots=self.indexes.read("robot_nodes", ALL_ROBOTS),
             instances=observed,
-            stored_revisions=self.memory.stored_revisions(
-                history_key, lambda: stored_revisions.read_revisions(system.namespace, system.name)
-            )
-            if parsed
-            else [],
+            stored_revisions=self.memory.stored_revisions(history_key, read_history) if parsed else [],
             expected=self.memory.expected_moves(
                 system.uid, system.namespace, {i.robot: i.revision for i in observed}
             ),
@@ -153,7 +151,7 @@ class SystemReconciler:
             applying.apply_rbac(plan.identity)
         # ConfigMaps first: an instance must never point at a file that does not exist yet. Named
         # by content, so one already listed is already right: no create that would answer 409.
-        existing = applying.list_system_config_maps(system.namespace, system.name)
+        existing = applying.list_system_config_maps(system.namespace, system.name, system.uid)
         for manifest in plan.config_maps:
             if manifest["metadata"]["name"] not in existing:
                 applying.create_config_map(manifest)

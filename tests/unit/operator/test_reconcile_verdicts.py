@@ -115,13 +115,13 @@ class FakeKube:
                 ("create configmap", manifest["metadata"]["name"])
             ),
             "delete_config_map": lambda ns, name: self.writes.append(("delete configmap", name)),
-            "list_system_config_maps": lambda ns, system: [],
+            "list_system_config_maps": lambda ns, system, uid: [],
             "read_config_map_key": lambda ns, name, key: self.config_maps.get(name, {}).get(key),
         }
         for name, fake in patches.items():
             monkeypatch.setattr(applying, name, fake)
         monkeypatch.setattr(leases, "read_renew_time", lambda node: self.renewed)
-        monkeypatch.setattr(stored_revisions, "read_revisions", lambda ns, system: list(self.revisions))
+        monkeypatch.setattr(stored_revisions, "read_revisions", lambda ns, system, uid: list(self.revisions))
         monkeypatch.setattr(
             stored_revisions, "create_revision", lambda manifest: self.writes.append(("create revision", ""))
         )
