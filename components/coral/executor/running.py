@@ -21,6 +21,7 @@ from typing import Any
 
 from coral.executor import plugins_phase, records, sinks
 from coral.executor.ticking import TickLoop
+from coral.sdk.heap import freeze_startup_heap
 
 EXIT_SUCCESS = 0
 EXIT_FAILURE = 1
@@ -177,6 +178,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
         calls.open_clients(tree.nodes)
         waker["tree"] = tree
         loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
+        freeze_startup_heap()  # the tree and its plugins are built: nothing of them is garbage
         loop.wait_for_components(options.liveness_wait_s, stop.event)
         return loop.run(stop.event, lambda: 128 + stop.signum)
     finally:

@@ -20,6 +20,7 @@ from typing import Any
 
 from coral.plugins import exporting
 from coral.sdk import params, topics
+from coral.sdk.heap import freeze_startup_heap
 from coral.sdk.spinning import Spinner
 
 EXIT_BAD_INPUT = 2
@@ -129,6 +130,7 @@ def run_component(
 
         executor = MultiThreadedExecutor(num_threads=threads)
         executor.add_node(component)
+        freeze_startup_heap()
         spinner = Spinner(executor, "ros-spin", on_error=component.stop_requested.set).start()
         # The main thread only waits. A stop request wakes it at once; a signal sets `stop`, seen
         # within the wait's bound (the handler must not set the event this thread waits on: it
