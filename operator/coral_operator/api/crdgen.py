@@ -41,6 +41,11 @@ _KEEP = {
     "exclusiveMaximum",
 }
 # Lists keyed by an item field: the API server refuses duplicates and server-side apply merges them.
+# Only on CoralSystems, which people and GitOps tools write. A CoralInstance is written by the
+# operator and its robot's executor alone, both with merge patches that replace a list whole, and
+# keyed lists there cost every write: the API server tracks each item's fields in managedFields
+# (3.2 of a 7.3 kB instance), and a status patch took 12.2 ms of its CPU against 9.6 ms with
+# plain lists, a create 6.7 against 5.9 ms (alternating rounds of 200 on one control plane).
 _MAP_LISTS = {"conditions": "type", "drivers": "name", "skillsets": "name", "executors": "name"}
 
 
@@ -52,8 +57,9 @@ def _resolve(node: dict[str, Any], defs: dict[str, Any]) -> dict[str, Any]:
     return node
 
 
-def _convert(node: dict[str, Any], defs: dict[str, Any]) -> dict[str, Any]:
-    """One pydantic JSON-schema node to a structural OpenAPI v3 node."""
+def _convert(node: dict[str, Any], defs: dict[str, Any], map_lists: dict[str, str]) -> dict[str, Any]:
+    """One pydantic JSON-schema node to a structural OpenAPI v3 node; the list properties named in
+    `map_lists` are keyed by the item field it gives."""
     node = _resolve(node, defs)
     if "anyOf" in node:
         branches = [_resolve(b, defs) for b in node["anyOf"]]
@@ -63,10 +69,10 @@ def _convert(node: dict[str, Any], defs: dict[str, Any]) -> dict[str, Any]:
         if node.get("default") is not None:
             outer["default"] = node["default"]
         if types == ["integer", "string"]:
-            return _convert({**outer, "x-kubernetes-int-or-string": True}, defs)
+            return _convert({**outer, "x-kubernetes-int-or-string": True}, defs, map_lists)
         if len(non_null) != 1:
             raise ValueError(f"cannot express union {types} in a structural schema")
-        return _convert({**non_null[0], **outer}, defs)
+        return _convert({**non_null[0], **outer}, defs, map_lists)
     if "const" in node:
         node = {**{k: v for k, v in node.items() if k != "const"}, "enum": [node["const"]]}
     if node.get("x-kubernetes-int-or-string"):
@@ -76,16 +82,16 @@ def _convert(node: dict[str, Any], defs: dict[str, Any]) -> dict[str, Any]:
         if key not in _KEEP:
             continue
         if key == "properties":
-            out[key] = {name: _convert(child, defs) for name, child in value.items()}
+            out[key] = {name: _convert(child, defs, map_lists) for name, child in value.items()}
             for name, child in out[key].items():
-                if name in _MAP_LISTS and child.get("type") == "array":
+                if name in map_lists and child.get("type") == "array":
                     child["x-kubernetes-list-type"] = "map"
-                    child["x-kubernetes-list-map-keys"] = [_MAP_LISTS[name]]
+                    child["x-kubernetes-list-map-keys"] = [map_lists[name]]
         elif key == "items":
-            out[key] = _convert(value, defs)
+            out[key] = _convert(value, defs, map_lists)
         elif key == "additionalProperties":
             if isinstance(value, dict):
-                out[key] = _convert(value, defs)
+                out[key] = _convert(value, defs, map_lists)
         elif key in ("exclusiveMinimum", "exclusiveMaximum"):
             # JSON Schema 2020 gives the bound; OpenAPI v3.0 wants the bound plus a flag.
             bound = "minimum" if key == "exclusiveMinimum" else "maximum"
@@ -121,10 +127,11 @@ def _was_optional(node: dict[str, Any], name: str, defs: dict[str, Any]) -> bool
     return any(_resolve(b, defs).get("type") == "null" for b in raw.get("anyOf", []))
 
 
-def build_schema(model: type[BaseModel]) -> dict[str, Any]:
-    """The structural OpenAPI v3 schema of one pydantic model."""
+def build_schema(model: type[BaseModel], *, keyed_lists: bool = True) -> dict[str, Any]:
+    """The structural OpenAPI v3 schema of one pydantic model; `keyed_lists`: its condition and
+    component lists are keyed (`_MAP_LISTS`)."""
     raw = model.model_json_schema(by_alias=True, mode="validation")
-    return _convert(raw, raw.get("$defs", {}))
+    return _convert(raw, raw.get("$defs", {}), _MAP_LISTS if keyed_lists else {})
 
 
 def _status_path(*wire_names: str) -> str:
@@ -163,9 +170,10 @@ def _crd(
     spec_model: type[BaseModel],
     status_model: type[BaseModel],
     columns: list[dict[str, Any]],
+    keyed_lists: bool,
 ) -> dict[str, Any]:
-    spec_schema = build_schema(spec_model)
-    status_schema = build_schema(status_model)
+    spec_schema = build_schema(spec_model, keyed_lists=keyed_lists)
+    status_schema = build_schema(status_model, keyed_lists=keyed_lists)
     schema = {
         "type": "object",
         "description": description,
@@ -220,6 +228,7 @@ def build_crds() -> dict[str, dict[str, Any]]:
         description="A Coral system (behavior tree, components, ROS parameters) and the robots it runs on.",
         spec_model=system.CoralSystemSpec,
         status_model=system.CoralSystemStatus,
+        keyed_lists=True,
         columns=[
             _column("Robots", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.matched),
             _column("Ready", "integer", keys.SYSTEM_STATUS.robots, keys.ROBOT_COUNTS.ready),
@@ -238,6 +247,7 @@ def build_crds() -> dict[str, dict[str, Any]]:
         description="One robot's share of a CoralSystem: its component pods and its behavior-tree status.",
         spec_model=instance.CoralInstanceSpec,
         status_model=instance.CoralInstanceStatus,
+        keyed_lists=False,
         columns=[
             {"name": "Robot", "type": "string", "jsonPath": ".spec.robot"},
             _condition_column("Ready", "Ready"),

@@ -92,6 +92,25 @@ def test_the_component_lists_are_keyed_by_name() -> None:
         assert spec["properties"][group]["x-kubernetes-list-map-keys"] == ["name"]
 
 
+def test_an_instance_keys_none_of_its_lists_so_its_writes_stay_cheap() -> None:
+    """Only the operator and the robot's executor write a CoralInstance, with merge patches that
+    replace lists whole; keyed lists would make the API server track every item in managedFields."""
+    schema = _schema("coral.dev_coralinstances.yaml")
+    keyed: list[str] = []
+
+    def walk(node: object, path: str) -> None:
+        if isinstance(node, dict):
+            if node.get("x-kubernetes-list-type") == "map":
+                keyed.append(path)
+            for key, child in node.items():
+                walk(child, f"{path}.{key}")
+
+    walk(schema, "")
+    assert keyed == []
+    conditions = schema["properties"]["status"]["properties"]["conditions"]
+    assert conditions["type"] == "array"
+
+
 def test_a_new_object_of_either_kind_reads_as_pending_until_the_operator_writes_its_status() -> None:
     """The API server fills in `status` from the schema's default on every read of a new object."""
     for kind_file, status_model in (
