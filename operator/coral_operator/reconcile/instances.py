@@ -4,7 +4,7 @@ Run by the work queue's workers (`reconcile.controller`), never inside a kopf ha
 reads the instance, its pods and its robot's Node from the indexes, asks
 `planning.instance_pass.plan_instance` what to write, writes it through `kube.applying`, and
 computes the status with `status.instance_status`. The status is patched only when a verdict
-changed (`status.instance_status.verdict_of`); progress alone waits for `PROGRESS_INTERVAL_S`, and
+changed (`status.instance_status.verdict_of`); progress alone waits (`progress_interval`), and
 so does "progressing" at a new generation while the status written for the old one already reads
 as in progress (`status.instance_status.stale_status_says_as_much`), and "starting" while a new
 instance still has the CRD's pending status (`status.instance_status.pending_status_says_as_much`).
@@ -31,10 +31,20 @@ Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
 # outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
 REFUSED_RETRY_S = 30.0
-# Status changes that change no verdict (a stage's message, a pod's phase) are written at most
-# this often. A new instance reads as pending meanwhile (the CRD's default status), so a robot
-# that starts within it costs one status write, when it is Ready.
+# Status changes that change no verdict (a stage's message, a pod's phase) wait this long before
+# they are written. A new instance reads as pending meanwhile (the CRD's default status), so a
+# robot that starts within it costs one status write, when it is Ready.
 PROGRESS_INTERVAL_S = 10.0
+# Each further progress write before the next verdict waits twice as long as the one before, up
+# to this: a start of a minute and a half (a loaded control plane, a slow image pull) is reported
+# at 10, 30 and 70 s instead of every 10 s, and its robot's writes stay bounded however slow it is.
+PROGRESS_INTERVAL_MAX_S = 60.0
+
+
+def progress_interval(deferred_writes: int) -> float:
+    """How long a status that can wait (`deferred_writes` such writes since the last verdict) waits
+    after the last write, or after the spec change for the first."""
+    return min(PROGRESS_INTERVAL_S * 2**deferred_writes, PROGRESS_INTERVAL_MAX_S)
 
 
 class InstanceReconciler:
@@ -175,7 +185,7 @@ class InstanceReconciler:
         ) or instance_status.pending_status_says_as_much(current, new):
             since = self.memory.generation_seen_at(record.uid, record.generation)
         if since is not None:
-            wait = PROGRESS_INTERVAL_S - (self.memory.clock() - since)
+            wait = progress_interval(self.memory.deferred_writes(record.uid)) - (self.memory.clock() - since)
             if wait > 0:
                 # It rides along with the next verdict, or goes out when this is due.
                 self.requeue((record.namespace, record.name), wait)
@@ -185,7 +195,9 @@ class InstanceReconciler:
         if version is None:
             return
         after = {key: value for key, value in {**current, **changed}.items() if value is not None}
-        self.memory.remember_status(record.uid, version, ownership.operator_part(after))
+        self.memory.remember_status(
+            record.uid, version, ownership.operator_part(after), deferred=since is not None
+        )
         # After the write, so a deferred or failed one cannot post the same transition twice. Only
         # warnings: the good news of a fleet is counted on its system, not told per robot.
         for kind, reason, message in events.condition_events(

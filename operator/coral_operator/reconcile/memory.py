@@ -40,6 +40,7 @@ class Memory:
     clock: Callable[[], float] = time.monotonic
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _status_written: dict[str, tuple[str, dict[str, Any], float]] = field(default_factory=dict)
+    _deferred_writes: dict[str, int] = field(default_factory=dict)
     _desired_pods: dict[str, tuple[int | None, list[dict[str, Any]]]] = field(default_factory=dict)
     _history: dict[tuple[str, str, str], list[StoredRevision]] = field(default_factory=dict)
     _expected: dict[tuple[str, str], dict[str, tuple[str, float]]] = field(default_factory=dict)
@@ -72,9 +73,19 @@ class Memory:
         version, _, _ = self.status_written(uid)
         return bool(version) and version == resource_version
 
-    def remember_status(self, uid: str, version: str, status: dict[str, Any]) -> None:
+    def remember_status(
+        self, uid: str, version: str, status: dict[str, Any], *, deferred: bool = False
+    ) -> None:
+        """`deferred`: the write could wait (progress, not a verdict); such writes are counted until
+        the next verdict, so that a long start is reported less and less often."""
         with self._lock:
             self._status_written[uid] = (version, status, self.clock())
+            self._deferred_writes[uid] = self._deferred_writes.get(uid, 0) + 1 if deferred else 0
+
+    def deferred_writes(self, uid: str) -> int:
+        """Status writes that could wait, since the last verdict was written."""
+        with self._lock:
+            return self._deferred_writes.get(uid, 0)
 
     def generation_seen_at(self, uid: str, generation: int | None) -> float:
         """When this process first saw the instance at `generation` (monotonic): a status it does
@@ -127,6 +138,7 @@ class Memory:
     def forget_instance(self, uid: str) -> None:
         with self._lock:
             self._status_written.pop(uid, None)
+            self._deferred_writes.pop(uid, None)
             self._desired_pods.pop(uid, None)
             self._pod_writes.pop(uid, None)
             self._generation_seen.pop(uid, None)

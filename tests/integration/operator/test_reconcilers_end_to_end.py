@@ -20,8 +20,8 @@ from kubernetes import watch
 from urllib3.exceptions import ProtocolError
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
-# Progress alone may be written this often (reconcile.instances.PROGRESS_INTERVAL_S, 10 s), less
-# the time a watch event takes to arrive.
+# Progress alone is written at most this often (reconcile.instances.progress_interval: 10 s, then
+# longer), less the time a watch event takes to arrive.
 PROGRESS_WRITE_S = 9.0
 
 

@@ -378,6 +378,30 @@ def test_instance_of_a_new_robot_says_how_its_start_goes_once_it_lasts(harness: 
     assert reconciling["lastTransitionTime"] == "2026-01-01T12:00:00Z", "not the pending status's epoch"
 
 
+def test_a_long_start_is_reported_less_and_less_often_so_its_writes_stay_bounded(harness: Harness) -> None:
+    """Progress that changes every second, and never a verdict: the first write after 10 s, then
+    20, 40 and at most 60 s after the one before, however long the start lasts."""
+    harness.kube.status["sys-r1"] = common.pending_status()
+    spec = _instance_spec()
+    written_at: list[int] = []
+    for second in range(200):
+        harness.seconds = 1000.0 + second
+        # The lidar pod restarts every second: its component's status changes, no verdict does.
+        restarted = {"name": "lidar", "ready": False, "restartCount": second}
+        harness.pods_are(ready=set(), lidar={"containerStatuses": [restarted]})
+        before = len(harness.kube.of("patch status"))
+        status = harness.pass_instance(spec)
+        if len(harness.kube.of("patch status")) > before:
+            written_at.append(second)
+            assert _conditions(status)["Ready"][0] == "False"
+    assert written_at == [10, 30, 70, 130, 190]
+    for ready in ({"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+        harness.pods_are(ready=ready)
+        status = harness.pass_instance(spec)
+    assert _conditions(status)["Ready"] == ("True", "Ready")
+    assert len(harness.kube.of("patch status")) == len(written_at) + 1, "Ready is a verdict: at once"
+
+
 def test_instance_of_a_new_robot_that_is_away_says_so_at_once(harness: Harness) -> None:
     harness.kube.status["sys-r1"] = common.pending_status()
     harness.tables["robot_nodes"][("node", "r1")] = [robot("r1", ready=False)]
