@@ -92,6 +92,6 @@ def classify(event: dict) -> str | None:
     if agent.startswith(("coral-bench", "kwok", "kubectl")):
         return None
     # The operator runs with the admin kubeconfig, like the benchmark, kubectl and kwok (told apart above).
-    if user.endswith("admin") and agent.startswith(("kopf", "OpenAPI-Generator", "Python")):
+    if user.endswith("admin") and agent.startswith(("kopf", "coral-operator", "Python")):
         return "operator"
     return None

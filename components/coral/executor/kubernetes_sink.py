@@ -226,7 +226,8 @@ def create_sink(options: dict[str, Any]) -> KubernetesStatusSink:
         config.load_incluster_config(client_configuration=configuration)
     except ConfigException:
         config.load_kube_config(client_configuration=configuration)
+    api = client.ApiClient(configuration)
+    # Named in audit logs and as the field manager of its writes in managedFields.
+    api.user_agent = names.EXECUTOR_MANAGER
     interval = float(options.get("min_interval_s") or os.environ.get("CORAL_STATUS_MIN_INTERVAL_S", "1.0"))
-    return KubernetesStatusSink(
-        build_patcher(client.ApiClient(configuration), namespace, instance), min_interval_s=interval
-    )
+    return KubernetesStatusSink(build_patcher(api, namespace, instance), min_interval_s=interval)

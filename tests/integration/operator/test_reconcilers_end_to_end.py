@@ -53,6 +53,13 @@ def test_a_system_deploys_counts_its_robots_in_one_event_and_follows_a_spec_chan
     )
     assert sum(int(e.message.split()[1]) * (e.count or 1) for e in created) == 3, [e.message for e in created]
     first = system["status"]["revision"]
+    # Who wrote an instance is named in its managedFields (and in audit logs) as the operator.
+    managers = {
+        entry["manager"]
+        for instance in coral.instances().values()
+        for entry in instance["metadata"].get("managedFields") or []
+    }
+    assert "coral-operator" in managers and "OpenAPI-Generator" not in managers, managers
 
     skillset = system["spec"]["skillsets"][0]
     env = [*skillset.get("env", []), {"name": "MODE", "value": "changed"}]
