@@ -143,12 +143,8 @@ def _patch_status(plural: str, namespace: str, name: str, changes: dict[str, Any
 
 
 def owned_by(owner_references: Iterable[Any] | None, uid: str) -> bool:
-    """Whether one of `owner_references` (client models or plain dicts) names the owner `uid`."""
-    for reference in owner_references or []:
-        found = reference.get("uid") if isinstance(reference, dict) else getattr(reference, "uid", None)
-        if found == uid:
-            return True
-    return False
+    """Whether one of `owner_references` (as the client reads them) names the owner `uid`."""
+    return any(reference.uid == uid for reference in owner_references or [])
 
 
 def _owner_uid(manifest: dict[str, Any]) -> str:
