@@ -17,6 +17,7 @@ import kopf
 from coral_operator.api import names
 from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
+from coral_operator.reconcile import indexes
 from coral_operator.reconcile.indexes import ALL_ROBOTS
 
 
@@ -37,20 +38,16 @@ async def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: 
 
 
 @kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
-async def coral_instances(namespace: str, spec: kopf.Spec, body: kopf.Body, **_: Any) -> dict[Any, Any]:
-    return {(namespace, spec.get("system", "")): observing.observed_instance(body)}
+async def coral_instances(
+    namespace: str, name: str, spec: kopf.Spec, body: kopf.Body, **_: Any
+) -> dict[Any, Any]:
+    return {
+        indexes.instances_of_system(namespace, spec.get("system", "")): observing.observed_instance(body),
+        indexes.instance_named(namespace, name): observing.instance_record(body),
+        indexes.instances_on_node(spec.get("nodeName", "")): (namespace, name),
+    }
 
 
 @kopf.index(names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
 async def coral_systems(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     return {(namespace, name): observing.system_record(body)}
-
-
-@kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
-async def instances_by_node(namespace: str, name: str, spec: kopf.Spec, **_: Any) -> dict[Any, Any]:
-    return {spec.get("nodeName", ""): (namespace, name)}
-
-
-@kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
-async def instance_records(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
-    return {(namespace, name): observing.instance_record(body)}

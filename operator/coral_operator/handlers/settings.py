@@ -15,7 +15,7 @@ import kopf
 from coral_operator import config
 from coral_operator.api import names
 from coral_operator.handlers.filters import watch_selectors
-from coral_operator.kube import applying
+from coral_operator.kube import applying, client
 from coral_operator.planning import rbac
 from coral_operator.reconcile.controller import Controller
 
@@ -72,6 +72,7 @@ def _post(reference: dict[str, Any], kind: str, reason: str, message: str) -> No
 def create_controller(memo: kopf.Memo, **_: Any) -> None:
     # Its workers start with the first watch event (`handlers.watching`), in a handler's context,
     # where kopf's Event poster lives.
+    client.load_api_classes()
     memo["controller"] = Controller(policy=config.from_environment().policy, post=_post)
 
 

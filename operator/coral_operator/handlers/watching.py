@@ -22,8 +22,6 @@ INDEXES = (
     "coral_pods",
     "coral_instances",
     "coral_systems",
-    "instances_by_node",
-    "instance_records",
 )
 
 

@@ -19,7 +19,7 @@ from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import Indexes
+from coral_operator.reconcile.indexes import Indexes, instances_on_node
 from coral_operator.reconcile.instances import InstanceReconciler
 from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
@@ -149,7 +149,7 @@ class Controller:
             return
         if deleted:
             self.memory.forget_seen(("Node", name))
-        for namespace, instance in self.indexes.read("instances_by_node", name):
+        for namespace, instance in self.indexes.read("coral_instances", instances_on_node(name)):
             self.queue.add((INSTANCE, namespace, instance))
         for namespace, system in self.indexes.keys("coral_systems"):
             self.queue.add((SYSTEM, namespace, system))

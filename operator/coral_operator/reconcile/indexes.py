@@ -14,6 +14,24 @@ from typing import Any
 ALL_ROBOTS = "all"
 """The key under which `robot_nodes` holds every robot (besides `("node", NAME)` per Node)."""
 
+# `coral_instances` holds three kinds of key, so kopf calls one handler per instance event, not
+# one per view (a call costs kopf far more than building the values).
+
+
+def instances_of_system(namespace: str, system: str) -> tuple[str, str, str]:
+    """`coral_instances` key of a system's instances as it sees them (`ObservedInstance`)."""
+    return ("system", namespace, system)
+
+
+def instance_named(namespace: str, name: str) -> tuple[str, str, str]:
+    """`coral_instances` key of one instance as its own reconciler reads it (`InstanceRecord`)."""
+    return ("instance", namespace, name)
+
+
+def instances_on_node(node_name: str) -> tuple[str, str]:
+    """`coral_instances` key of the (namespace, name) of every instance on one robot's Node."""
+    return ("node", node_name)
+
 
 class Indexes:
     """Named read-only views of kopf's indexes (mappings of key to a collection of values)."""

@@ -23,7 +23,7 @@ from coral_operator.kube import applying, leases
 from coral_operator.planning import instance_pass
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import Indexes
+from coral_operator.reconcile.indexes import Indexes, instance_named
 from coral_operator.reconcile.memory import Memory
 from coral_operator.status import instance_status, ownership, transitions
 
@@ -66,7 +66,7 @@ class InstanceReconciler:
         self.clock = clock
 
     def reconcile(self, key: Key) -> None:
-        records = self.indexes.read("instance_records", key)
+        records = self.indexes.read("coral_instances", instance_named(*key))
         if not records:
             return
         record: InstanceRecord = records[0]

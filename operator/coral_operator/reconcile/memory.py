@@ -31,6 +31,9 @@ EXPECTATION_SECONDS = 60.0
 # A pod written but not seen after this long is written again: the cost of a late watch is one
 # request that answers 409, while a pod deleted before the index ever saw it must come back.
 POD_EXPECTATION_SECONDS = 15.0
+# Likewise for a CoralInstance a system pass created: a fleet's passes run every fraction of a
+# second while a thousand creates are still on their way through the watch.
+INSTANCE_EXPECTATION_SECONDS = 15.0
 
 
 @dataclass
@@ -48,6 +51,7 @@ class Memory:
     _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
     _pod_writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
     _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
+    _instance_creates: dict[str, dict[str, float]] = field(default_factory=dict)
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -180,6 +184,23 @@ class Memory:
             for robot, revision in moves.items():
                 expected[robot] = (revision, now)
 
+    def instances_in_flight(self, uid: str, observed: set[str]) -> set[str]:
+        """CoralInstances of a system this process created that `observed` (the names in the index)
+        does not show yet: a pass that runs before the watch caught up must not create them again
+        (each such create would only answer 409)."""
+        now = self.clock()
+        with self._lock:
+            creates = self._instance_creates.get(uid, {})
+            for name, since in list(creates.items()):
+                if name in observed or now - since > INSTANCE_EXPECTATION_SECONDS:
+                    del creates[name]
+            return set(creates)
+
+    def expect_instances(self, uid: str, created: list[str]) -> None:
+        now = self.clock()
+        with self._lock:
+            self._instance_creates.setdefault(uid, {}).update({name: now for name in created})
+
     def rollout_written(self, uid: str) -> RolloutStatus | None:
         """The rollout status last written: a pass may read the system from before that write, and
         the canary clock or a recorded failure must not be lost to that."""
@@ -195,6 +216,7 @@ class Memory:
             self._history.pop((namespace, name, uid), None)
             self._expected.pop((namespace, uid), None)
             self._rollout_written.pop(uid, None)
+            self._instance_creates.pop(uid, None)
 
     # --- event filtering ---------------------------------------------------------------------
 

@@ -27,7 +27,7 @@ from coral_operator.planning import configmaps, instances, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
+from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instances_of_system
 from coral_operator.reconcile.memory import Memory
 from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
@@ -67,7 +67,9 @@ class SystemReconciler:
         system: SystemRecord = records[0]
         now = self.clock()
         status = self.memory.observed_status(system.uid, system.resource_version, system.status)
-        observed: list[ObservedInstance] = self.indexes.read("coral_instances", key)
+        observed: list[ObservedInstance] = self.indexes.read("coral_instances", instances_of_system(*key))
+        # Every pass, so that an instance seen once and then gone is no longer counted on its way.
+        creating = self.memory.instances_in_flight(system.uid, {instance.name for instance in observed})
         spec = system_pass.parse_spec(system.spec)
         parsed = isinstance(spec, CoralSystemSpec)
         history_key = (system.namespace, system.name, system.uid)
@@ -95,7 +97,7 @@ class SystemReconciler:
             self.memory.remember_rollout(system.uid, plan.rollout.status)
             self.memory.expect_moves(system.uid, system.namespace, plan.rollout.moves)
             try:
-                self._apply_changes(system, plan)
+                self._apply_changes(system, plan, creating)
             except Exception as error:
                 refused = applying.refusal(error)
                 if refused is None:
@@ -143,7 +145,7 @@ class SystemReconciler:
             stored_revisions.delete_revision(system.namespace, name)
         self.memory.remember_revisions((system.namespace, system.name, system.uid), plan.stored_after)
 
-    def _apply_changes(self, system: SystemRecord, plan: system_pass.SystemPlan) -> None:
+    def _apply_changes(self, system: SystemRecord, plan: system_pass.SystemPlan, creating: set[str]) -> None:
         changes = plan.changes
         if changes.empty:
             return
@@ -155,15 +157,21 @@ class SystemReconciler:
         for manifest in plan.config_maps:
             if manifest["metadata"]["name"] not in existing:
                 applying.create_config_map(manifest)
-        self._apply_instances(system, changes)
+        self._apply_instances(system, changes, creating)
         for stale in configmaps.plan_config_map_cleanup(existing, plan.in_use):
             applying.delete_config_map(system.namespace, stale)
 
-    def _apply_instances(self, system: SystemRecord, changes: instances.InstanceChanges) -> None:
+    def _apply_instances(
+        self, system: SystemRecord, changes: instances.InstanceChanges, creating: set[str]
+    ) -> None:
+        """`creating`: instances created by earlier passes that the index does not show yet."""
         # One Event per kind of change and pass, with a count, not one per robot.
         namespace, reference = system.namespace, system.reference
-        made = applying.in_parallel(self.pool, applying.create_instance, changes.create)
-        created = [m["metadata"]["name"] for m, new in zip(changes.create, made, strict=True) if new]
+        create = [m for m in changes.create if m["metadata"]["name"] not in creating]
+        made = applying.in_parallel(self.pool, applying.create_instance, create)
+        # Created now or already there (409): either way the watch will show it.
+        self.memory.expect_instances(system.uid, [m["metadata"]["name"] for m in create])
+        created = [m["metadata"]["name"] for m, new in zip(create, made, strict=True) if new]
         if created:
             self.post(
                 reference,

@@ -11,6 +11,7 @@ from typing import Any
 
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile.controller import INSTANCE, SYSTEM, Controller
+from coral_operator.reconcile.indexes import instances_on_node
 
 
 def _controller() -> Controller:
@@ -83,7 +84,7 @@ def test_the_echo_of_its_own_status_write_costs_an_instance_no_pass() -> None:
 def test_a_robot_heartbeat_queues_nothing_and_a_readiness_change_queues_its_instances() -> None:
     controller = _controller()
     controller.indexes.attach(
-        instances_by_node={"n1": [("ns", "fleet-r1")]}, coral_systems={("ns", "fleet"): []}
+        coral_instances={instances_on_node("n1"): [("ns", "fleet-r1")]}, coral_systems={("ns", "fleet"): []}
     )
     labels = {"coral.dev/robot": "r1"}
 

@@ -22,7 +22,7 @@ from coral_operator.planning import instances, naming
 from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
-from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes
+from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.instances import PROGRESS_INTERVAL_S, InstanceReconciler
 from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
@@ -150,8 +150,7 @@ class Harness:
         self.seconds = 1000.0
         self.indexes = Indexes()
         self.tables: dict[str, dict[Any, list[Any]]] = {
-            name: {}
-            for name in ("robot_nodes", "coral_pods", "instance_records", "coral_systems", "coral_instances")
+            name: {} for name in ("robot_nodes", "coral_pods", "coral_systems", "coral_instances")
         }
         self.indexes.attach(**self.tables)
         self.requeued: list[tuple[tuple[str, str], float]] = []
@@ -178,7 +177,7 @@ class Harness:
 
     def instance(self, spec: dict[str, Any], name: str = "sys-r1", generation: int = 1) -> None:
         status = self.kube.status.get(name, {})
-        self.tables["instance_records"][(NS, name)] = [
+        self.tables["coral_instances"][instance_named(NS, name)] = [
             InstanceRecord(
                 name=name,
                 namespace=NS,
@@ -240,7 +239,9 @@ class Harness:
                     "status": {"conditions": conditions, "robot": {"reachable": True, "nodeReady": True}},
                 }
             )
-        self.tables["coral_instances"][(NS, "sys")] = [observing.observed_instance(body) for body in bodies]
+        self.tables["coral_instances"][instances_of_system(NS, "sys")] = [
+            observing.observed_instance(body) for body in bodies
+        ]
 
     def pass_system(self, spec: dict[str, Any], name: str = "sys") -> dict[str, Any]:
         self.system(spec, name)
@@ -490,6 +491,20 @@ def test_system_reconciling_creates_one_instance_per_robot_and_counts_them_in_on
     assert status["robots"]["matched"] == 2
     created = [e for e in harness.events if e[2] == "InstancesCreated"]
     assert len(created) == 1 and created[0][3].startswith("Created 2 CoralInstances")
+
+
+def test_system_pass_before_the_index_caught_up_creates_no_instance_twice(harness: Harness) -> None:
+    harness.add_robot(robot("r2"))
+    harness.pass_system(_spec())
+    harness.pass_system(_spec())  # the index does not show the new instances yet
+    assert sorted(harness.kube.of("create instance")) == ["sys-r1", "sys-r2"], "each made once"
+    harness.instances_are(ready=False)
+    harness.pass_system(_spec())  # the watch shows them
+    harness.tables["coral_instances"][instances_of_system(NS, "sys")] = []  # and then both are deleted
+    harness.pass_system(_spec())
+    assert sorted(harness.kube.of("create instance")) == ["sys-r1", "sys-r1", "sys-r2", "sys-r2"], (
+        "an instance seen and gone is made again"
+    )
 
 
 def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
