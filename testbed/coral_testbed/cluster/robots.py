@@ -159,9 +159,15 @@ def apply_pods_ready_again(api: k8s.ApiClient, name: str) -> int:
             {"type": kind, "status": "True", "lastTransitionTime": now}
             for kind in ("Ready", "ContainersReady")
         ]
-        core.patch_namespaced_pod_status(
-            pod.metadata.name, pod.metadata.namespace, {"status": {"conditions": conditions}}
-        )
+        try:
+            core.patch_namespaced_pod_status(
+                pod.metadata.name, pod.metadata.namespace, {"status": {"conditions": conditions}}
+            )
+        except ApiException as error:
+            # Deleted since the list (the operator replaces a returning robot's pods at once).
+            if error.status != 404:
+                raise
+            continue
         restored += 1
     return restored
 
