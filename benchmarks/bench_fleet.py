@@ -8,11 +8,12 @@ queue says every 10 s how many passes ran, how long they took and how late they 
 For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
 scheduler, kwok) with that many kwok robots, in the same run:
 
-1. One DaemonSet, one pod with the three containers per robot: the floor, and the reference of
+1. One DaemonSet whose pod is the `PodPerRobot` pod the operator plans (its three containers,
+   environment, probes, volumes and identity; `fleet.daemonset`): the floor, and the reference of
    `PodPerRobot`. Time until every pod is Ready, then a rolling update (`maxUnavailable: 10%`)
    after one environment variable changes.
-2. Three DaemonSets, one per component (three pods per robot): the same shape as Coral's default
-   layout, and its reference. The same two phases.
+2. Three DaemonSets, one per `PodPerComponent` pod the operator plans (three pods per robot): the
+   same shape as Coral's default layout, and its reference. The same two phases.
 3. Coral: the operator as a subprocess, one CoralSystem over the robots (three component pods
    and one CoralInstance per robot); time until the system is Ready with every robot ready, then
    the same change rolled out with `spec.rollout.maxUnavailable: 10%`.
@@ -129,6 +130,7 @@ def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
         note(f"{count} robots Ready in {time.monotonic() - began:.1f} s")
         for namespace in ("bench-daemonset", "bench-coral"):
             core.create_namespace({"metadata": {"name": namespace}})
+        daemonset.create_executor_account(api, "bench-daemonset")
         # Installed before any run, as on a real cluster: the garbage collector learns of new
         # resource types only at its periodic discovery (30 s); until then it retries, with backoff,
         # every object whose owner it cannot map, a cost no real cluster's rollout pays.

@@ -1,53 +1,60 @@
-"""The baselines: DaemonSets running the same three components on every robot.
+"""The baselines: DaemonSets running the very pods Coral plans for the benchmark's mission.
 
-Same images, host network and IPC, and DaemonSet tolerations as the Coral pods. Two shapes, as
-Kubernetes would run the mission without Coral:
+Each DaemonSet's pod template is the pod the operator would create for one robot of the same
+CoralSystem (`fleet.coral.build_system`), from the operator's own planner: the same containers
+with their images, environment, probes, mounts and security context, the same volumes, host
+network and IPC, tolerations and executor ServiceAccount. So the runs compare controllers, not pod
+sizes: the API server's and kwok's work per pod grows with the pod. What a DaemonSet cannot carry
+is changed: no `nodeName` (the DaemonSet places its pods) and `restartPolicy: Always` (the only
+one it accepts). Two shapes, as Kubernetes would run the mission without Coral:
 
-- the floor, one DaemonSet whose pod holds the three containers (one pod per robot);
-- the same shape as Coral's default layout, three DaemonSets, one per component (three pods per
-  robot).
+- the floor, one DaemonSet with the `PodPerRobot` pod (one pod per robot);
+- the same shape as Coral's default layout, one DaemonSet per `PodPerComponent` pod (three pods
+  per robot).
 
 `run_daemonsets` measures the time until every pod of the given DaemonSets is Ready and the time
-of a rolling update at the same `maxUnavailable` after one environment variable changes.
+of a rolling update at the same `maxUnavailable` after the same environment variable changes as
+in the Coral runs.
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from coral_operator.api.instance import CoralInstanceSpec
+from coral_operator.api.system import CoralSystemSpec
+from coral_operator.planning import instances, naming, pods
+from coral_operator.planning.observed import RobotNode
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
+from kubernetes.client.exceptions import ApiException
 
+from fleet import coral
 from fleet.robots import FLEET_LABEL
 
-NAME = "mission"
-COMPONENTS = (
-    ("lidar-driver", "coral/lidar-driver:0.1.0"),
-    ("slam", "coral/slam-skillset:0.1.0"),
-    ("executor", "coral/executor:0.1.0"),
-)
-TOLERATIONS = [
-    {"key": "node.kubernetes.io/unreachable", "operator": "Exists", "effect": "NoExecute"},
-    {"key": "node.kubernetes.io/not-ready", "operator": "Exists", "effect": "NoExecute"},
-    {"key": "node.kubernetes.io/unschedulable", "operator": "Exists", "effect": "NoSchedule"},
-]
+NAME = coral.NAME
 
 
-def build_daemonset(
-    namespace: str,
-    revision: str,
-    max_unavailable: str,
-    name: str = NAME,
-    components: tuple[tuple[str, str], ...] = COMPONENTS,
-) -> dict[str, Any]:
+def coral_pods(namespace: str, revision: str, layout: str) -> list[dict[str, Any]]:
+    """The pods the operator plans for one robot of the benchmark's system at `revision`."""
+    spec = CoralSystemSpec.model_validate(coral.build_system(namespace, revision, "10%", layout)["spec"])
+    robot = RobotNode(node_name="robot-0000", robot="robot-0000", labels={FLEET_LABEL: "bench"}, ready=True)
+    template = instances.build_template(spec, f"{NAME}-tree", f"{NAME}-parameters")
+    instance = CoralInstanceSpec.model_validate(instances.build_instance_spec(NAME, robot, template))
+    return pods.build_pods(spec=instance, instance=f"{NAME}-robot-0000", namespace=namespace, instance_uid="")
+
+
+def build_daemonset(namespace: str, name: str, pod: dict[str, Any], max_unavailable: str) -> dict[str, Any]:
+    """A DaemonSet whose template is `pod` (as Coral plans it) on every benchmark robot."""
     labels = {"app": name}
-    containers = [
-        {"name": component, "image": image, "env": [{"name": "MISSION_REVISION", "value": revision}]}
-        for component, image in components
-    ]
+    template = copy.deepcopy(pod["spec"])
+    template.pop("nodeName", None)
+    template["restartPolicy"] = "Always"
+    template["nodeSelector"] = {FLEET_LABEL: "bench"}
     return {
         "apiVersion": "apps/v1",
         "kind": "DaemonSet",
@@ -55,34 +62,33 @@ def build_daemonset(
         "spec": {
             "selector": {"matchLabels": labels},
             "updateStrategy": {"type": "RollingUpdate", "rollingUpdate": {"maxUnavailable": max_unavailable}},
-            "template": {
-                "metadata": {"labels": labels},
-                "spec": {
-                    "nodeSelector": {FLEET_LABEL: "bench"},
-                    "tolerations": TOLERATIONS,
-                    "hostNetwork": True,
-                    "hostIPC": True,
-                    "dnsPolicy": "ClusterFirstWithHostNet",
-                    "enableServiceLinks": False,
-                    "automountServiceAccountToken": False,
-                    "containers": containers,
-                },
-            },
+            "template": {"metadata": {"labels": labels}, "spec": template},
         },
     }
 
 
 def single(namespace: str, revision: str, max_unavailable: str) -> list[dict[str, Any]]:
-    """The floor: one DaemonSet, one pod with the three containers per robot."""
-    return [build_daemonset(namespace, revision, max_unavailable)]
+    """The floor: one DaemonSet, the `PodPerRobot` pod on every robot."""
+    (pod,) = coral_pods(namespace, revision, "PodPerRobot")
+    return [build_daemonset(namespace, NAME, pod, max_unavailable)]
 
 
 def per_component(namespace: str, revision: str, max_unavailable: str) -> list[dict[str, Any]]:
-    """Coral's shape: one DaemonSet per component, three pods per robot."""
+    """Coral's shape: one DaemonSet per `PodPerComponent` pod, three pods per robot."""
     return [
-        build_daemonset(namespace, revision, max_unavailable, name=name, components=((name, image),))
-        for name, image in COMPONENTS
+        build_daemonset(namespace, pod["spec"]["containers"][0]["name"], pod, max_unavailable)
+        for pod in coral_pods(namespace, revision, "PodPerComponent")
     ]
+
+
+def create_executor_account(api: k8s.ApiClient, namespace: str) -> None:
+    """The ServiceAccount the executor's pods name (the operator makes it for the Coral runs)."""
+    account = {"metadata": {"name": naming.executor_account_name(NAME), "namespace": namespace}}
+    try:
+        k8s.CoreV1Api(api).create_namespaced_service_account(namespace, account)
+    except ApiException as error:
+        if error.status != 409:
+            raise
 
 
 @dataclass
