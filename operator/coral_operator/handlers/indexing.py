@@ -17,8 +17,12 @@ import kopf
 from coral_operator.api import names
 from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
-from coral_operator.reconcile import indexes
-from coral_operator.reconcile.indexes import ALL_ROBOTS
+from coral_operator.reconcile.indexes import (
+    ALL_ROBOTS,
+    instance_named,
+    instances_of_system,
+    instances_on_node,
+)
 
 
 @kopf.index("nodes", labels=ROBOT_NODE_LABELS)
@@ -42,9 +46,9 @@ async def coral_instances(
     namespace: str, name: str, spec: kopf.Spec, body: kopf.Body, **_: Any
 ) -> dict[Any, Any]:
     return {
-        indexes.instances_of_system(namespace, spec.get("system", "")): observing.observed_instance(body),
-        indexes.instance_named(namespace, name): observing.instance_record(body),
-        indexes.instances_on_node(spec.get("nodeName", "")): (namespace, name),
+        instances_of_system(namespace, spec.get("system", "")): observing.observed_instance(body),
+        instance_named(namespace, name): observing.instance_record(body),
+        instances_on_node(spec.get("nodeName", "")): (namespace, name),
     }
 
 
