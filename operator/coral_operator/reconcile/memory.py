@@ -28,12 +28,10 @@ from coral_operator.status import ownership
 
 # A rollout move not seen in the index after this long is forgotten (the write failed or was replaced).
 EXPECTATION_SECONDS = 60.0
-# A pod written but not seen after this long is written again: the cost of a late watch is one
-# request that answers 409, while a pod deleted before the index ever saw it must come back.
-POD_EXPECTATION_SECONDS = 15.0
-# Likewise for a CoralInstance a system pass created: a fleet's passes run every fraction of a
-# second while a thousand creates are still on their way through the watch.
-INSTANCE_EXPECTATION_SECONDS = 15.0
+# A pod or CoralInstance written but not seen after this long is written again: the cost of a
+# late watch is one request that answers 409, while an object deleted before the index ever saw it
+# must come back.
+WRITE_EXPECTATION_SECONDS = 15.0
 
 
 @dataclass
@@ -49,9 +47,9 @@ class Memory:
     _expected: dict[tuple[str, str], dict[str, tuple[str, float]]] = field(default_factory=dict)
     _rollout_written: dict[str, RolloutStatus] = field(default_factory=dict)
     _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
-    _pod_writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
+    _writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
+    """Owner uid -> name -> (created, not deleted; when): an instance's pods, a system's instances."""
     _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
-    _instance_creates: dict[str, dict[str, float]] = field(default_factory=dict)
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -119,23 +117,30 @@ class Memory:
         """(created, deleted): pods of an instance this process created or deleted that `observed`
         (the index) does not show so yet. A pass that runs before the watch caught up must not
         create or delete them again, as Kubernetes' own controllers keep "expectations"."""
+        return self._writes_in_flight(uid, {pod.name: pod.deleting for pod in observed})
+
+    def expect_pods(self, uid: str, created: list[str], deleted: list[str]) -> None:
+        self._expect_writes(uid, created, deleted)
+
+    def _writes_in_flight(self, uid: str, seen: dict[str, bool]) -> tuple[set[str], set[str]]:
+        """(created, deleted) by this process under owner `uid`, not yet shown so by `seen` (name ->
+        deleting, from the index); forgets what landed or is older than WRITE_EXPECTATION_SECONDS."""
         now = self.clock()
-        seen = {pod.name: pod.deleting for pod in observed}
         with self._lock:
-            writes = self._pod_writes.get(uid, {})
+            writes = self._writes.get(uid, {})
             for name, (created, since) in list(writes.items()):
                 landed = name in seen if created else seen.get(name, True)
-                if landed or now - since > POD_EXPECTATION_SECONDS:
+                if landed or now - since > WRITE_EXPECTATION_SECONDS:
                     del writes[name]
             return (
                 {name for name, (created, _) in writes.items() if created},
                 {name for name, (created, _) in writes.items() if not created},
             )
 
-    def expect_pods(self, uid: str, created: list[str], deleted: list[str]) -> None:
+    def _expect_writes(self, uid: str, created: list[str], deleted: list[str]) -> None:
         now = self.clock()
         with self._lock:
-            writes = self._pod_writes.setdefault(uid, {})
+            writes = self._writes.setdefault(uid, {})
             writes.update({name: (True, now) for name in created})
             writes.update({name: (False, now) for name in deleted})
 
@@ -144,7 +149,7 @@ class Memory:
             self._status_written.pop(uid, None)
             self._deferred_writes.pop(uid, None)
             self._desired_pods.pop(uid, None)
-            self._pod_writes.pop(uid, None)
+            self._writes.pop(uid, None)
             self._generation_seen.pop(uid, None)
 
     # --- systems -----------------------------------------------------------------------------
@@ -188,18 +193,11 @@ class Memory:
         """CoralInstances of a system this process created that `observed` (the names in the index)
         does not show yet: a pass that runs before the watch caught up must not create them again
         (each such create would only answer 409)."""
-        now = self.clock()
-        with self._lock:
-            creates = self._instance_creates.get(uid, {})
-            for name, since in list(creates.items()):
-                if name in observed or now - since > INSTANCE_EXPECTATION_SECONDS:
-                    del creates[name]
-            return set(creates)
+        created, _ = self._writes_in_flight(uid, dict.fromkeys(observed, False))
+        return created
 
     def expect_instances(self, uid: str, created: list[str]) -> None:
-        now = self.clock()
-        with self._lock:
-            self._instance_creates.setdefault(uid, {}).update({name: now for name in created})
+        self._expect_writes(uid, created, [])
 
     def rollout_written(self, uid: str) -> RolloutStatus | None:
         """The rollout status last written: a pass may read the system from before that write, and
@@ -216,7 +214,7 @@ class Memory:
             self._history.pop((namespace, name, uid), None)
             self._expected.pop((namespace, uid), None)
             self._rollout_written.pop(uid, None)
-            self._instance_creates.pop(uid, None)
+            self._writes.pop(uid, None)
 
     # --- event filtering ---------------------------------------------------------------------
 
