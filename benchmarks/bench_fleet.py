@@ -6,17 +6,20 @@ count into DIR/fleet.png, and `--logs DIR` keeps the operator's log of each size
 queue says every 10 s how many passes ran, how long they took and how late they started).
 
 For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
-scheduler, kwok) with that many kwok robots, in the same run:
+scheduler, kwok) with that many kwok robots, in the same run, two pairs, each Coral run right after
+its reference (a cluster that has already created and deleted thousands of pods is slower than a
+fresh one, and that drift must not land in a ratio):
 
-1. One DaemonSet whose pod is the `PodPerRobot` pod the operator plans (its three containers,
-   environment, probes, volumes and identity; `fleet.daemonset`): the floor, and the reference of
-   `PodPerRobot`. Time until every pod is Ready, then a rolling update (`maxUnavailable: 10%`)
-   after one environment variable changes.
-2. Three DaemonSets, one per `PodPerComponent` pod the operator plans (three pods per robot): the
-   same shape as Coral's default layout, and its reference. The same two phases.
-3. Coral: the operator as a subprocess, one CoralSystem over the robots (three component pods
+1. Three DaemonSets, one per `PodPerComponent` pod the operator plans (three pods per robot; their
+   containers, environment, probes, volumes and identity; `fleet.daemonset`): the same shape as
+   Coral's default layout, and its reference. Time until every pod is Ready, then a rolling update
+   (`maxUnavailable: 10%`) after one environment variable changes.
+2. Coral: the operator as a subprocess, one CoralSystem over the robots (three component pods
    and one CoralInstance per robot); time until the system is Ready with every robot ready, then
    the same change rolled out with `spec.rollout.maxUnavailable: 10%`.
+3. One DaemonSet whose pod is the `PodPerRobot` pod the operator plans: the floor, and the
+   reference of `PodPerRobot`. The same two phases. The operator keeps running (it only sees
+   Node events meanwhile; its CPU during the run is printed).
 4. Coral with `layout: PodPerRobot`: the same system once the first is deleted, one pod (two
    native sidecars and the executor) and one CoralInstance per robot.
 
@@ -42,8 +45,10 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import plots
 from coral_testbed.cluster import controlplane
@@ -138,34 +143,25 @@ def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
             raise RuntimeError("kubectl apply -f crds/ failed")
 
         cpu: dict[str, float] = {}
-        for run, build in (("daemonset", daemonset.single), ("daemonsets3", daemonset.per_component)):
-            log.mark()
-            cpu_mark = _cpu(state)
-            ds = daemonset.run_daemonsets(api, "bench-daemonset", count, timeout, build)
-            cpu[run] = _apiserver_cpu(state, cpu_mark)
-            note(f"{run} n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}")
-            time.sleep(2)  # let the batched audit backend flush the run's last requests before counting
-            requests = log.count_since_mark(audit.classify)
-            note(
-                f"{run} n={count}: ready {ds.ready_seconds:.1f} s, rolling update {ds.update_seconds:.1f} s, "
-                f"apiserver CPU {cpu[run]:.1f} s, requests {dict(requests)}"
-            )
-            everyone = log.count_since_mark(audit.client_and_kind)
-            note(
-                f"{run} n={count}: all requests by client: "
-                + ", ".join(f"{k}={v}" for k, v in everyone.most_common(16))
-            )
-            times[f"{run}_ready"], times[f"{run}_update"] = ds.ready_seconds, ds.update_seconds
-            daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
-
-        operator = coral.OperatorProcess(
-            coral.kube_env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
-        )
-        coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
-        for layout, reference, ready_target, update_target in (
-            ("PodPerComponent", "daemonsets3", TARGET_READY, TARGET_UPDATE),
-            ("PodPerRobot", "daemonset", TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE),
+        # Each Coral run right after its reference: a cluster that has created and deleted thousands
+        # of pods (their Events, etcd's history) is slower than a fresh one, so a pair measured
+        # apart would carry that drift into its ratio.
+        for layout, reference, build, ready_target, update_target in (
+            ("PodPerComponent", "daemonsets3", daemonset.per_component, TARGET_READY, TARGET_UPDATE),
+            ("PodPerRobot", "daemonset", daemonset.single, TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE),
         ):
+            operator_before = coral.cpu_seconds(operator.process.pid) if operator is not None else 0.0
+            cpu[reference] = _reference_run(api, state, log, count, timeout, reference, build, times)
+            if operator is None:
+                operator = coral.OperatorProcess(
+                    coral.kube_env(state.kubeconfig), "bench-coral", (logs or work) / f"operator-{count}.log"
+                )
+                coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
+            else:
+                note(
+                    f"{reference} n={count}: the operator, watching robots meanwhile, spent "
+                    f"{coral.cpu_seconds(operator.process.pid) - operator_before:.1f} CPU s during it"
+                )
             result, apiserver = _coral_run(api, state, log, operator, count, timeout, layout)
             cpu[layout] = apiserver
             tag = "fleet" if layout == "PodPerComponent" else "fleet_robot_pod"
@@ -202,6 +198,38 @@ def run_size(count: int, work: Path, logs: Path | None = None) -> SizeFigures:
         if operator is not None:
             operator.stop()
         controlplane.stop(work / "control-plane")
+
+
+def _reference_run(
+    api: k8s.ApiClient,
+    state: controlplane.State,
+    log: audit.AuditLog,
+    count: int,
+    timeout: float,
+    run: str,
+    build: Callable[[str, str, str], list[dict[str, Any]]],
+    times: dict[str, float],
+) -> float:
+    """One DaemonSet reference run, with its figures printed; returns the API server's CPU."""
+    log.mark()
+    cpu_mark = _cpu(state)
+    ds = daemonset.run_daemonsets(api, "bench-daemonset", count, timeout, build)
+    apiserver = _apiserver_cpu(state, cpu_mark)
+    note(f"{run} n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}")
+    time.sleep(2)  # let the batched audit backend flush the run's last requests before counting
+    requests = log.count_since_mark(audit.classify)
+    note(
+        f"{run} n={count}: ready {ds.ready_seconds:.1f} s, rolling update {ds.update_seconds:.1f} s, "
+        f"apiserver CPU {apiserver:.1f} s, requests {dict(requests)}"
+    )
+    everyone = log.count_since_mark(audit.client_and_kind)
+    note(
+        f"{run} n={count}: all requests by client: "
+        + ", ".join(f"{k}={v}" for k, v in everyone.most_common(16))
+    )
+    times[f"{run}_ready"], times[f"{run}_update"] = ds.ready_seconds, ds.update_seconds
+    daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
+    return apiserver
 
 
 def _coral_run(

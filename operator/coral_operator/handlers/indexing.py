@@ -1,4 +1,5 @@
-"""In-memory indexes of robot Nodes, component pods, CoralInstances and CoralSystems, kept by kopf.
+"""In-memory indexes of robot Nodes, component pods, CoralInstances, CoralSystems and the systems'
+revision ConfigMaps, kept by kopf.
 
 The reconcilers read these (`reconcile.indexes`) instead of listing the API on every pass; a pass
 that runs before an index caught up meets 409 on create, which `kube.applying` treats as done.
@@ -19,6 +20,7 @@ from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
+    config_maps_of_system,
     instance_named,
     instances_of_system,
     instances_on_node,
@@ -55,3 +57,13 @@ async def coral_instances(
 @kopf.index(names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
 async def coral_systems(namespace: str, name: str, body: kopf.Body, **_: Any) -> dict[Any, Any]:
     return {(namespace, name): observing.system_record(body)}
+
+
+@kopf.index("configmaps", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_SYSTEM: kopf.PRESENT})
+async def revision_config_maps(
+    namespace: str, name: str, labels: kopf.Labels, meta: kopf.Meta, **_: Any
+) -> dict[Any, Any]:
+    # The owners tell the system's ConfigMaps from those of an earlier system of the same name,
+    # which the garbage collector is about to delete.
+    owners = tuple(reference.get("uid", "") for reference in meta.get("ownerReferences") or [])
+    return {config_maps_of_system(namespace, labels[names.LABEL_SYSTEM]): (name, owners)}

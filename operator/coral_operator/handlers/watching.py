@@ -22,6 +22,7 @@ INDEXES = (
     "coral_pods",
     "coral_instances",
     "coral_systems",
+    "revision_config_maps",
 )
 
 

@@ -16,7 +16,6 @@ from kubernetes.client.exceptions import ApiException
 from coral_operator.api import names
 from coral_operator.api.names import GROUP, VERSION
 from coral_operator.kube import client
-from coral_operator.planning import naming
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -371,13 +370,3 @@ def read_config_map_key(namespace: str, name: str, key: str) -> str | None:
         _ignore(error, 404)
         return None
     return (config_map.data or {}).get(key)
-
-
-def list_system_config_maps(namespace: str, system: str, uid: str) -> list[str]:
-    """Names of the revision ConfigMaps the operator made for one system, the one with owner `uid`
-    (not those of an earlier system of that name, which the garbage collector is about to delete)."""
-    selector = (
-        f"{names.LABEL_SYSTEM}={naming.label_value(system)},{names.LABEL_MANAGED_BY}={names.MANAGER}"
-    )
-    items = client.core().list_namespaced_config_map(namespace, label_selector=selector).items
-    return [item.metadata.name for item in items if owned_by(item.metadata.owner_references, uid)]

@@ -6,6 +6,7 @@ but it knows API shapes, so it lives beside the client.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
@@ -202,29 +203,42 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
     metadata = body.get("metadata", {})
     spec = dict(body.get("spec") or {})
     status = body.get("status") or {}
-    ready = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Ready")
-    stalled = _condition(status.get(keys.INSTANCE_STATUS.conditions), "Stalled")
-    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
-    return ObservedInstance(
+    instance = ObservedInstance(
         name=metadata.get("name", ""),
         robot=spec.get("robot", ""),
         spec=spec,
         revision=spec.get("revision", ""),
+        root_status=(status.get(keys.INSTANCE_STATUS.tree) or {}).get(keys.TREE.root_status),
+        labels=dict(metadata.get("labels") or {}),
+        uid=metadata.get("uid", ""),
+        generation=metadata.get("generation"),
+        resource_version=metadata.get("resourceVersion"),
+    )
+    return with_operator_status(instance, status)
+
+
+def with_operator_status(instance: ObservedInstance, status: Mapping[str, Any]) -> ObservedInstance:
+    """`instance` with the verdicts of `status` (the operator's part of an instance's status: its
+    conditions and robot), read at the instance's generation; the executor's tree stays as it was."""
+    conditions = status.get(keys.INSTANCE_STATUS.conditions)
+    ready = _condition(conditions, "Ready")
+    stalled = _condition(conditions, "Stalled")
+    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
+    return dataclasses.replace(
+        instance,
         ready=bool(
             ready
             and ready.get(keys.CONDITION.status) == "True"
-            and ready.get(keys.CONDITION.observed_generation) == metadata.get("generation")
+            and ready.get(keys.CONDITION.observed_generation) == instance.generation
         ),
         reachable=robot.get(keys.ROBOT.reachable),
         node_ready=robot.get(keys.ROBOT.node_ready),
-        root_status=(status.get(keys.INSTANCE_STATUS.tree) or {}).get(keys.TREE.root_status),
-        labels=dict(metadata.get("labels") or {}),
         # An instance Stalled only because its robot is away is not a failed robot: `reachable`
         # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
             stalled
             and stalled.get(keys.CONDITION.status) == "True"
-            and stalled.get(keys.CONDITION.observed_generation) == metadata.get("generation")
+            and stalled.get(keys.CONDITION.observed_generation) == instance.generation
             and stalled.get(keys.CONDITION.reason) != "NodeUnreachable"
         ),
     )
@@ -246,7 +260,10 @@ def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
 
 def instance_summary(body: Mapping[str, Any]) -> tuple[Any, ...]:
     """What a system pass reads of one instance: a change here (and only here) calls for one."""
-    instance = observed_instance(body)
+    return summary_of(observed_instance(body))
+
+
+def summary_of(instance: ObservedInstance) -> tuple[Any, ...]:
     return (
         instance.revision,
         instance.ready,

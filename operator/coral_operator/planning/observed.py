@@ -72,6 +72,10 @@ class ObservedInstance:
     labels: dict[str, str] = field(default_factory=dict)
     stalled: bool = False
     """The instance is Stalled at its current generation (a component failed, or startup timed out)."""
+    uid: str = ""
+    generation: int | None = None
+    resource_version: str | None = None
+    """The object's version as observed: a status this process wrote later is read instead."""
 
 
 @dataclass(frozen=True)

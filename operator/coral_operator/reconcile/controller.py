@@ -61,6 +61,7 @@ class Controller:
             indexes=self.indexes,
             post=post,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
+            wake_system=lambda key: self.queue.add((SYSTEM, *key)),
         )
         self.systems = SystemReconciler(
             memory=self.memory,
@@ -125,9 +126,11 @@ class Controller:
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return
-        if not self.memory.is_own_write(uid, (body.get("metadata") or {}).get("resourceVersion")):
+        own_write = self.memory.is_own_write(uid, (body.get("metadata") or {}).get("resourceVersion"))
+        if not own_write:
             self.queue.add(key)
-        if system and self.memory.changed(key, observing.instance_summary(body)):
+        # The pass that wrote a status woke the system itself if the system reads a change in it.
+        if system and self.memory.changed(key, observing.instance_summary(body)) and not own_write:
             self.queue.add((SYSTEM, namespace, system))
 
     def on_pod(self, *, namespace: str, instance: str) -> None:

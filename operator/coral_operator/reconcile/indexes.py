@@ -33,6 +33,12 @@ def instances_on_node(node_name: str) -> tuple[str, str]:
     return ("node", node_name)
 
 
+def config_maps_of_system(namespace: str, system_label: str) -> tuple[str, str]:
+    """`revision_config_maps` key of the (name, owner uids) of a system's revision ConfigMaps;
+    `system_label` is the value of the system's label (`planning.naming.label_value`)."""
+    return (namespace, system_label)
+
+
 class Indexes:
     """Named read-only views of kopf's indexes (mappings of key to a collection of values)."""
 

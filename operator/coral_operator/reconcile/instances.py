@@ -19,7 +19,7 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
-from coral_operator.kube import applying, leases
+from coral_operator.kube import applying, leases, observing
 from coral_operator.planning import instance_pass
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 from coral_operator.reconcile import events
@@ -57,12 +57,14 @@ class InstanceReconciler:
         indexes: Indexes,
         post: events.Poster,
         requeue: Callable[[Key, float], None],
+        wake_system: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
     ) -> None:
         self.memory = memory
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
+        self.wake_system = wake_system
         self.clock = clock
 
     def reconcile(self, key: Key) -> None:
@@ -198,6 +200,11 @@ class InstanceReconciler:
         self.memory.remember_status(
             record.uid, version, ownership.operator_part(after), deferred=since is not None
         )
+        system = record.spec.get("system")
+        if system and _system_reads_a_change(record, current, after):
+            # At once, not when the watch brings this write back: the system pass reads it from
+            # memory meanwhile, and a rollout's next robots wait on it.
+            self.wake_system((record.namespace, system))
         # After the write, so a deferred or failed one cannot post the same transition twice. Only
         # warnings: the good news of a fleet is counted on its system, not told per robot.
         for kind, reason, message in events.condition_events(
@@ -212,3 +219,10 @@ def _patch_value(old: Any, new: Any) -> Any:
     if isinstance(old, dict) and isinstance(new, dict):
         return {**{key: None for key in old if key not in new}, **new}
     return new
+
+
+def _system_reads_a_change(record: InstanceRecord, before: dict[str, Any], after: dict[str, Any]) -> bool:
+    """Whether a status write changes what the instance's system reads of it."""
+    body = {"metadata": {"generation": record.generation}, "spec": record.spec}
+    instance = observing.observed_instance(body)
+    return observing.with_operator_status(instance, before) != observing.with_operator_status(instance, after)

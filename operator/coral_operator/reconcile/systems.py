@@ -21,15 +21,15 @@ from pydantic import ValidationError
 from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
-from coral_operator.kube import applying
+from coral_operator.kube import applying, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import configmaps, instances, system_pass
+from coral_operator.planning import configmaps, instances, naming, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instances_of_system
+from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, config_maps_of_system, instances_of_system
 from coral_operator.reconcile.memory import Memory
-from coral_operator.status import system_status, transitions
+from coral_operator.status import ownership, system_status, transitions
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
@@ -67,7 +67,10 @@ class SystemReconciler:
         system: SystemRecord = records[0]
         now = self.clock()
         status = self.memory.observed_status(system.uid, system.resource_version, system.status)
-        observed: list[ObservedInstance] = self.indexes.read("coral_instances", instances_of_system(*key))
+        observed = [
+            self._with_own_writes(instance)
+            for instance in self.indexes.read("coral_instances", instances_of_system(*key))
+        ]
         # Every pass, so that an instance seen once and then gone is no longer counted on its way.
         creating = self.memory.instances_in_flight(system.uid, {instance.name for instance in observed})
         spec = system_pass.parse_spec(system.spec)
@@ -118,6 +121,15 @@ class SystemReconciler:
                 )
         self._write_status(system, status, observed, plan, problem, now)
 
+    def _with_own_writes(self, instance: ObservedInstance) -> ObservedInstance:
+        """`instance` with the status this process last wrote on it, if the index does not show
+        that write yet: the instance's pass wakes this one as it writes a verdict (a robot Ready
+        frees a rollout's budget), which would otherwise wait for the watch to bring it back."""
+        version, written, _ = self.memory.status_written(instance.uid)
+        if version is None or ownership.at_or_after(instance.resource_version, version):
+            return instance
+        return observing.with_operator_status(instance, written)
+
     def _read_source(
         self, system: SystemRecord, source: SourceSpec, field: str
     ) -> system_pass.SourceText | system_status.Problem:
@@ -153,7 +165,10 @@ class SystemReconciler:
             applying.apply_rbac(plan.identity)
         # ConfigMaps first: an instance must never point at a file that does not exist yet. Named
         # by content, so one already listed is already right: no create that would answer 409.
-        existing = applying.list_system_config_maps(system.namespace, system.name, system.uid)
+        listed = config_maps_of_system(system.namespace, naming.label_value(system.name))
+        existing = [
+            name for name, owners in self.indexes.read("revision_config_maps", listed) if system.uid in owners
+        ]
         for manifest in plan.config_maps:
             if manifest["metadata"]["name"] not in existing:
                 applying.create_config_map(manifest)

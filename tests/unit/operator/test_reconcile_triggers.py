@@ -138,3 +138,21 @@ def test_the_operator_registers_no_change_handlers_so_it_needs_no_diff_base() ->
     assert list(registry._changing.get_all_handlers()) == []
     assert list(registry._watching.get_all_handlers()), "the event handlers are registered"
     assert EssenceFreeDiffBase(prefix="coral.dev").build(body=kopf.Body({"spec": {"a": 1}})) == {}
+
+
+def test_the_echo_of_its_own_status_write_queues_no_system_pass_either() -> None:
+    """The pass that wrote a verdict woke the system itself (`InstanceReconciler.wake_system`)."""
+    controller = _controller()
+    instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
+    controller.on_instance(**instance, body=_instance())
+    _drain(controller)
+    ready = _instance(ready="True")
+    controller.memory.remember_status("i1", "7", ready["status"])
+    controller.on_instance(
+        **instance, body={**ready, "metadata": {**ready["metadata"], "resourceVersion": "7"}}
+    )
+    assert _drain(controller) == set()
+    controller.on_instance(
+        **instance, body={**ready, "metadata": {**ready["metadata"], "resourceVersion": "8"}}
+    )
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}, "a later change is another's"

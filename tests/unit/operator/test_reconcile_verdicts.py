@@ -115,7 +115,6 @@ class FakeKube:
                 ("create configmap", manifest["metadata"]["name"])
             ),
             "delete_config_map": lambda ns, name: self.writes.append(("delete configmap", name)),
-            "list_system_config_maps": lambda ns, system, uid: [],
             "read_config_map_key": lambda ns, name, key: self.config_maps.get(name, {}).get(key),
         }
         for name, fake in patches.items():
@@ -164,7 +163,8 @@ class Harness:
             "requeue": lambda key, delay: self.requeued.append((key, delay)),
             "clock": lambda: NOW,
         }
-        self.instances = InstanceReconciler(**common)
+        self.woken: list[tuple[str, str]] = []
+        self.instances = InstanceReconciler(**common, wake_system=self.woken.append)
         self.systems = SystemReconciler(
             **common, policy=Policy(host_network_namespaces=frozenset({NS})), pool=_Inline()
         )
@@ -234,7 +234,12 @@ class Harness:
             conditions = [{"type": "Ready", "status": "True" if ready else "False", "observedGeneration": 1}]
             bodies.append(
                 {
-                    "metadata": {**manifest["metadata"], "generation": 1},
+                    "metadata": {
+                        **manifest["metadata"],
+                        "generation": 1,
+                        "uid": "uid-" + manifest["metadata"]["name"],
+                        "resourceVersion": str(self.kube._version),  # noqa: SLF001
+                    },
                     "spec": manifest["spec"],
                     "status": {"conditions": conditions, "robot": {"reachable": True, "nodeReady": True}},
                 }
@@ -505,6 +510,24 @@ def test_system_pass_before_the_index_caught_up_creates_no_instance_twice(harnes
     assert sorted(harness.kube.of("create instance")) == ["sys-r1", "sys-r1", "sys-r2", "sys-r2"], (
         "an instance seen and gone is made again"
     )
+
+
+def test_a_robot_ready_counts_for_its_system_before_the_watch_brings_its_status_back(
+    harness: Harness,
+) -> None:
+    """A rollout's next robots wait on this: the instance's pass wakes its system as it writes the
+    verdict, and the system pass reads that write while the index still holds the older status."""
+    harness.pass_system(_spec())
+    harness.instances_are(ready=False)  # as the watch showed the new instance
+    spec = harness.kube.instances["sys-r1"]["spec"]
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+        harness.pods_are(ready=ready)
+        harness.pass_instance(spec)
+    assert _conditions(harness.kube.status["sys-r1"])["Ready"] == ("True", "Ready")
+    assert harness.woken and set(harness.woken) == {(NS, "sys")}
+    status = harness.pass_system(_spec())  # the index still shows the instance not ready
+    assert status["robots"]["ready"] == 1
+    assert _conditions(status)["Ready"] == ("True", "Ready")
 
 
 def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
