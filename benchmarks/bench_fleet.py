@@ -8,7 +8,9 @@ queue says every 10 s how many passes ran, how long they took and how late they 
 For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
 scheduler, kwok) with that many kwok robots, in the same run, two pairs, each Coral run right after
 its reference (a cluster that has already created and deleted thousands of pods is slower than a
-fresh one, and that drift must not land in a ratio):
+fresh one, and that drift must not land in a ratio), and each run once the control plane is quiet
+(a thousand new robots keep it busy for 10 to 15 s after they are Ready, and a deleted run's
+objects for a while after they are gone):
 
 1. Three DaemonSets, one per `PodPerComponent` pod the operator plans (three pods per robot; their
    containers, environment, probes, volumes and identity; `fleet.daemonset`): the same shape as
@@ -69,6 +71,9 @@ TARGET_APISERVER_CPU = 1.5
 TARGET_GROWTH = 1.25
 WRITE_VERBS = ("create", "update", "patch", "delete", "deletecollection")
 ROOT = Path(__file__).resolve().parents[1]
+# Each run starts once the control plane is quiet (`_wait_quiet`). Idle with 1000 kwok robots it
+# uses about 0.6 of a core (kwok's heartbeats and the API server answering them).
+QUIET_CORES, QUIET_WINDOW_S, QUIET_TIMEOUT_S = 1.0, 5.0, 120.0
 CLIENT_LIMITS = ["--kube-api-qps=500", "--kube-api-burst=1000"]
 # With a thousand kwok Nodes on a busy 2-core machine, kwok's lease renewals can fall more than the
 # test control plane's 30 s grace period behind; the Node then turns Unknown, its pods are marked
@@ -211,6 +216,7 @@ def _reference_run(
     times: dict[str, float],
 ) -> float:
     """One DaemonSet reference run, with its figures printed; returns the API server's CPU."""
+    _wait_quiet(state, run, count)
     log.mark()
     cpu_mark = _cpu(state)
     ds = daemonset.run_daemonsets(api, "bench-daemonset", count, timeout, build)
@@ -242,6 +248,7 @@ def _coral_run(
     layout: str,
 ) -> tuple[coral.CoralResult, float]:
     """One Coral run in `layout`: its times, with its figures printed; returns the API server's CPU."""
+    _wait_quiet(state, layout, count)
     cpu_before = coral.cpu_seconds(operator.process.pid)
     cpu_mark = _cpu(state)
     kinds: dict[str, Counter[str]] = {}
@@ -311,6 +318,23 @@ def report_growth(figures: list[SizeFigures]) -> None:
                 continue
             growth = (after.times[series] / after.robots) / (before.times[series] / before.robots)
             bench(f"fleet_growth_{series}_{before.robots}_{after.robots}", growth, "x", "<=", TARGET_GROWTH)
+
+
+def _wait_quiet(state: controlplane.State, run: str, count: int) -> None:
+    """Wait until the control plane is as quiet as it gets with this many robots (its processes
+    below QUIET_CORES over a QUIET_WINDOW_S window), at most QUIET_TIMEOUT_S. A thousand new
+    robots keep it busy on both cores for 10 to 15 s after they are Ready, and a deleted run's
+    objects for a while after they are gone; a run started then would carry that work too."""
+    began = time.monotonic()
+    while True:
+        mark = _cpu(state)
+        time.sleep(QUIET_WINDOW_S)
+        now = _cpu(state)
+        cores = sum(now[name] - mark.get(name, 0.0) for name in now) / QUIET_WINDOW_S
+        waited = time.monotonic() - began
+        if cores < QUIET_CORES or waited > QUIET_TIMEOUT_S:
+            note(f"{run} n={count}: started after {waited:.0f} s, the control plane at {cores:.2f} cores")
+            return
 
 
 def _apiserver_cpu(state: controlplane.State, mark: dict[str, float]) -> float:

@@ -288,25 +288,27 @@ def ensure_admission_policy(objects: list[dict[str, Any]], hash_annotation: str)
     return applied
 
 
-def create_instance(manifest: dict[str, Any]) -> bool:
+def create_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
+    """Create an instance; returns it as created, or None when it already existed."""
     try:
-        client.custom().create_namespaced_custom_object(
+        created: dict[str, Any] = client.custom().create_namespaced_custom_object(
             GROUP, VERSION, manifest["metadata"]["namespace"], "coralinstances", manifest
         )
     except ApiException as error:
         _ignore(error, 409)
-        return False
-    return True
+        return None
+    return created
 
 
-def update_instance(manifest: dict[str, Any]) -> None:
-    """Replace an instance's spec and labels (a JSON merge patch would keep removed list items)."""
+def update_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
+    """Replace an instance's spec and labels (a JSON merge patch would keep removed list items);
+    returns it as updated, or None when it is gone."""
     body = [
         {"op": "replace", "path": "/spec", "value": manifest["spec"]},
         {"op": "replace", "path": "/metadata/labels", "value": manifest["metadata"]["labels"]},
     ]
     try:
-        client.custom().patch_namespaced_custom_object(
+        updated: dict[str, Any] = client.custom().patch_namespaced_custom_object(
             GROUP,
             VERSION,
             manifest["metadata"]["namespace"],
@@ -317,6 +319,8 @@ def update_instance(manifest: dict[str, Any]) -> None:
         )
     except ApiException as error:
         _ignore(error, 404)
+        return None
+    return updated
 
 
 def retire_instance(namespace: str, name: str) -> None:

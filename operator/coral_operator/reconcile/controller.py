@@ -70,6 +70,7 @@ class Controller:
             requeue=lambda key, delay: self.queue.add((SYSTEM, *key), delay),
             policy=policy,
             pool=self._pool,
+            wake_instance=lambda key: self.queue.add((INSTANCE, *key)),
         )
 
     def _process(self, key: Key) -> None:
@@ -121,13 +122,16 @@ class Controller:
         system = (body.get("spec") or {}).get("system")
         if deleted:
             self.memory.forget_instance(uid)
+            self.memory.forget_record((namespace, name))
             self.memory.forget_seen(key)
             self.queue.forget(key)
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return
-        own_write = self.memory.is_own_write(uid, (body.get("metadata") or {}).get("resourceVersion"))
-        if not own_write:
+        version = (body.get("metadata") or {}).get("resourceVersion")
+        own_write = self.memory.is_own_write(uid, version)
+        # The echo of a system pass's create or move: that pass already handed it to a pass.
+        if not own_write and not self.memory.is_own_record((namespace, name), version):
             self.queue.add(key)
         # The pass that wrote a status woke the system itself if the system reads a change in it.
         if system and self.memory.changed(key, observing.instance_summary(body)) and not own_write:

@@ -68,10 +68,13 @@ class InstanceReconciler:
         self.clock = clock
 
     def reconcile(self, key: Key) -> None:
-        records = self.indexes.read("coral_instances", instance_named(*key))
-        if not records:
+        indexed: InstanceRecord | None = next(
+            iter(self.indexes.read("coral_instances", instance_named(*key))), None
+        )
+        # A system pass that just created or moved this instance woke this pass with its answer.
+        record = self.memory.latest_record(key, indexed)
+        if record is None:
             return
-        record: InstanceRecord = records[0]
         now = self.clock()
         status = self.memory.observed_status(record.uid, record.resource_version, record.status)
         spec = instance_pass.parse_instance_spec(record)

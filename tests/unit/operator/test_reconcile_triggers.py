@@ -9,6 +9,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
+from coral_operator.kube import observing
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile.controller import INSTANCE, SYSTEM, Controller
 from coral_operator.reconcile.indexes import instances_on_node
@@ -156,3 +157,17 @@ def test_the_echo_of_its_own_status_write_queues_no_system_pass_either() -> None
         **instance, body={**ready, "metadata": {**ready["metadata"], "resourceVersion": "8"}}
     )
     assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}, "a later change is another's"
+
+
+def test_the_echo_of_a_create_or_move_handed_over_at_once_costs_its_instance_no_pass() -> None:
+    controller = _controller()
+    instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
+    body = {**_instance(), "metadata": {"name": "fleet-r1", "namespace": "ns", "uid": "i1", "generation": 1}}
+    answered = {**body, "metadata": {**body["metadata"], "resourceVersion": "9"}}
+    controller.memory.remember_record(observing.instance_record(answered), created=True)
+    controller.on_instance(**instance, body=answered)
+    assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "its system learns of it as of any instance"
+    controller.on_instance(
+        **instance, body={**body, "metadata": {**body["metadata"], "resourceVersion": "10"}}
+    )
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}

@@ -24,7 +24,7 @@ from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.instances import PROGRESS_INTERVAL_S, InstanceReconciler
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.memory import WRITE_EXPECTATION_SECONDS, Memory
 from coral_operator.reconcile.systems import SystemReconciler
 from kubernetes.client.exceptions import ApiException
 from operator_specs import BASE_SPEC, NOW, robot
@@ -86,12 +86,15 @@ class FakeKube:
             self._version += 1
             return str(self._version)
 
-        def create_instance(manifest: dict[str, Any]) -> bool:
+        def create_instance(manifest: dict[str, Any]) -> dict[str, Any]:
             if self.refuse_instances:
                 raise self._refused(self.refuse_instances)
-            self.writes.append(("create instance", manifest["metadata"]["name"]))
-            self.instances[manifest["metadata"]["name"]] = manifest
-            return True
+            name = manifest["metadata"]["name"]
+            self.writes.append(("create instance", name))
+            self.instances[name] = manifest
+            self._version += 1
+            metadata = {**manifest["metadata"], "uid": "uid-" + name, "resourceVersion": str(self._version)}
+            return {**manifest, "metadata": {**metadata, "generation": 1}}
 
         def record(verb: str) -> Callable[..., None]:
             return lambda *args: self.writes.append((verb, str(args[-1] if verb != "apply rbac" else "")))
@@ -165,8 +168,12 @@ class Harness:
         }
         self.woken: list[tuple[str, str]] = []
         self.instances = InstanceReconciler(**common, wake_system=self.woken.append)
+        self.handed_over: list[tuple[str, str]] = []
         self.systems = SystemReconciler(
-            **common, policy=Policy(host_network_namespaces=frozenset({NS})), pool=_Inline()
+            **common,
+            policy=Policy(host_network_namespaces=frozenset({NS})),
+            pool=_Inline(),
+            wake_instance=self.handed_over.append,
         )
 
     def add_robot(self, node: RobotNode) -> None:
@@ -528,6 +535,29 @@ def test_a_robot_ready_counts_for_its_system_before_the_watch_brings_its_status_
     status = harness.pass_system(_spec())  # the index still shows the instance not ready
     assert status["robots"]["ready"] == 1
     assert _conditions(status)["Ready"] == ("True", "Ready")
+
+
+def test_a_new_instance_starts_its_robot_before_the_watch_brings_it(harness: Harness) -> None:
+    """Its system pass hands the API server's answer to the instance's pass, which at 1000 robots
+    would otherwise wait seconds for the watch, behind every other event of the fleet."""
+    harness.pass_system(_spec())
+    assert harness.handed_over == [(NS, "sys-r1")]
+    harness.instances.reconcile((NS, "sys-r1"))  # the index holds no such instance yet
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"]
+    assert _conditions(harness.kube.status["sys-r1"])["Reconciling"] == ("True", "Progressing")
+
+
+def test_an_update_answered_for_an_instance_deleted_since_brings_nothing_back(harness: Harness) -> None:
+    answered = observing.instance_record(
+        {"metadata": {"name": "sys-r1", "namespace": NS, "uid": "uid-sys-r1", "resourceVersion": "7"}}
+    )
+    harness.memory.remember_record(answered, created=False)
+    harness.instances.reconcile((NS, "sys-r1"))  # the index no longer holds it
+    assert harness.kube.writes == []
+    harness.memory.remember_record(answered, created=True)
+    harness.seconds += WRITE_EXPECTATION_SECONDS + 1
+    harness.instances.reconcile((NS, "sys-r1"))
+    assert harness.kube.writes == [], "nor does a create the index never showed, once it is old"
 
 
 def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
