@@ -17,6 +17,11 @@ from coral_operator.api import names
 
 CORAL_POD_LABELS: dict[str, Any] = {names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT}
 ROBOT_NODE_LABELS: dict[str, Any] = {names.LABEL_ROBOT: kopf.PRESENT}
+# Filtered in the operator only: the ConfigMap watch also serves the systems' source files.
+REVISION_CONFIG_MAP_LABELS: dict[str, Any] = {
+    names.LABEL_MANAGED_BY: names.MANAGER,
+    names.LABEL_SYSTEM: kopf.PRESENT,
+}
 
 
 def label_selector(labels: dict[str, Any]) -> str:

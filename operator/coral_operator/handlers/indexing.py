@@ -16,7 +16,7 @@ from typing import Any
 import kopf
 
 from coral_operator.api import names
-from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
+from coral_operator.handlers.filters import CORAL_POD_LABELS, REVISION_CONFIG_MAP_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
@@ -59,7 +59,7 @@ async def coral_systems(namespace: str, name: str, body: kopf.Body, **_: Any) ->
     return {(namespace, name): observing.system_record(body)}
 
 
-@kopf.index("configmaps", labels={names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_SYSTEM: kopf.PRESENT})
+@kopf.index("configmaps", labels=REVISION_CONFIG_MAP_LABELS)
 async def revision_config_maps(
     namespace: str, name: str, labels: kopf.Labels, meta: kopf.Meta, **_: Any
 ) -> dict[Any, Any]:

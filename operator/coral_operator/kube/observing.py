@@ -264,6 +264,7 @@ def instance_summary(body: Mapping[str, Any]) -> tuple[Any, ...]:
 
 
 def summary_of(instance: ObservedInstance) -> tuple[Any, ...]:
+    """What a system pass reads of one instance, from its record."""
     return (
         instance.revision,
         instance.ready,

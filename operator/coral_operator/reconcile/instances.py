@@ -226,6 +226,11 @@ def _patch_value(old: Any, new: Any) -> Any:
 
 def _system_reads_a_change(record: InstanceRecord, before: dict[str, Any], after: dict[str, Any]) -> bool:
     """Whether a status write changes what the instance's system reads of it."""
-    body = {"metadata": {"generation": record.generation}, "spec": record.spec}
-    instance = observing.observed_instance(body)
-    return observing.with_operator_status(instance, before) != observing.with_operator_status(instance, after)
+    instance = observing.observed_instance(
+        {"metadata": {"generation": record.generation}, "spec": record.spec}
+    )
+
+    def seen(status: dict[str, Any]) -> tuple[Any, ...]:
+        return observing.summary_of(observing.with_operator_status(instance, status))
+
+    return seen(before) != seen(after)

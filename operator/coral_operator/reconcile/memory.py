@@ -66,10 +66,16 @@ class Memory:
         """An object's status, with this process's last write if the object (as the index holds it)
         does not include that write yet. Once it does, the object as observed is the truth, so
         whatever else wrote there is overwritten by the next pass."""
+        unseen = self.status_unseen(uid, resource_version)
+        return status if unseen is None else {**status, **unseen}
+
+    def status_unseen(self, uid: str, resource_version: str | None) -> dict[str, Any] | None:
+        """The operator's status fields this process last wrote on the object, if the object at
+        `resource_version` does not include that write yet; else None."""
         version, written, _ = self.status_written(uid)
-        if ownership.at_or_after(resource_version, version):
-            return status
-        return {**status, **written}
+        if version is None or ownership.at_or_after(resource_version, version):
+            return None
+        return written
 
     def is_own_write(self, uid: str, resource_version: str | None) -> bool:
         """Whether the object at `resource_version` is exactly what this process's last status

@@ -29,7 +29,7 @@ from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, config_maps_of_system, instances_of_system
 from coral_operator.reconcile.memory import Memory
-from coral_operator.status import ownership, system_status, transitions
+from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
@@ -143,10 +143,8 @@ class SystemReconciler:
         """`instance` with the status this process last wrote on it, if the index does not show
         that write yet: the instance's pass wakes this one as it writes a verdict (a robot Ready
         frees a rollout's budget), which would otherwise wait for the watch to bring it back."""
-        version, written, _ = self.memory.status_written(instance.uid)
-        if version is None or ownership.at_or_after(instance.resource_version, version):
-            return instance
-        return observing.with_operator_status(instance, written)
+        unseen = self.memory.status_unseen(instance.uid, instance.resource_version)
+        return instance if unseen is None else observing.with_operator_status(instance, unseen)
 
     def _read_source(
         self, system: SystemRecord, source: SourceSpec, field: str
@@ -182,7 +180,7 @@ class SystemReconciler:
         if plan.identity:
             applying.apply_rbac(plan.identity)
         # ConfigMaps first: an instance must never point at a file that does not exist yet. Named
-        # by content, so one already listed is already right: no create that would answer 409.
+        # by content, so one the index holds is already right: no create that would answer 409.
         listed = config_maps_of_system(system.namespace, naming.label_value(system.name))
         existing = [
             name for name, owners in self.indexes.read("revision_config_maps", listed) if system.uid in owners
