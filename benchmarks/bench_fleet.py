@@ -11,7 +11,7 @@ its reference (a cluster that has already created and deleted thousands of pods 
 fresh one, and that drift must not land in a ratio), and each run once the control plane is quiet
 (a thousand new robots keep it busy for 10 to 15 s after they are Ready, and a deleted run's
 objects for a while after they are gone). At the largest size each pair is run `--pairs` times
-(default 3), in ABBA order, and each ratio is the median pair's (its worst pair is printed too):
+(default 3), in ABBA order, and each ratio is the median pair's (every pair is printed too):
 one run of the same work on this 2-core machine can take half again as long as the next, mostly
 kwok's, and one pair would judge that noise. The pairs:
 
