@@ -168,26 +168,18 @@ def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -
                 figures: dict[str, tuple[float, float, float]] = {}
                 for side in sides:
                     if side == "reference":
-                        operator_before = coral.cpu_seconds(operator.process.pid) if operator else 0.0
-                        figures[side] = _reference_run(api, state, log, count, timeout, reference, build)
-                        if operator is not None:
-                            note(
-                                f"{reference} n={count}: the operator, watching robots meanwhile, spent "
-                                f"{coral.cpu_seconds(operator.process.pid) - operator_before:.1f} CPU s"
-                            )
-                        continue
-                    if operator is None:
-                        operator = coral.OperatorProcess(
-                            coral.kube_env(state.kubeconfig),
-                            "bench-coral",
-                            (logs or work) / f"operator-{count}.log",
+                        figures[side] = _reference_run(
+                            api, state, log, count, timeout, reference, build, operator
                         )
-                        coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
-                    result, apiserver = _coral_run(
-                        api, state, log, operator, count, timeout, layout, judge_writes=index == 0
-                    )
-                    figures[side] = (result.ready_seconds, result.update_seconds, apiserver)
-                    coral.delete_system(api, "bench-coral", timeout)
+                    else:
+                        operator = operator or _start_operator(
+                            api, state, (logs or work) / f"operator-{count}.log"
+                        )
+                        result, apiserver = _coral_run(
+                            api, state, log, operator, count, timeout, layout, judge_writes=index == 0
+                        )
+                        figures[side] = (result.ready_seconds, result.update_seconds, apiserver)
+                        coral.delete_system(api, "bench-coral", timeout)
                 (ready, update, apiserver), (ref_ready, ref_update, ref_apiserver) = (
                     figures["coral"],
                     figures["reference"],
@@ -233,12 +225,20 @@ def _reference_run(
     timeout: float,
     run: str,
     build: Callable[[str, str, str], list[dict[str, Any]]],
+    operator: coral.OperatorProcess | None,
 ) -> tuple[float, float, float]:
-    """One DaemonSet reference run, with its figures printed: (ready s, update s, API server CPU s)."""
+    """One DaemonSet reference run, with its figures printed: (ready s, update s, API server CPU s).
+    `operator`: the operator if it runs already, whose CPU meanwhile (watching robots) is printed."""
+    operator_before = coral.cpu_seconds(operator.process.pid) if operator is not None else 0.0
     _wait_quiet(state, run, count)
     log.mark()
     cpu_mark = _cpu(state)
     ds = daemonset.run_daemonsets(api, "bench-daemonset", count, timeout, build)
+    if operator is not None:
+        note(
+            f"{run} n={count}: the operator, watching robots meanwhile, spent "
+            f"{coral.cpu_seconds(operator.process.pid) - operator_before:.1f} CPU s"
+        )
     apiserver = _apiserver_cpu(state, cpu_mark)
     note(f"{run} n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}")
     time.sleep(2)  # let the batched audit backend flush the run's last requests before counting
@@ -254,6 +254,12 @@ def _reference_run(
     )
     daemonset.delete_daemonsets(api, "bench-daemonset", timeout)
     return ds.ready_seconds, ds.update_seconds, apiserver
+
+
+def _start_operator(api: k8s.ApiClient, state: controlplane.State, log_path: Path) -> coral.OperatorProcess:
+    operator = coral.OperatorProcess(coral.kube_env(state.kubeconfig), "bench-coral", log_path)
+    coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
+    return operator
 
 
 def _coral_run(
@@ -351,8 +357,7 @@ def _wait_quiet(state: controlplane.State, run: str, count: int) -> None:
     while True:
         mark = _cpu(state)
         time.sleep(QUIET_WINDOW_S)
-        now = _cpu(state)
-        cores = sum(now[name] - mark.get(name, 0.0) for name in now) / QUIET_WINDOW_S
+        cores = sum(_cpu_delta(state, mark).values()) / QUIET_WINDOW_S
         waited = time.monotonic() - began
         if cores < QUIET_CORES or waited > QUIET_TIMEOUT_S:
             note(f"{run} n={count}: started after {waited:.0f} s, the control plane at {cores:.2f} cores")
@@ -360,18 +365,22 @@ def _wait_quiet(state: controlplane.State, run: str, count: int) -> None:
 
 
 def _apiserver_cpu(state: controlplane.State, mark: dict[str, float]) -> float:
-    now = _cpu(state)
-    return sum(now[name] - mark.get(name, 0.0) for name in now if "apiserver" in name)
+    return sum(seconds for name, seconds in _cpu_delta(state, mark).items() if "apiserver" in name)
 
 
 def _cpu(state: controlplane.State) -> dict[str, float]:
     return {p.name: coral.cpu_seconds(p.pid) for p in state.processes}
 
 
+def _cpu_delta(state: controlplane.State, mark: dict[str, float]) -> dict[str, float]:
+    """CPU seconds each control-plane process spent since `mark` (a `_cpu` reading)."""
+    now = _cpu(state)
+    return {name: now[name] - mark.get(name, 0.0) for name in now}
+
+
 def _cpu_since(state: controlplane.State, mark: dict[str, float]) -> str:
     """CPU each control-plane process spent since `mark`: where a 2-core machine's time went."""
-    now = _cpu(state)
-    return ", ".join(f"{name}={now[name] - mark.get(name, 0.0):.1f}" for name in sorted(now))
+    return ", ".join(f"{name}={seconds:.1f}" for name, seconds in sorted(_cpu_delta(state, mark).items()))
 
 
 def main(argv: list[str]) -> int:
