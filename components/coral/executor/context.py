@@ -15,7 +15,7 @@ from typing import Any
 
 from coral.executor.health import HealthMonitor
 from coral.executor.wakeups import WakeSchedule
-from coral.sdk import topics
+from coral.sdk import dds, topics
 from coral.sdk.spinning import Spinner
 
 
@@ -51,6 +51,7 @@ class ExecutorContext:
         from std_msgs.msg import String
 
         if not rclpy.ok():
+            dds.use_coral_profile()
             rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         cli_args = ["--ros-args", "--params-file", str(params_file)] if params_file else None
         self.node: Any = Node(

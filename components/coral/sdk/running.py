@@ -19,7 +19,7 @@ from types import FrameType
 from typing import Any
 
 from coral.plugins import exporting
-from coral.sdk import params, topics
+from coral.sdk import dds, params, topics
 from coral.sdk.heap import freeze_startup_heap
 from coral.sdk.spinning import Spinner
 
@@ -97,6 +97,7 @@ def run_component(
 
     stop = threading.Event()
     _install_signal_handlers(stop)
+    dds.use_coral_profile()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     component: Any = None
     plugin_dir: Path | None = None

@@ -1,0 +1,38 @@
+"""The DDS settings a Coral process starts with, applied before it initialises ROS.
+
+Components of one robot start together and discover each other in any order. When a reliable
+reader learns of a writer only after the writer's first samples went out (3 of 15 SLAM missions
+measured on a 2-core machine), it gets them once the writer next announces what it holds:
+FastDDS's writers do that every 3 s, so a snapshot or a first scan arrived up to 3 s late
+(docs/architecture.md, the SLAM mission's figures). The packaged profile (`fastdds.xml`) makes
+that 0.1 s. A writer announces only while a reader has not acknowledged everything, so the
+shorter period costs nothing in steady state.
+
+A user's own profile always wins: nothing is set when either profile variable is set, or when
+FastDDS's own default file is in the working directory.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import MutableMapping
+from pathlib import Path
+
+PROFILE = Path(__file__).with_name("fastdds.xml")
+PROFILE_VARIABLE = "FASTRTPS_DEFAULT_PROFILES_FILE"
+# FastDDS 2 reads the first, FastDDS 3 the second; a user's setting of either is theirs.
+USER_PROFILE_VARIABLES = (PROFILE_VARIABLE, "FASTDDS_DEFAULT_PROFILES_FILE")
+# Loaded by FastDDS from the working directory when no variable names a file.
+DEFAULT_PROFILE_FILES = ("DEFAULT_FASTRTPS_PROFILES.xml", "DEFAULT_FASTDDS_PROFILES.xml")
+
+
+def use_coral_profile(environ: MutableMapping[str, str] | None = None, cwd: Path | None = None) -> bool:
+    """Points FastDDS at Coral's profile unless the user chose one; True when it did."""
+    environ = os.environ if environ is None else environ
+    if any(environ.get(name) for name in USER_PROFILE_VARIABLES):
+        return False
+    folder = Path.cwd() if cwd is None else cwd
+    if any((folder / name).is_file() for name in DEFAULT_PROFILE_FILES):
+        return False
+    environ[PROFILE_VARIABLE] = str(PROFILE)
+    return True
