@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
-from bt_harness import TRACE_FIELDS, Outcomes, finish_batch, run_btcpp, run_coral
+import bt_random_scripts
+from bt_harness import TRACE_FIELDS, Outcomes, Run, finish_batch, run_btcpp, run_coral
 from bt_random_trees import VARS, generate
 
 TICKS = 15
@@ -33,34 +35,50 @@ class Report:
     seconds: float = 0.0
 
 
-def compare_random_trees(seeds: range, ticks: int = TICKS, broken_share: float = BROKEN_SHARE) -> Report:
-    report = Report()
+@dataclass
+class Case:
+    """One tree to run in both engines."""
+
+    seed: int
+    xml: str
+    outcomes: dict[str, list[int]]
+    mode: str
+    host: dict[str, object]
+    ticks: int
+
+
+def compare(cases: Iterable[Case], report: Report) -> Report:
+    """Runs every case in both engines (BT.CPP's file loggers settle a batch at a time)."""
     start = time.monotonic()
     pending: list = []
     pairs: list = []
 
     def settle() -> None:
         finish_batch(pending)
-        for seed, gen, theirs, ours in pairs:
+        for case, theirs, ours in pairs:
             report.trees += 1
             if ours.trace() == theirs.trace():
                 report.agreeing += 1
                 report.rejected += theirs.verdict == "REJECT"
                 report.tick_errors += theirs.verdict == "TICKERR"
             else:
-                report.mismatches.append(describe(seed, gen, theirs, ours))
+                report.mismatches.append(describe(case, theirs, ours))
         pairs.clear()
 
-    for seed in seeds:
-        gen = generate(seed, broken_share=broken_share)
-        report.used |= gen.used
-        if gen.broken:
-            report.broken_kinds.add(gen.broken)
+    for case in cases:
         theirs = run_btcpp(
-            gen.xml, Outcomes(gen.outcomes), ticks, mode=gen.mode, host_vars=VARS, batch=pending, observe=True
+            case.xml,
+            Outcomes(case.outcomes),
+            case.ticks,
+            mode=case.mode,
+            host_vars=case.host,
+            batch=pending,
+            observe=True,
         )
-        ours = run_coral(gen.xml, Outcomes(gen.outcomes), ticks, mode=gen.mode, host_vars=VARS, observe=True)
-        pairs.append((seed, gen, theirs, ours))
+        ours = run_coral(
+            case.xml, Outcomes(case.outcomes), case.ticks, mode=case.mode, host_vars=case.host, observe=True
+        )
+        pairs.append((case, theirs, ours))
         if len(pending) >= BATCH:
             settle()
     settle()
@@ -68,13 +86,34 @@ def compare_random_trees(seeds: range, ticks: int = TICKS, broken_share: float =
     return report
 
 
-def describe(seed: int, gen: object, theirs: object, ours: object) -> str:
-    a, b = theirs.trace(), ours.trace()  # type: ignore[attr-defined]
-    first = next(n for n, x, y in zip(TRACE_FIELDS, a, b, strict=True) if x != y)
+def compare_random_trees(seeds: range, ticks: int = TICKS, broken_share: float = BROKEN_SHARE) -> Report:
+    report = Report()
+
+    def cases() -> Iterator[Case]:
+        for seed in seeds:
+            gen = generate(seed, broken_share=broken_share)
+            report.used |= gen.used
+            if gen.broken:
+                report.broken_kinds.add(gen.broken)
+            yield Case(seed, gen.xml, gen.outcomes, gen.mode, VARS, ticks)
+
+    return compare(cases(), report)
+
+
+def compare_random_scripts(seeds: range, ticks: int = 2) -> Report:
+    """The trees of `bt_random_scripts`: scripts on every kind of value, two ticks each."""
+    host = bt_random_scripts.VARS
+    cases = (Case(seed, bt_random_scripts.generate(seed), {}, "exactly_once", host, ticks) for seed in seeds)
+    return compare(cases, Report())
+
+
+def describe(case: Case, theirs: Run, ours: Run) -> str:
+    traces = zip(TRACE_FIELDS, theirs.trace(), ours.trace(), strict=True)
+    first = next(n for n, x, y in traces if x != y)
     return (
-        f"seed {seed} ({gen.mode}) differs in {first}: BT.CPP {theirs.verdict} "  # type: ignore[attr-defined]
-        f"{theirs.statuses} {theirs.error[:100]!r} vs coral {ours.verdict} {ours.statuses} "  # type: ignore[attr-defined]
-        f"{ours.error[:100]!r}"  # type: ignore[attr-defined]
+        f"seed {case.seed} ({case.mode}) differs in {first}: BT.CPP {theirs.verdict} {theirs.statuses} "
+        f"{theirs.error[:100]!r} vs coral {ours.verdict} {ours.statuses} {ours.error[:100]!r}\n"
+        f"  {case.xml[:600]}"
     )
 
 

@@ -117,6 +117,8 @@ _UNWRAPPED_CAUSES = (
     "Any::copyInto fails",
     "stod",
     "ExprUnaryArithmetic: undefined",
+    "no known safe conversion",
+    "Implicit casting to bool",
 )
 _CAUSES = (
     "Missing parameter",
@@ -131,6 +133,7 @@ _CAUSES = (
     "once declared",
     "Can't find the port",
     "Can't mix different types",
+    "Logic operators are not allowed",
 )
 
 

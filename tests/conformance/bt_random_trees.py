@@ -227,9 +227,12 @@ class _Gen:
         elif kind.startswith("Switch"):
             cases = int(kind[-1])
             n = cases + 1
-            attrs["variable"] = rng.choice(["{sws}", "{sws}", "{s}", "{t}"])
+            attrs["variable"] = variable = rng.choice(["{sws}", "{sws}", "{s}", "{t}"])
+            # Scripts append to s ("3" .. "x"): a numeric case would match "3x" by its prefix in
+            # 4.8 and not in 4.10, so s meets text cases only.
+            values = ["b", "a", "n1"] if variable == "{s}" else ["1", "2", "b", "3", "a", "n1"]
             for i in range(1, cases + 1):
-                attrs[f"case_{i}"] = rng.choice(["1", "2", "b", "3", "a", "n1"])
+                attrs[f"case_{i}"] = rng.choice(values)
         else:
             n = rng.randint(1, 4)
         if kind == "Parallel":
@@ -295,7 +298,8 @@ class _Gen:
             elif choice < 0.5:
                 attrs[key] = "{=}"
             elif choice < 0.6:
-                attrs[key] = "{" + rng.choice(KEYS) + "}"
+                # The queue never moves to another entry: a text entry is a queue in 4.10, not in 4.8.
+                attrs[key] = "{" + (key if key == "lq" else rng.choice(KEYS)) + "}"
             elif choice < 0.68 and key != "lq":
                 # Non-numeric: BT.CPP 4.10 stores numeric SubTree literals as numbers, 4.8 as text.
                 # No text for a queue: 4.10 reads a text entry as a queue, 4.8 refuses it.

@@ -129,6 +129,75 @@ def test_unary_operators_refuse_strings_and_empty_entries(code: str) -> None:
     assert run.statuses == [ERROR] and run.boards[-1]["t"] == EMPTY_TEXT
 
 
+@pytest.mark.parametrize(
+    ("code", "status", "cause"),
+    [
+        ("1", 2, ""),
+        ("0.0", 3, ""),
+        ("2.5", 2, ""),
+        ("0/0", 2, ""),
+        ("2", ERROR, "Implicit casting to bool"),
+        ("v := 2; v", ERROR, "Implicit casting to bool"),
+        ("-0.5", ERROR, "negative"),
+        ("'true'", ERROR, "no known safe conversion"),
+        ("''", ERROR, "no known safe conversion"),
+    ],
+)
+def test_a_condition_takes_only_what_bt_cpp_casts_to_a_bool(code: str, status: int, cause: str) -> None:
+    # The engine once read any text, count or negative number as "true".
+    run = both(f'<ScriptCondition code="{code}"/>')
+    assert run.statuses == [status] and cause in run.error
+
+
+def test_a_pre_condition_refuses_text_too() -> None:
+    run = both('<Sequence><Script code="t := \'a\'"/><AlwaysSuccess _skipIf="t"/></Sequence>')
+    assert run.statuses == [ERROR] and "no known safe conversion" in run.error
+
+
+@pytest.mark.parametrize(
+    ("code", "status"), [("(1) &amp;&amp; (0.5)", 2), ("(2) &amp;&amp; (1)", ERROR), ("(1) || (-1)", ERROR)]
+)
+def test_logic_operators_cast_both_sides_to_bool(code: str, status: int) -> None:
+    run = both(f'<ScriptCondition code="{code}"/>')
+    assert run.statuses == [status]
+    assert status != ERROR or "Logic operators are not allowed" in run.error
+
+
+@pytest.mark.parametrize(
+    ("code", "status"),
+    [
+        ("'12abc' == 12", 2),
+        ("' +5' == 5", 2),
+        ("'0x1F' == 31", 2),
+        ("'1_0' == 1", 2),
+        ("('0') ? (1.0) : (0.0)", 3),
+        ("('12abc') ? (1.0) : (0.0)", 2),
+        ("('a') ? (1.0) : (0.0)", ERROR),
+    ],
+)
+def test_text_read_as_a_number_is_its_leading_number(code: str, status: int) -> None:
+    # BT.CPP reads text with std::stod: blanks, a sign, hex, then whatever number starts it.
+    run = both(f'<ScriptCondition code="{code}"/>')
+    assert run.statuses == [status]
+
+
+@pytest.mark.parametrize("op", ["&lt;", "&gt;", "&lt;=", "&gt;="])
+def test_every_ordering_holds_for_nan(op: str) -> None:
+    # BT.CPP fails `a < b` only when `a >= b`, which is never true of NaN.
+    run = both(f'<ScriptCondition code="(0/0) {op} 1"/>')
+    assert run.statuses == [2]
+
+
+def test_complement_of_nan_is_the_largest_integer() -> None:
+    run = both('<Script code="t := ~(0/0); u := t &gt; 9e18"/>')
+    assert run.boards[-1]["u"] == "1.000000"
+
+
+def test_a_bool_entry_is_copied_on_as_an_integer() -> None:
+    run = both('<Script code="t := b"/>', host={"b": True})
+    assert run.boards[-1]["t"] == "1"
+
+
 # 4. ports with no type (BT::Any) ---------------------------------------------------------------
 def test_an_entry_declared_by_an_any_port_stays_untyped_for_later_typed_ports() -> None:
     # int and double ports share `k` (no load error); the integral 2.0 is stored into the int.

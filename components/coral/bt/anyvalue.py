@@ -8,6 +8,7 @@ strings, anything else for a user type. Used by the blackboard, port access and 
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 EMPTY: Any = type("Empty", (), {"__repr__": lambda self: "<empty>", "__bool__": lambda self: False})()
@@ -47,6 +48,41 @@ def std_to_string(value: Any) -> str:
             return "inf" if value > 0 else "-inf"
         return f"{value:f}"
     return str(value)
+
+
+# What `std::stod` reads at the start of a text: blanks, a sign, then inf/nan, a hex float or a
+# decimal; the rest of the text is ignored.
+STOD_PREFIX = re.compile(
+    r"[ \t\n\v\f\r]*([+-]?(?:inf(?:inity)?|nan(?:\([0-9a-z_]*\))?"
+    r"|0x(?:[0-9a-f]+\.?[0-9a-f]*|\.[0-9a-f]+)(?:p[+-]?[0-9]+)?"
+    r"|(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:e[+-]?[0-9]+)?))",
+    re.IGNORECASE,
+)
+_SMALLEST_NORMAL = 2.2250738585072014e-308
+
+
+def text_to_double(text: str) -> float:
+    """`Any::cast<double>()` of text, as the BT.CPP build the tests run against does it: `std::stod`,
+    which reads a leading number and ignores what follows (`"12abc"` is 12, `" +5"` is 5, `"0x1F"` is
+    31). Raises ValueError when no number starts the text, or when it is out of double's range."""
+    m = STOD_PREFIX.match(text)
+    if m is None:
+        raise ValueError("Any failed string to number conversion")
+    number = m.group(1)
+    body = number.lstrip("+-").lower()
+    if body.startswith(("inf", "nan")):
+        value = math.nan if body.startswith("nan") else math.inf
+        return -value if number.startswith("-") else value
+    if body.startswith("0x"):
+        value, mantissa = float.fromhex(number), body[2:].split("p")[0]
+    else:
+        value, mantissa = float(number), body.split("e")[0]
+    # stod throws out_of_range where strtod reports ERANGE: overflow, and underflow (a nonzero
+    # number that became zero or subnormal).
+    underflow = abs(value) < _SMALLEST_NORMAL and mantissa.strip("0.") != ""
+    if math.isinf(value) or underflow:
+        raise ValueError("Any failed string to number conversion")
+    return value
 
 
 def to_int64(value: float) -> int:

@@ -177,7 +177,8 @@ class Blackboard:
             raise ScriptError(f"Variable not found: {key}")
         value = entry.value
         if isinstance(value, bool):
-            return 1.0 if value else 0.0
+            # BT.CPP's Any holds a bool as an int64: a script copies it on as the integer.
+            return int(value)
         return value
 
     def script_entry(self, key: str, create: bool) -> Entry:

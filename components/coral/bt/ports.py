@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from coral.bt.anyvalue import std_to_string
+from coral.bt.anyvalue import STOD_PREFIX, std_to_string, text_to_double
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -91,15 +91,12 @@ def convert_bool(text: str) -> bool:
         return True
     if s in ("0", "false", "FALSE", "False"):
         return False
-    raise ValueError(f"invalid bool conversion of '{text}'")
+    raise ValueError(f"convertFromString(): invalid bool conversion of '{text}'")
 
 
 # BT.CPP converts with std::from_chars (ints) and std::stod (doubles): both read the longest numeric
 # prefix and ignore what follows, so "2.5" is the int 2 and "3 m" the double 3.0.
 _INT_PREFIX = re.compile(r"-?[0-9]+")
-_DOUBLE_PREFIX = re.compile(
-    r"\s*[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?|nan)", re.IGNORECASE
-)
 
 
 def convert_int(text: str, enums: Mapping[str, int] | None = None) -> int:
@@ -114,15 +111,15 @@ def convert_int(text: str, enums: Mapping[str, int] | None = None) -> int:
 
 
 def convert_double(text: str) -> float:
-    m = _DOUBLE_PREFIX.match(text)
-    if m is None:
-        raise ValueError(f"Can't convert string [{text}] to double (stod)")
-    return float(m.group(0))
+    try:
+        return text_to_double(text)
+    except ValueError:
+        raise ValueError(f"Can't convert string [{text}] to double (stod)") from None
 
 
 def has_trailing_text(text: str, type_name: str) -> bool:
     """Would BT.CPP ignore part of this literal (a numeric prefix followed by more text)?"""
-    pattern = _INT_PREFIX if type_name == "int" else _DOUBLE_PREFIX if type_name == "double" else None
+    pattern = _INT_PREFIX if type_name == "int" else STOD_PREFIX if type_name == "double" else None
     if pattern is None:
         return False
     m = pattern.match(text)

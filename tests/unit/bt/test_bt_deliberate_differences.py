@@ -65,3 +65,9 @@ def test_a_loop_reads_a_text_entry_as_a_queue_as_in_4_10() -> None:
     statuses = [tree.tick_exactly_once() for _ in range(3)]
     assert statuses == [bt.Status.RUNNING, bt.Status.RUNNING, S]
     assert queues.calls == {"each": 2} and tree.root_blackboard.get("v") == 5
+
+
+def test_true_and_false_are_doubles_as_in_4_10() -> None:
+    # 4.8 makes them the integers 1 and 0, which print as "1" once stored.
+    assert run("t := true; t") == 1.0 and isinstance(run("t := true; t"), float)
+    assert run("'x' .. false") == "x0.000000"

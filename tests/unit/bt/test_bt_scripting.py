@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import pytest
+from coral.bt.anyvalue import text_to_double
 from coral.bt.blackboard import Blackboard
 from coral.bt.errors import ScriptError
 from coral.bt.scripting import ScriptEnv, compile_script
@@ -63,3 +64,29 @@ def test_root_blackboard_is_reached_with_at() -> None:
     child = Blackboard(parent=root)
     compile_script("@g := 3; local := @g * 2")(ScriptEnv(child, {}))
     assert root.get("g") == 3 and child.get("local") == 6.0 and not root.has("local")
+
+
+@pytest.mark.parametrize(
+    ("text", "number"),
+    [
+        ("12abc", 12.0),
+        ("  -3.5e1m", -35.0),
+        ("+0x1p-2", 0.25),
+        ("0x", 0.0),
+        ("1e", 1.0),
+        ("INF", float("inf")),
+    ],
+)
+def test_text_reads_as_its_leading_number(text: str, number: float) -> None:
+    assert text_to_double(text) == number
+
+
+@pytest.mark.parametrize("text", ["", "a12", ".", "-", "1e999", "1e-400"])
+def test_text_with_no_number_or_out_of_range_is_refused(text: str) -> None:
+    # std::stod throws invalid_argument for the first four and out_of_range for the last two.
+    with pytest.raises(ValueError, match="string to number"):
+        text_to_double(text)
+
+
+def test_a_double_entry_takes_text_by_its_leading_number() -> None:
+    assert run("x := 1.5; x = ' 7 m'; x") == 7.0

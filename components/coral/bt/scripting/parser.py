@@ -6,6 +6,7 @@ Precedence (low to high): assignment, ternary, ||, &&, chained comparisons, | ^,
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
@@ -13,6 +14,7 @@ from coral.bt.anyvalue import EMPTY, is_number, kind_of, std_to_string
 from coral.bt.errors import ScriptError
 from coral.bt.scripting.tokenizer import Token, tokenize
 from coral.bt.scripting.values import (
+    bool_cast,
     compare,
     condition_holds,
     ieee_divide,
@@ -215,10 +217,15 @@ def _arith(op: str, a: Any, b: Any) -> Any:
         if op in ("&", "|", "^"):
             x, y = to_int(a, op), to_int(b, op)
             return float(x & y if op == "&" else x | y if op == "|" else x ^ y)
-        if op == "&&":
-            return 1.0 if (a != 0 and b != 0) else 0.0
-        if op == "||":
-            return 1.0 if (a != 0 or b != 0) else 0.0
+        if op == "&&" or op == "||":
+            try:
+                x, y = bool_cast(a), bool_cast(b)
+            except ValueError:
+                raise ScriptError(
+                    "Logic operators are not allowed if one of the operands is not castable to bool "
+                    f"({std_to_string(a)} {op} {std_to_string(b)})"
+                ) from None
+            return 1.0 if (x and y if op == "&&" else x or y) else 0.0
         # `..` between two numbers falls through BT.CPP's operator to an empty result.
         return EMPTY
     elif isinstance(a, str) and isinstance(b, str) and op == "+":
@@ -269,9 +276,11 @@ def _unary(op: str, operand: Fn) -> Fn:
                 return -v
             if op == "!":
                 return 0.0 if v != 0 else 1.0
-            if not -(2.0**63) <= v < 2.0**63:
+            if v > 2.0**63 or v < -(2.0**63):
                 raise ScriptError("Number out of range for bitwise operation")
-            return float(~int(v))
+            # BT.CPP's range check lets NaN and 2^63 through to a cast that gives INT64_MIN on x86.
+            whole = -(2**63) if math.isnan(v) or v == 2.0**63 else int(v)
+            return float(~whole)
         if isinstance(value, str):
             raise ScriptError(f"Invalid operator [{op}] for std::string")
         raise ScriptError(f"ExprUnaryArithmetic: undefined (the operand of [{op}] is not initialized)")

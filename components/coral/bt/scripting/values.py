@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from numbers import Integral, Real
 
-from coral.bt.anyvalue import EMPTY, is_number, kind_of
-from coral.bt.errors import ScriptError
+from coral.bt.anyvalue import EMPTY, is_number, kind_of, text_to_double
+from coral.bt.errors import BTRuntimeError, ScriptError
 
 # BT.CPP compares doubles within float (not double) epsilon.
 EPSILON = 1.1920928955078125e-07
@@ -36,34 +37,58 @@ def to_int(v: object, op: str) -> int:
     return int(f)
 
 
-def truthy(v: object) -> bool:
-    """A script result read as a condition (ScriptCondition, Precondition, pre-condition attributes)."""
-    if isinstance(v, str):
-        low = v.strip().lower()
-        if low in ("true", "1"):
-            return True
-        if low in ("false", "0", ""):
-            return False
-        return True
+def bool_cast(v: object) -> bool:
+    """BT.CPP's `Any::cast<bool>()`, which refuses more than it accepts: text of any kind, a
+    negative number, and an integer other than 0 or 1 (an integer literal or an int entry;
+    arithmetic yields doubles, which any non-negative value turns into a bool). Raises ValueError
+    with BT.CPP's message."""
+    if isinstance(v, bool):
+        return v
     if v is EMPTY:
-        raise ScriptError("Any::cast failed because it is empty (the script's result)")
-    if isinstance(v, (int, float)):
-        return v != 0
-    return bool(v)
+        raise ValueError("Any::cast failed because it is empty")
+    if isinstance(v, str):
+        raise ValueError("[Any::convert]: no known safe conversion between [std::string] and [bool]")
+    if isinstance(v, Integral):
+        if v < 0:
+            raise ValueError("Value is negative and can't be converted to unsigned")
+        if v > 1:
+            raise ValueError("Implicit casting to bool is not allowed")
+        return v == 1
+    if isinstance(v, Real):
+        if v < 0:
+            raise ValueError("Value is negative and can't be converted to unsigned")
+        return v != 0.0
+    raise ValueError(f"[Any::convert]: no known safe conversion between [{kind_of(v)}] and [bool]")
+
+
+def truthy(v: object) -> bool:
+    """A script result read as a condition (ScriptCondition, Precondition, pre-condition attributes).
+
+    A tree that relies on a text or a count being "truthy" stops with BT.CPP's error, plus what the
+    value was, instead of running on.
+    """
+    try:
+        return bool_cast(v)
+    except ValueError as err:
+        shown = f"the text {v!r}" if isinstance(v, str) else "empty" if v is EMPTY else repr(v)
+        raise BTRuntimeError(f"{err} (the condition's value is {shown}; compare it, e.g. `x != 0`)") from None
 
 
 def condition_holds(v: object) -> bool:
-    """Ternary `c ? a : b`: a non-empty string, or a number other than zero."""
+    """Ternary `c ? a : b`: BT.CPP reads the condition as a double, so text must start with a
+    number (`'0'` is false, `'a'` an error) and any number other than zero holds."""
     if isinstance(v, str):
-        if v:
-            return True
-        raise ScriptError("Any failed string to number conversion")
+        try:
+            return text_to_double(v) != 0.0
+        except ValueError as err:
+            raise ScriptError(str(err)) from None
     if is_number(v):
         return float(v) != 0.0  # type: ignore[arg-type]
     raise ScriptError("Any::cast failed because it is empty")
 
 
 def string_to_number(s: str, enums: Mapping[str, int]) -> float:
+    """BT.CPP's `StringToDouble`: true, false and enum names, else the text's leading number."""
     if s == "true":
         return 1.0
     if s == "false":
@@ -71,9 +96,9 @@ def string_to_number(s: str, enums: Mapping[str, int]) -> float:
     if s in enums:
         return float(enums[s])
     try:
-        return float(s)
-    except ValueError:
-        raise ScriptError("Any failed string to number conversion") from None
+        return text_to_double(s)
+    except ValueError as err:
+        raise ScriptError(str(err)) from None
 
 
 def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
@@ -100,10 +125,11 @@ def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
         return x == y
     if op == "!=":
         return x != y
+    # BT.CPP fails each ordering by its opposite (`<` fails when `>=` holds), so a NaN passes all.
     if op == "<":
-        return x < y  # type: ignore[operator]
+        return not x >= y  # type: ignore[operator]
     if op == ">":
-        return x > y  # type: ignore[operator]
+        return not x <= y  # type: ignore[operator]
     if op == "<=":
-        return x <= y  # type: ignore[operator]
-    return x >= y  # type: ignore[operator]
+        return not x > y  # type: ignore[operator]
+    return not x < y  # type: ignore[operator]
