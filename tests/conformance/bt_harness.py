@@ -138,6 +138,9 @@ _CAUSES = (
 
 
 def error_site(message: str) -> tuple[str, str]:
+    if "Missing parameter [" in message:
+        # BT.CPP names only the port; the engine adds why the value did not convert.
+        return ("", "Missing parameter")
     cause = next((c for c in _UNWRAPPED_CAUSES if c in message), "")
     if cause:
         return ("", cause)

@@ -17,7 +17,7 @@ def both(
     subtrees: str = "",
     *,
     ticks: int = 1,
-    host: dict[str, int] | None = None,
+    host: dict[str, object] | None = None,
     leaves: dict[str, list[int]] | None = None,
 ) -> Run:
     xml = (
@@ -196,6 +196,54 @@ def test_complement_of_nan_is_the_largest_integer() -> None:
 def test_a_bool_entry_is_copied_on_as_an_integer() -> None:
     run = both('<Script code="t := b"/>', host={"b": True})
     assert run.boards[-1]["t"] == "1"
+
+
+# 3b. typed ports reading entries -------------------------------------------------------------
+def test_run_once_keeps_its_default_when_then_skip_does_not_convert() -> None:
+    # BT.CPP ignores a failed getInput here and skips after the first run, as by default
+    # (status 4 is SKIPPED).
+    run = both('<RunOnce then_skip="{b}"><AlwaysSuccess/></RunOnce>', ticks=2, host={"b": "maybe"})
+    assert run.statuses == [2, 4]
+    run = both(
+        '<Sequence><Script code="b := 2"/><RunOnce then_skip="{b}"><AlwaysSuccess/></RunOnce></Sequence>',
+        ticks=2,
+    )
+    assert run.statuses == [2, 2]  # the Sequence succeeds over its skipped last child
+
+
+def test_a_port_of_int_refuses_an_infinite_double() -> None:
+    run = both(
+        '<Sequence><Script code="x := (1/0)"/><Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat></Sequence>'
+    )
+    assert run.statuses == [ERROR] and "Missing parameter [num_cycles]" in run.error
+
+
+def test_set_blackboard_parses_text_into_a_queue_entry() -> None:
+    run = both(
+        '<Sequence><SetBlackboard value="4;5" output_key="q"/>'
+        '<LoopInt queue="{q}" value="{o}"><AlwaysSuccess/></LoopInt></Sequence>'
+    )
+    assert run.statuses == [1] and run.boards[-1]["o"] == "4"
+
+
+def test_set_blackboard_replaces_the_value_of_a_typed_entry_with_the_parsed_text() -> None:
+    # The int entry (declared by Repeat's port) held the double a script wrote first.
+    run = both(
+        '<Sequence><Script code="x := 2.5"/><SetBlackboard value="-1" output_key="x"/>'
+        '<Repeat num_cycles="{x}"><AlwaysSuccess/></Repeat></Sequence>'
+    )
+    assert run.boards[-1] == {"x": "-1"}
+
+
+@pytest.mark.parametrize(
+    "writer", ['<SetBlackboard value="SUCCESS" output_key="x"/>', "<Script code=\"x := 'SUCCESS'\"/>"]
+)
+def test_text_is_refused_by_an_entry_of_node_status(writer: str) -> None:
+    # NodeStatus is an enum: BT.CPP gives its entries no string converter.
+    run = both(
+        f'<Sequence>{writer}<Precondition if="0" else="{{x}}"><AlwaysSuccess/></Precondition></Sequence>'
+    )
+    assert run.statuses == [ERROR]
 
 
 # 4. ports with no type (BT::Any) ---------------------------------------------------------------

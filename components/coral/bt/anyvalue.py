@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from numbers import Integral, Real
 from typing import Any
 
 EMPTY: Any = type("Empty", (), {"__repr__": lambda self: "<empty>", "__bool__": lambda self: False})()
@@ -83,6 +84,30 @@ def text_to_double(text: str) -> float:
     if math.isinf(value) or underflow:
         raise ValueError("Any failed string to number conversion")
     return value
+
+
+def bool_cast(v: object) -> bool:
+    """BT.CPP's `Any::cast<bool>()`, which refuses more than it accepts: text of any kind, a
+    negative number, and an integer other than 0 or 1 (an integer literal or an int entry;
+    arithmetic yields doubles, which any non-negative value turns into a bool). Raises ValueError
+    with BT.CPP's message."""
+    if isinstance(v, bool):
+        return v
+    if v is EMPTY:
+        raise ValueError("Any::cast failed because it is empty")
+    if isinstance(v, str):
+        raise ValueError("[Any::convert]: no known safe conversion between [std::string] and [bool]")
+    if isinstance(v, Integral):
+        if v < 0:
+            raise ValueError("Value is negative and can't be converted to unsigned")
+        if v > 1:
+            raise ValueError("Implicit casting to bool is not allowed")
+        return v == 1
+    if isinstance(v, Real):
+        if v < 0:
+            raise ValueError("Value is negative and can't be converted to unsigned")
+        return v != 0.0
+    raise ValueError(f"[Any::convert]: no known safe conversion between [{kind_of(v)}] and [bool]")
 
 
 def to_int64(value: float) -> int:

@@ -18,11 +18,17 @@ from coral.bt.errors import ScriptError
 from coral.bt.ports import convert_string
 from coral.bt.scripting.values import string_to_number
 
-__all__ = ["EMPTY", "Blackboard", "Entry", "strongly_typed"]
+__all__ = ["EMPTY", "Blackboard", "Entry", "parses_text", "strongly_typed"]
 
 
 def strongly_typed(type_name: str) -> bool:
     return type_name not in UNTYPED
+
+
+def parses_text(type_name: str) -> bool:
+    """Does BT.CPP give an entry of this declared type a string converter? Untyped entries and
+    enums (NodeStatus) have none, so text written into them by a script or SetBlackboard is refused."""
+    return strongly_typed(type_name) and type_name != "NodeStatus"
 
 
 class Entry:
@@ -102,17 +108,22 @@ class Blackboard:
         self.storage[key] = entry
         return entry
 
-    def set(self, key: str, value: Any, port_type: str | None = None) -> None:
-        """`Blackboard::set<T>` with T = `port_type` (default: the value's own type)."""
+    def set(self, key: str, value: Any, port_type: str | None = None, value_type: str | None = None) -> None:
+        """`Blackboard::set<T>` with T = `port_type` (default: the value's own type).
+
+        `value_type` names the declared type a string was parsed into (a queue, say): BT.CPP's Any
+        knows that type, a Python container does not.
+        """
         if key[:1] == "@":
-            self.root().set(key[1:], value, port_type)
+            self.root().set(key[1:], value, port_type, value_type)
             return
-        t = port_type if port_type is not None else kind_of(value)
+        own = value_type or kind_of(value)
+        t = port_type if port_type is not None else own
         entry = self.storage.get(key)
         if entry is None:
             # A new (or remapped) entry is declared with the value's own type; a std::string
             # write declares an untyped one. The value is stored as it is.
-            new_type = "any" if t == "string" else kind_of(value) if t == "Any" else t
+            new_type = "any" if t == "string" else own if t == "Any" else t
             entry = self._create(key, new_type)
             entry.value = value
             entry.touch()
@@ -123,9 +134,10 @@ class Blackboard:
             entry.touch()
             return
         declared = entry.type
-        if declared != t and declared != kind_of(value):
+        if declared != t and declared != own:
             converted = EMPTY
-            if isinstance(value, str):
+            # set<std::string> parses the text with the entry's converter; set<Any> does not.
+            if isinstance(value, str) and t != "Any" and parses_text(declared):
                 try:
                     converted = convert_string(value, declared, self.enums)
                 except ValueError:
@@ -202,7 +214,7 @@ class Blackboard:
         if dst is EMPTY and entry.type == "any":
             entry.value = value
         elif isinstance(value, str) and not isinstance(dst, str):
-            if strongly_typed(entry.type):
+            if parses_text(entry.type):
                 try:
                     entry.value = convert_string(value, entry.type, self.enums)
                 except ValueError as err:

@@ -5,9 +5,10 @@ the registry (file:line errors), uids in document order and BT.CPP-style full pa
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
-from coral.bt.anyvalue import kind_of
+from coral.bt.anyvalue import kind_of, text_to_double
 from coral.bt.blackboard import Blackboard, Entry, strongly_typed
 from coral.bt.errors import BTError, BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, RESERVED_ATTRS, NodeElement, TreeDocument
@@ -20,18 +21,25 @@ from coral.bt.status import NodeKind, PortDirection
 from coral.bt.tree import Tree
 from coral.bt.validation import verify_structure
 
+# What std::from_chars reads as a whole string: no blanks, no '+', no hex.
+_WHOLE_INT = re.compile(r"-?[0-9]+")
+_WHOLE_DOUBLE = re.compile(
+    r"-?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf(?:inity)?|nan(?:\([0-9a-zA-Z_]*\))?)",
+    re.IGNORECASE,
+)
+
 
 def literal_value(text: str) -> Any:
-    """A SubTree literal as BT.CPP 4.10 stores it: int if the whole string is one, else double, else str."""
-    s = text.strip()
-    try:
-        return int(s)
-    except ValueError:
-        pass
-    try:
-        return float(s)
-    except ValueError:
-        return text
+    """A SubTree literal as BT.CPP 4.10 stores it: an int when the whole text is one (and fits
+    int64), else a double when the whole text is one, else the text (" 2", "+2" and "0x2" stay text)."""
+    if _WHOLE_INT.fullmatch(text) and -(2**63) <= int(text) < 2**63:
+        return int(text)
+    if _WHOLE_DOUBLE.fullmatch(text):
+        try:
+            return text_to_double(text)
+        except ValueError:  # out of double's range: from_chars refuses it too
+            return text
+    return text
 
 
 def _async_children(el: NodeElement) -> int:

@@ -7,13 +7,14 @@ get_input and the blackboard (converting strings written to typed entries).
 from __future__ import annotations
 
 import json
+import math
 import re
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from coral.bt.anyvalue import STOD_PREFIX, std_to_string, text_to_double
+from coral.bt.anyvalue import STOD_PREFIX, bool_cast, std_to_string, text_to_double
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -179,14 +180,14 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
         if isinstance(value, bool):
             return int(value)
         if isinstance(value, float):
-            if value != int(value):
-                raise ValueError(f"cannot convert {value} to int without losing precision")
+            if not math.isfinite(value) or value != int(value):
+                raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
             return int(value)
         return value
     if type_name == "double" and isinstance(value, (int, bool)):
         return float(value)
     if type_name == "bool" and isinstance(value, (int, float)):
-        return value != 0
+        return bool_cast(value)
     if type_name == "string" and isinstance(value, (int, float)):
         return std_to_string(value)
     return value

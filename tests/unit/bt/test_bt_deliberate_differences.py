@@ -6,6 +6,7 @@ from __future__ import annotations
 import coral.bt as bt
 from bt_stubs import S, make_tree
 from coral.bt.blackboard import Blackboard
+from coral.bt.builder import literal_value
 from coral.bt.scripting import ScriptEnv, compile_script
 
 
@@ -71,3 +72,17 @@ def test_true_and_false_are_doubles_as_in_4_10() -> None:
     # 4.8 makes them the integers 1 and 0, which print as "1" once stored.
     assert run("t := true; t") == 1.0 and isinstance(run("t := true; t"), float)
     assert run("'x' .. false") == "x0.000000"
+
+
+def test_a_subtree_literal_is_a_number_only_when_all_of_it_is_one() -> None:
+    # 4.10 reads the literal with std::from_chars and keeps it only if nothing is left over.
+    assert [literal_value(t) for t in ["2", "-3", "1e0", ".5", "inf"]] == [2, -3, 1.0, 0.5, float("inf")]
+    assert [literal_value(t) for t in [" 2", "+2", "0x2", "1_0", "3abc", "1;2", "1e999"]] == [
+        " 2",
+        "+2",
+        "0x2",
+        "1_0",
+        "3abc",
+        "1;2",
+        "1e999",
+    ]

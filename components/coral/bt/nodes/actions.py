@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral.bt.blackboard import EMPTY, strongly_typed
+from coral.bt.blackboard import EMPTY, parses_text, strongly_typed
 from coral.bt.errors import BTLoadError, BTRuntimeError, ScriptError
 from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
 from coral.bt.nodes.base import NodeConfig
@@ -124,6 +124,7 @@ class SetBlackboard(SyncAction):
             value = raw
         if value is EMPTY:
             return FAILURE
+        parsed_as = None
         if dst is not None and dst.type != "string" and isinstance(value, str):
             # BT.CPP parses the string with the entry's converter; an entry without one
             # (untyped, or a script's) receives an empty value.
@@ -133,17 +134,20 @@ class SetBlackboard(SyncAction):
                     "convertFromString for BT::Any",
                     node_path=self.path,
                 )
-            if strongly_typed(dst.type):
+            if parses_text(dst.type):
                 try:
                     value = convert_string(value, dst.type, self.rt.enums)
                 except ValueError as err:
                     raise BTRuntimeError(
                         f"Can't convert string [{value}] to type [{dst.type}]: {err}", node_path=self.path
                     ) from None
-            else:
+                # Parsed into the entry's own type (a queue, say), which set() must know.
+                parsed_as = dst.type
+            elif not strongly_typed(dst.type):
                 value = EMPTY
+            # Else an enum without a converter: set() refuses the text, as BT.CPP's does.
         try:
-            board.set(key, value, "Any")
+            board.set(key, value, "Any", parsed_as)
         except ScriptError as err:
             raise BTRuntimeError(err.message, node_path=self.path) from None
         return SUCCESS

@@ -168,7 +168,11 @@ class RunOnce(DecoratorNode):
         self.result: int = IDLE
 
     def tick(self) -> int:
-        skip = bool(self.get_input("then_skip", True))
+        try:
+            skip = bool(self.get_input("then_skip", True))
+        except BTRuntimeError:
+            # BT.CPP ignores an entry that does not convert and keeps the default.
+            skip = True
         if self.done:
             return SKIPPED if skip else self.result
         self.set_status(RUNNING)

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from numbers import Integral, Real
 
-from coral.bt.anyvalue import EMPTY, is_number, kind_of, text_to_double
+from coral.bt.anyvalue import EMPTY, bool_cast, is_number, kind_of, text_to_double
 from coral.bt.errors import BTRuntimeError, ScriptError
 
 # BT.CPP compares doubles within float (not double) epsilon.
@@ -35,30 +34,6 @@ def to_int(v: object, op: str) -> int:
     if not math.isfinite(f) or f != int(f):
         raise ScriptError("Binary operators are not allowed if one of the operands is not an integer")
     return int(f)
-
-
-def bool_cast(v: object) -> bool:
-    """BT.CPP's `Any::cast<bool>()`, which refuses more than it accepts: text of any kind, a
-    negative number, and an integer other than 0 or 1 (an integer literal or an int entry;
-    arithmetic yields doubles, which any non-negative value turns into a bool). Raises ValueError
-    with BT.CPP's message."""
-    if isinstance(v, bool):
-        return v
-    if v is EMPTY:
-        raise ValueError("Any::cast failed because it is empty")
-    if isinstance(v, str):
-        raise ValueError("[Any::convert]: no known safe conversion between [std::string] and [bool]")
-    if isinstance(v, Integral):
-        if v < 0:
-            raise ValueError("Value is negative and can't be converted to unsigned")
-        if v > 1:
-            raise ValueError("Implicit casting to bool is not allowed")
-        return v == 1
-    if isinstance(v, Real):
-        if v < 0:
-            raise ValueError("Value is negative and can't be converted to unsigned")
-        return v != 0.0
-    raise ValueError(f"[Any::convert]: no known safe conversion between [{kind_of(v)}] and [bool]")
 
 
 def truthy(v: object) -> bool:
