@@ -14,6 +14,7 @@ import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
+import bt_random_ports
 import bt_random_scripts
 from bt_harness import TRACE_FIELDS, Outcomes, Run, finish_batch, run_btcpp, run_coral
 from bt_random_trees import VARS, generate
@@ -104,6 +105,13 @@ def compare_random_scripts(seeds: range, ticks: int = 2) -> Report:
     """The trees of `bt_random_scripts`: scripts on every kind of value, two ticks each."""
     host = bt_random_scripts.VARS
     cases = (Case(seed, bt_random_scripts.generate(seed), {}, "exactly_once", host, ticks) for seed in seeds)
+    return compare(cases, Report())
+
+
+def compare_random_ports(seeds: range, ticks: int = 3) -> Report:
+    """The trees of `bt_random_ports`: typed ports reading entries of every kind."""
+    host = bt_random_ports.HOST
+    cases = (Case(seed, bt_random_ports.generate(seed), {}, "exactly_once", host, ticks) for seed in seeds)
     return compare(cases, Report())
 
 

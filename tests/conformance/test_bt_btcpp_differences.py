@@ -246,6 +246,16 @@ def test_text_is_refused_by_an_entry_of_node_status(writer: str) -> None:
     assert run.statuses == [ERROR]
 
 
+@pytest.mark.parametrize(("value", "status"), [("3", 3), ("4", 2), ("2.5", ERROR), ("(0/0)", ERROR)])
+def test_a_node_status_port_takes_an_integral_number(value: str, status: int) -> None:
+    # 4 is SKIPPED, so the Sequence goes on and succeeds.
+    run = both(
+        f'<Sequence><Script code="x := {value}"/>'
+        '<Precondition if="0" else="{x}"><AlwaysSuccess/></Precondition></Sequence>'
+    )
+    assert run.statuses == [status]
+
+
 # 4. ports with no type (BT::Any) ---------------------------------------------------------------
 def test_an_entry_declared_by_an_any_port_stays_untyped_for_later_typed_ports() -> None:
     # int and double ports share `k` (no load error); the integral 2.0 is stored into the int.

@@ -184,6 +184,16 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
                 raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
             return int(value)
         return value
+    if type_name == "NodeStatus" and isinstance(value, (int, float)):
+        # BT.CPP casts a number to the enum through int: a fraction is refused, and a number
+        # outside the enum (which BT.CPP would return as a status and crash on) is refused here.
+        if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
+            raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+        if not 0 <= int(value) <= 4:
+            raise ValueError(
+                f"{int(value)} is no NodeStatus (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED)"
+            )
+        return int(value)
     if type_name == "double" and isinstance(value, (int, bool)):
         return float(value)
     if type_name == "bool" and isinstance(value, (int, float)):

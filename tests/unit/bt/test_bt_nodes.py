@@ -341,3 +341,14 @@ def test_plugin_controls_and_decorators_register_like_leaves() -> None:
     tree = bt.load_tree_text(xml, registry).build(registry, blackboard={"n": 0})
     assert tree.tick_exactly_once() == S
     assert tree.root_blackboard.get("n") == 2
+
+
+@pytest.mark.parametrize("value", ["-1", "5"])
+def test_a_number_outside_node_status_is_a_clear_error(value: str) -> None:
+    # BT.CPP returns such a number as the node's status and crashes; the engine refuses it.
+    tree, _ = make_tree(
+        f'<Sequence><Script code="x := {value}"/>'
+        '<Precondition if="0" else="{x}"><Q name="q"/></Precondition></Sequence>'
+    )
+    with pytest.raises(bt.BTRuntimeError, match=f"{value} is no NodeStatus"):
+        tree.tick_exactly_once()

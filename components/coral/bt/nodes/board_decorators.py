@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-from coral.bt.anyvalue import EMPTY
+from coral.bt.anyvalue import EMPTY, kind_of, std_to_string
 from coral.bt.errors import BTRuntimeError
 from coral.bt.nodes.base import DecoratorNode, NodeConfig
 from coral.bt.ports import PortSpec, blackboard_key, convert_string, normalize_type
@@ -78,7 +78,9 @@ class LoopBase(DecoratorNode):
                 return deque(value)
             return self.current
         raise BTRuntimeError(
-            f"[queue] holds a {type(value).__name__}, not a queue of {self.ELEMENT}", node_path=self.path
+            f"[queue]: no known safe conversion between [{kind_of(value)}] and [std::deque<{self.ELEMENT}>] "
+            f"(the entry holds {std_to_string(value)}, not a queue)",
+            node_path=self.path,
         )
 
 

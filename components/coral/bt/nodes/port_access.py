@@ -77,7 +77,7 @@ class PortAccess:
         if value is MISSING:
             key = self._port(name)[0]
             detail = f"blackboard entry [{key}] is not set" if key else "no value and no default"
-            raise BTRuntimeError(f"missing input port [{name}]: {detail}", node_path=self.path)
+            raise BTRuntimeError(f"Missing parameter [{name}]: {detail}", node_path=self.path)
         return value
 
     def set_output(self, name: str, value: Any) -> bool:
