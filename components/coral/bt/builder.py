@@ -29,6 +29,11 @@ _WHOLE_DOUBLE = re.compile(
 )
 
 
+# Nodes from the root to the deepest leaf, SubTrees included. A tick recurses through every level,
+# and Python's stack (a thousand frames) holds about 300; real trees stay below 50.
+MAX_NODE_DEPTH = 200
+
+
 def literal_value(text: str) -> Any:
     """A SubTree literal as BT.CPP 4.10 stores it: an int when the whole text is one (and fits
     int64), else a double when the whole text is one, else the text (" 2", "+2" and "0x2" stay text)."""
@@ -62,7 +67,15 @@ class _Builder:
     def fail(self, el: NodeElement, message: str, path: str | None = None) -> BTLoadError:
         return BTLoadError(message, file=el.file, line=el.line, node_path=path)
 
-    def create(self, el: NodeElement, board: Blackboard, prefix: str, stack: list[str]) -> TreeNode:
+    def create(
+        self, el: NodeElement, board: Blackboard, prefix: str, stack: list[str], depth: int = 1
+    ) -> TreeNode:
+        if depth > MAX_NODE_DEPTH:
+            raise self.fail(
+                el,
+                f"the tree nests more than {MAX_NODE_DEPTH} nodes deep through its SubTrees "
+                f"({' -> '.join(stack)}); the limit is {MAX_NODE_DEPTH}",
+            )
         spec = self.registry.get(el.node_id)
         if spec is None or spec.cls is None:
             raise self.fail(el, f"Node not recognized: {el.node_id}")
@@ -101,11 +114,11 @@ class _Builder:
         self._conditions(node, el, path)
         self.nodes.append(node)
         if spec.kind == NodeKind.SUBTREE:
-            child = self._subtree(el, board, path, stack)
+            child = self._subtree(el, board, path, stack, depth)
             node.children = [child]
             child.parent = node
         else:
-            node.children = [self.create(c, board, prefix, stack) for c in el.children]
+            node.children = [self.create(c, board, prefix, stack, depth + 1) for c in el.children]
             for c in node.children:
                 c.parent = node
         return node
@@ -187,7 +200,9 @@ class _Builder:
         except ScriptError as err:
             raise self.fail(el, f"invalid script in {attr}: {err.message}", path) from None
 
-    def _subtree(self, el: NodeElement, board: Blackboard, path: str, stack: list[str]) -> TreeNode:
+    def _subtree(
+        self, el: NodeElement, board: Blackboard, path: str, stack: list[str], depth: int
+    ) -> TreeNode:
         tree_id = el.attrs.get("ID", "")
         target = self.doc.trees.get(tree_id)
         if target is None or target.root is None:
@@ -228,7 +243,7 @@ class _Builder:
                 entry = Entry("any" if isinstance(literal, str) else kind_of(literal), literal)
                 entry.touch()
                 child_board.storage[key] = entry
-        return self.create(target.root, child_board, path + "/", stack + [tree_id])
+        return self.create(target.root, child_board, path + "/", stack + [tree_id], depth + 1)
 
 
 def build_tree(

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from coral.bt.errors import BTLoadError
+from coral.bt.limits import IncludeBudget, check_document
 from coral.bt.model import NodeElement, TreeDef, TreeDocument
 from coral.bt.ports import PortSpec
 from coral.bt.registry import V3_SOURCE, NodeRegistry
@@ -36,7 +37,6 @@ _V3_MARKERS = (
     "BlackboardCheck",
     "success_threshold",
 )
-_MAX_INCLUDE_DEPTH = 256
 _PORT_TAGS = {
     "input_port": PortDirection.INPUT,
     "output_port": PortDirection.OUTPUT,
@@ -57,6 +57,7 @@ class _State:
     stack: list[str] = field(default_factory=list)
     unnamed: int = 0
     resolve_include: IncludeResolver | None = None
+    budget: IncludeBudget = field(default_factory=IncludeBudget)
 
     def warn(self, file: str, line: int, message: str) -> None:
         text = f"{file}:{line}: {message}"
@@ -96,7 +97,7 @@ def _load(
     resolve_include: IncludeResolver | None = None,
 ) -> TreeDocument:
     state = _State(registry, resolve_include=resolve_include)
-    root = _parse_document(text, filename, base_dir, state, depth=0)
+    root = _parse_document(text, filename, base_dir, state)
     doc = TreeDocument(state.trees, state.models, None, state.files, state.warnings)
     wanted = main_tree or root.get("main_tree_to_execute")
     if wanted:
@@ -126,7 +127,9 @@ def _load(
     return doc
 
 
-def _parse_document(text: str, filename: str, base_dir: str, state: _State, depth: int) -> XmlElement:
+def _parse_document(text: str, filename: str, base_dir: str, state: _State) -> XmlElement:
+    # Size, element count and nesting first, so no document can exhaust memory or the stack.
+    check_document(text, filename, state.budget)
     root = parse_xml(text, filename)
     if root.tag != "root":
         raise BTLoadError("The XML must have a root node called <root>", file=filename, line=root.line)
@@ -142,7 +145,7 @@ def _parse_document(text: str, filename: str, base_dir: str, state: _State, dept
     try:
         for child in root.children:
             if child.tag == "include":
-                _include(child, filename, base_dir, state, depth)
+                _include(child, filename, base_dir, state)
         models_seen = 0
         for child in root.children:
             if child.tag == "BehaviorTree":
@@ -161,7 +164,7 @@ def _parse_document(text: str, filename: str, base_dir: str, state: _State, dept
     return root
 
 
-def _include(el: XmlElement, filename: str, base_dir: str, state: _State, depth: int) -> None:
+def _include(el: XmlElement, filename: str, base_dir: str, state: _State) -> None:
     rel = el.get("path")
     if not rel:
         raise BTLoadError("<include> needs a path attribute", file=filename, line=el.line)
@@ -171,14 +174,13 @@ def _include(el: XmlElement, filename: str, base_dir: str, state: _State, depth:
             file=filename,
             line=el.line,
         )
-    if depth + 1 > _MAX_INCLUDE_DEPTH:
-        raise BTLoadError("include nesting is deeper than 256", file=filename, line=el.line)
+    state.budget.count_include(filename, el.line)
     if state.resolve_include is not None:
         target, text = state.resolve_include(rel, filename, el.line)
         if target in state.stack:
             chain = " -> ".join(state.stack + [target])
             raise BTLoadError(f"include cycle: {chain}", file=filename, line=el.line)
-        _parse_document(text, target, base_dir, state, depth + 1)
+        _parse_document(text, target, base_dir, state)
         return
     target = rel if os.path.isabs(rel) else os.path.join(base_dir, rel)
     target = os.path.abspath(target)
@@ -192,7 +194,7 @@ def _include(el: XmlElement, filename: str, base_dir: str, state: _State, depth:
         raise BTLoadError(
             f"cannot read included file [{rel}]: {err.strerror}", file=filename, line=el.line
         ) from None
-    _parse_document(text, target, os.path.dirname(target), state, depth + 1)
+    _parse_document(text, target, os.path.dirname(target), state)
 
 
 def _tree(el: XmlElement, filename: str, root: XmlElement, state: _State, v3: bool) -> None:

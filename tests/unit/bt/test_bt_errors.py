@@ -213,3 +213,30 @@ def test_validation_reports_problems_in_trees_no_subtree_reaches() -> None:
     assert any("t.xml:5" in m and "<Inverter> needs exactly 1 child" in m for m in messages)
     with pytest.raises(bt.BTLoadError, match=r"t.xml:5: .*<Inverter> needs exactly 1 child"):
         doc.build(registry)
+
+
+def test_a_tree_nested_too_deep_is_refused_before_it_is_built() -> None:
+    # Every loader checks the limits the operator applies, so no tree can exhaust Python's stack.
+    depth = 1000
+    xml = (
+        '<root BTCPP_format="4"><BehaviorTree ID="M">'
+        + "<Inverter>" * depth
+        + "<AlwaysSuccess/>"
+        + "</Inverter>" * depth
+        + "</BehaviorTree></root>"
+    )
+    with pytest.raises(bt.BTLoadError, match="nest 1003 levels deep; the limit is 128"):
+        bt.load_tree_text(xml, bt.NodeRegistry.with_builtins())
+
+
+def test_subtrees_nested_too_deep_are_refused_with_their_chain() -> None:
+    trees = "".join(
+        f'<BehaviorTree ID="T{i}"><Inverter><SubTree ID="T{i + 1}"/></Inverter></BehaviorTree>'
+        for i in range(150)
+    )
+    last = '<BehaviorTree ID="T150"><AlwaysSuccess/></BehaviorTree>'
+    xml = f'<root BTCPP_format="4" main_tree_to_execute="T0">{trees}{last}</root>'
+    registry = bt.NodeRegistry.with_builtins()
+    doc = bt.load_tree_text(xml, registry)
+    with pytest.raises(bt.BTLoadError, match=r"more than 200 nodes deep through its SubTrees \(T0 -> T1 -> "):
+        doc.build(registry)
