@@ -256,6 +256,12 @@ def test_a_node_status_port_takes_an_integral_number(value: str, status: int) ->
     assert run.statuses == [status]
 
 
+@pytest.mark.parametrize("node", ['<Sleep msec="-1"/>', '<Delay delay_msec="-5"><AlwaysSuccess/></Delay>'])
+def test_a_negative_literal_for_an_unsigned_port_is_a_load_error(node: str) -> None:
+    run = both(node)
+    assert run.verdict == "REJECT" and "can not be converted to unsigned" in run.error
+
+
 # 4. ports with no type (BT::Any) ---------------------------------------------------------------
 def test_an_entry_declared_by_an_any_port_stays_untyped_for_later_typed_ports() -> None:
     # int and double ports share `k` (no load error); the integral 2.0 is stored into the int.

@@ -13,7 +13,7 @@ from coral.bt.blackboard import Blackboard, Entry, strongly_typed
 from coral.bt.errors import BTError, BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, RESERVED_ATTRS, NodeElement, TreeDocument
 from coral.bt.nodes.base import NodeConfig, TreeNode
-from coral.bt.ports import PortSpec, blackboard_key, convert_string, is_typed, normalize_type
+from coral.bt.ports import PortSpec, blackboard_key, convert_string, is_typed, is_unsigned, normalize_type
 from coral.bt.registry import NodeRegistry
 from coral.bt.runtime import Runtime
 from coral.bt.scripting import compile_script
@@ -155,9 +155,16 @@ class _Builder:
             if key is None:
                 if spec.direction == PortDirection.INPUT and is_typed(type_name) and name in ports:
                     try:
-                        convert_string(raw, type_name, self.runtime.enums)
+                        value = convert_string(raw, type_name, self.runtime.enums)
                     except ValueError as err:
                         raise self.fail(el, f"port [{name}]: {err}", path) from None
+                    if is_unsigned(spec.type) and isinstance(value, int) and value < 0:
+                        raise self.fail(
+                            el,
+                            f'The port with name "{name}" and value "{raw}" can not be converted '
+                            f"to {spec.type}",
+                            path,
+                        )
                 continue
             existing = board.get_entry(key)
             if existing is None:

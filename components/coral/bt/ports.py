@@ -81,6 +81,12 @@ def normalize_type(type_name: str) -> str:
     return t
 
 
+def is_unsigned(type_name: str) -> bool:
+    """An unsigned C++ integer type, which "int" (every integer type's normalized name) does not say."""
+    low = type_name.strip().lower()
+    return low in _INT and (low.startswith(("unsigned", "uint")) or low == "size_t")
+
+
 def is_typed(norm: str) -> bool:
     """Does a literal for this type need converting (and checking at load time)?"""
     return norm not in ("any", "Any", "string")

@@ -312,6 +312,15 @@ def test_delay_ticks_its_child_only_after_the_wall_clock_delay() -> None:
     assert time.monotonic() - start >= 0.035 and queues.calls["a"] == 1
 
 
+def test_a_zero_delay_runs_its_child_at_the_next_tick() -> None:
+    # BT.CPP's timer thread fires at once; the engine does not leave it to a thread waiting for
+    # the GIL, which three quick ticks in a row used to outrun.
+    tree, queues = make_tree('<Delay delay_msec="0"><Q name="a"/></Delay>', {"a": [S, S]})
+    assert tree.tick_exactly_once() == R and "a" not in queues.calls
+    assert tree.tick_exactly_once() == S and queues.calls["a"] == 1
+    assert tree.tick_once() == S and queues.calls["a"] == 2  # tick_once re-ticks on the wake-up
+
+
 def test_plugin_controls_and_decorators_register_like_leaves() -> None:
     from coral.bt.leaves import ControlNode, DecoratorNode
 

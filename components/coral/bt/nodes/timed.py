@@ -90,7 +90,13 @@ class Delay(DecoratorNode):
             self.complete = False
             self.started = True
             self.set_status(RUNNING)
-            self.timer = self.rt.add_timer(msec / 1000.0, self._fire)
+            if msec > 0:
+                self.timer = self.rt.add_timer(msec / 1000.0, self._fire)
+            else:
+                # BT.CPP's timer thread fires a zero delay at once, so the next tick (or tick_once's
+                # own re-tick) runs the child; a Python timer thread waits for the GIL instead.
+                self._fire()
+                return RUNNING
         if not self.complete:
             return RUNNING
         st = self.children[0].execute_tick()
