@@ -262,6 +262,12 @@ def test_a_negative_literal_for_an_unsigned_port_is_a_load_error(node: str) -> N
     assert run.verdict == "REJECT" and "can not be converted to unsigned" in run.error
 
 
+@pytest.mark.parametrize("node", ['<Sleep msec="{x}"/>', '<Timeout msec="{x}"><AlwaysSuccess/></Timeout>'])
+def test_an_unsigned_port_refuses_a_negative_entry(node: str) -> None:
+    run = both(f'<Sequence><Script code="x := -1"/>{node}</Sequence>')
+    assert run.statuses == [ERROR] and "Missing parameter [msec]" in run.error
+
+
 # 4. ports with no type (BT::Any) ---------------------------------------------------------------
 def test_an_entry_declared_by_an_any_port_stays_untyped_for_later_typed_ports() -> None:
     # int and double ports share `k` (no load error); the integral 2.0 is stored into the int.

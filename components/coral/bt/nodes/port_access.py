@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 from coral.bt.anyvalue import kind_of
 from coral.bt.blackboard import EMPTY
 from coral.bt.errors import BTRuntimeError, ScriptError
-from coral.bt.ports import blackboard_key, coerce_value, convert_string, normalize_type
+from coral.bt.ports import blackboard_key, coerce_value, convert_string, is_unsigned, normalize_type
 
 if TYPE_CHECKING:
     from coral.bt.blackboard import Blackboard
@@ -68,9 +68,19 @@ class PortAccess:
         if type_name == "any":
             return entry.value
         try:
-            return coerce_value(entry.value, type_name, self.rt.enums)
+            value = coerce_value(entry.value, type_name, self.rt.enums)
         except ValueError as err:
             raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
+        if type_name == "int" and isinstance(value, int) and value < 0:
+            # "int" stands for every integer type; an unsigned port refuses what BT.CPP's cast does.
+            spec = self.port_specs.get(name)
+            if spec is not None and is_unsigned(spec.type):
+                raise BTRuntimeError(
+                    f"Missing parameter [{name}]: Value is negative and can't be converted to unsigned "
+                    f"(the entry [{key}] holds {value})",
+                    node_path=self.path,
+                )
+        return value
 
     def require_input(self, name: str) -> Any:
         value = self.get_input(name, MISSING)
