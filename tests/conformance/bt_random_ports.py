@@ -56,8 +56,8 @@ SUBTREE_TEXTS = [" 2", "3abc", "x", "true", "false", "1;2;x", "0x2", "+2", "1.5;
 ENTRY_KEYS = ["{x}", "{x}", "{x}", "{hd}", "{hs}", "{hb}", "{hl}"]
 
 
-def _reader(rng: random.Random, key: str, loops: bool) -> str:
-    readers = [
+def _reader(rng: random.Random, key: str, flavor: str) -> str:
+    typed = [
         f'<Repeat num_cycles="{key}"><AlwaysSuccess/></Repeat>',
         f'<RetryUntilSuccessful num_attempts="{key}"><AlwaysFailure/></RetryUntilSuccessful>',
         f'<Parallel success_count="{key}" failure_count="1"><AlwaysSuccess/><AlwaysSuccess/></Parallel>',
@@ -65,20 +65,22 @@ def _reader(rng: random.Random, key: str, loops: bool) -> str:
         f'<ParallelAll max_failures="{key}"><AlwaysFailure/><AlwaysSuccess/></ParallelAll>',
         f'<RunOnce then_skip="{key}"><AlwaysSuccess/></RunOnce>',
     ]
-    if not loops:
-        readers += [
-            f'<SetBlackboard value="{key}" output_key="o"/>',
-            f'<SetBlackboard value="{key}" output_key="hd"/>',
-            f'<SetBlackboard value="{key}" output_key="hb"/>',
-        ]
-    elif key == "{x}":
-        readers += [
-            f'<LoopInt queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopInt>',
-            f'<LoopDouble queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopDouble>',
-            f'<LoopString queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopString>',
-            f'<LoopBool queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopBool>',
-        ]
-    return rng.choice(readers)
+    copies = [
+        f'<SetBlackboard value="{key}" output_key="o"/>',
+        f'<SetBlackboard value="{key}" output_key="hd"/>',
+        f'<SetBlackboard value="{key}" output_key="hb"/>',
+    ]
+    loops = [
+        f'<LoopInt queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopInt>',
+        f'<LoopDouble queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopDouble>',
+        f'<LoopString queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopString>',
+        f'<LoopBool queue="{key}" value="{{o}}"><AlwaysSuccess/></LoopBool>',
+    ]
+    if flavor == "copies":
+        return rng.choice(copies)
+    if flavor == "subtree":
+        return rng.choice(typed + copies)
+    return rng.choice(typed + (loops if key == "{x}" else []))
 
 
 def _writer(rng: random.Random) -> str:
@@ -94,20 +96,21 @@ def generate(seed: int) -> str:
     rng = random.Random(seed)
     if rng.random() < 0.25:
         literal = quoteattr(rng.choice(SUBTREE_TEXTS))
-        readers = "".join(_reader(rng, "{x}", loops=False) for _ in range(2))
+        readers = "".join(_reader(rng, "{x}", "subtree") for _ in range(2))
         return (
             '<root BTCPP_format="4" main_tree_to_execute="M"><BehaviorTree ID="M">'
             f'<SubTree ID="S" _autoremap="true" x={literal}/></BehaviorTree>'
             f'<BehaviorTree ID="S"><Sequence>{readers}</Sequence></BehaviorTree></root>'
         )
-    # A tree either loops over x or copies entries with SetBlackboard: a SetBlackboard that reads
-    # x declares it untyped before a Loop's port can declare it a queue, and a Loop reading such
-    # an untyped text is a 4.10 addition.
-    loops = rng.random() < 0.5
+    # A tree either reads x through typed ports (Loops included) or copies it with SetBlackboard.
+    # A SetBlackboard reading x declares it untyped before a Loop's port can declare it a queue
+    # (and a Loop reading such a text is a 4.10 addition); and a copy of x made after a typed port
+    # declared it (int, bool) is declared so too, which a script's int64 then does not match.
+    flavor = rng.choice(["typed", "copies"])
     nodes = []
     for _ in range(rng.randint(1, 3)):
         nodes.append(_writer(rng))
-        nodes.append(_reader(rng, rng.choice(ENTRY_KEYS), loops))
+        nodes.append(_reader(rng, rng.choice(ENTRY_KEYS), flavor))
     body = "".join(nodes)
     return (
         f'<root BTCPP_format="4" main_tree_to_execute="M"><BehaviorTree ID="M"><Sequence>{body}'

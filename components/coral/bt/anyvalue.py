@@ -111,8 +111,9 @@ def bool_cast(v: object) -> bool:
 
 
 def to_int64(value: float) -> int:
-    """BT.CPP's checked double -> int64 conversion: only integral values convert."""
-    if math.isnan(value) or math.isinf(value) or value != int(value):
+    """BT.CPP's checked double -> int64 conversion: only integral values in int64's range convert
+    (2^63 included, as 4.10 fixed: 4.8 let it wrap to the smallest int64)."""
+    if not math.isfinite(value) or value != int(value) or not -(2.0**63) <= value < 2.0**63:
         raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
     return int(value)
 
@@ -125,9 +126,7 @@ def copy_into(dst: Any, value: Any) -> Any:
         return value
     # The common script case first: an arithmetic result (double) into an int64 entry.
     if dst_type is int and type(value) is float:
-        if value.is_integer():
-            return int(value)
-        raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+        return to_int64(value)
     if not _builtin_kind(dst) and not _builtin_kind(value):
         # Two user types: a Python behavior's output of one declared type may take several Python
         # types (None, dict, a message); BT.CPP's C++ port always writes the same T.
@@ -138,9 +137,7 @@ def copy_into(dst: Any, value: Any) -> Any:
         if isinstance(dst, float):
             return float(value)
         if isinstance(value, float):
-            if math.isfinite(value) and value == int(value):
-                return int(value)
-            raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
+            return to_int64(value)
         return int(value)
     raise ValueError(f"Any::copyInto fails: [{kind_of(value)}] into [{kind_of(dst)}]")
 

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from coral.bt.anyvalue import STOD_PREFIX, bool_cast, std_to_string, text_to_double
+from coral.bt.anyvalue import STOD_PREFIX, bool_cast, std_to_string, text_to_double, to_int64
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -186,9 +186,7 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
         if isinstance(value, bool):
             return int(value)
         if isinstance(value, float):
-            if not math.isfinite(value) or value != int(value):
-                raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
-            return int(value)
+            return to_int64(value)
         return value
     if type_name == "NodeStatus" and isinstance(value, (int, float)):
         # BT.CPP casts a number to the enum through int: a fraction is refused, and a number

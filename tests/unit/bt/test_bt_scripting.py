@@ -90,3 +90,10 @@ def test_text_with_no_number_or_out_of_range_is_refused(text: str) -> None:
 
 def test_a_double_entry_takes_text_by_its_leading_number() -> None:
     assert run("x := 1.5; x = ' 7 m'; x") == 7.0
+
+
+def test_a_double_beyond_int64_does_not_wrap() -> None:
+    # 2^63 itself wrapped to the smallest int64 in 4.8; 4.10 refuses it, as the engine does.
+    with pytest.raises(ScriptError, match="Invalid floating point to integer conversion"):
+        run("x := 2; x *= 4611686018427387904.0")
+    assert run("x := 2; x *= 2305843009213693952.0; x") == 2**62
