@@ -7,7 +7,6 @@ get_input and the blackboard (converting strings written to typed entries).
 from __future__ import annotations
 
 import json
-import math
 import re
 from collections import deque
 from collections.abc import Mapping
@@ -191,13 +190,12 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
     if type_name == "NodeStatus" and isinstance(value, (int, float)):
         # BT.CPP casts a number to the enum through int: a fraction is refused, and a number
         # outside the enum (which BT.CPP would return as a status and crash on) is refused here.
-        if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
-            raise ValueError(f"Invalid floating point to integer conversion of {std_to_string(value)}")
-        if not 0 <= int(value) <= 4:
+        status = to_int64(value) if isinstance(value, float) else int(value)
+        if not 0 <= status <= 4:
             raise ValueError(
-                f"{int(value)} is no NodeStatus (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED)"
+                f"{status} is no NodeStatus (0 IDLE, 1 RUNNING, 2 SUCCESS, 3 FAILURE, 4 SKIPPED)"
             )
-        return int(value)
+        return status
     if type_name == "double" and isinstance(value, (int, bool)):
         return float(value)
     if type_name == "bool" and isinstance(value, (int, float)):

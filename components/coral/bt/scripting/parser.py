@@ -10,11 +10,10 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
-from coral.bt.anyvalue import EMPTY, is_number, kind_of, std_to_string
+from coral.bt.anyvalue import EMPTY, bool_cast, is_number, kind_of, std_to_string
 from coral.bt.errors import ScriptError
 from coral.bt.scripting.tokenizer import Token, tokenize
 from coral.bt.scripting.values import (
-    bool_cast,
     compare,
     condition_holds,
     ieee_divide,
