@@ -15,7 +15,7 @@ from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTr
 from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import naming
-from coral_operator.planning.observed import ObservedInstance, RobotNode
+from coral_operator.planning.observed import ROBOT_SPEC_FIELDS, ObservedInstance, RobotNode, shared_spec_key
 
 
 def build_template(spec: CoralSystemSpec, tree_config_map: str, params_config_map: str) -> dict[str, Any]:
@@ -69,27 +69,32 @@ class InstanceBuilder:
         self.namespace = namespace
         self.owner = naming.owner_reference(API_VERSION, names.SYSTEM_KIND, system, system_uid)
         # Keyed by the template object, which the entry keeps alive so its id is not reused.
-        self._specs: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
+        self._specs: dict[int, tuple[dict[str, Any], dict[str, Any], str]] = {}
+        self.shared_keys: dict[str, str] = {}
+        """Instance name -> `observed.shared_spec_key` of its spec, for `plan_instances`."""
 
-    def _spec(self, robot: RobotNode, template: dict[str, Any]) -> dict[str, Any]:
+    def _spec(self, robot: RobotNode, template: dict[str, Any]) -> tuple[dict[str, Any], str]:
         known = self._specs.get(id(template))
         if known is None:
-            known = (template, build_instance_spec(self.system, robot, template))
+            spec = build_instance_spec(self.system, robot, template)
+            known = (template, spec, shared_spec_key(spec))
             self._specs[id(template)] = known
-        return {**known[1], "robot": robot.robot, "nodeName": robot.node_name}
+        return {**known[1], "robot": robot.robot, "nodeName": robot.node_name}, known[2]
 
     def build(self, robot: RobotNode, template: dict[str, Any]) -> dict[str, Any]:
         """The full CoralInstance manifest of `robot` at `template`'s revision."""
+        name = naming.instance_name(self.system, robot.robot)
+        spec, self.shared_keys[name] = self._spec(robot, template)
         return {
             "apiVersion": API_VERSION,
             "kind": names.INSTANCE_KIND,
             "metadata": {
-                "name": naming.instance_name(self.system, robot.robot),
+                "name": name,
                 "namespace": self.namespace,
                 "labels": naming.instance_labels(self.system, robot.robot),
                 "ownerReferences": [self.owner],
             },
-            "spec": self._spec(robot, template),
+            "spec": spec,
         }
 
 
@@ -129,8 +134,18 @@ def _normalized(spec: dict[str, Any]) -> dict[str, Any] | None:
         return None
 
 
+def _same_spec(current: ObservedInstance, spec: dict[str, Any], shared_key: str | None) -> bool:
+    if shared_key is not None and current.shared_spec_key == shared_key:
+        return all(current.spec.get(key) == spec.get(key) for key in ROBOT_SPEC_FIELDS)
+    # Equal as stored is the common case; only a difference is worth validating.
+    return current.spec == spec or _normalized(current.spec) == spec
+
+
 def plan_instances(
-    desired: list[dict[str, Any]], existing: list[ObservedInstance], reachable_nodes: set[str] | None = None
+    desired: list[dict[str, Any]],
+    existing: list[ObservedInstance],
+    reachable_nodes: set[str] | None = None,
+    shared_keys: dict[str, str] | None = None,
 ) -> InstanceChanges:
     """Create the missing, update the changed, retire or delete those whose robot left the selector.
 
@@ -139,7 +154,11 @@ def plan_instances(
         existing: the system's instances as observed.
         reachable_nodes: Nodes that are Ready; a leaving robot among them is retired (its
             components stop executors first, drivers last), any other is deleted at once.
+        shared_keys: instance name -> `observed.shared_spec_key` of its desired spec
+            (`InstanceBuilder.shared_keys`); where the observed one has the same, only the robot's
+            own fields are compared. Without it, whole specs are.
     """
+    shared_keys = shared_keys or {}
     plan = InstanceChanges()
     by_name = {instance.name: instance for instance in existing}
     wanted = set()
@@ -149,9 +168,8 @@ def plan_instances(
         current = by_name.get(name)
         if current is None:
             plan.create.append(manifest)
-        elif current.labels != manifest["metadata"]["labels"] or (
-            # Equal as stored is the common case; only a difference is worth validating.
-            current.spec != manifest["spec"] and _normalized(current.spec) != manifest["spec"]
+        elif current.labels != manifest["metadata"]["labels"] or not _same_spec(
+            current, manifest["spec"], shared_keys.get(name)
         ):
             plan.update.append(manifest)
     for name in sorted(set(by_name) - wanted):

@@ -5,11 +5,16 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
 from coral_operator.api import names
+from coral_operator.planning import naming
+
+ROBOT_SPEC_FIELDS = ("robot", "nodeName", "revision")
+"""The fields of a CoralInstance spec that differ between the robots of one system at one revision."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +81,18 @@ class ObservedInstance:
     generation: int | None = None
     resource_version: str | None = None
     """The object's version as observed: a status this process wrote later is read instead."""
+
+    @functools.cached_property
+    def shared_spec_key(self) -> str:
+        """The hash of the spec but its `ROBOT_SPEC_FIELDS`: one value for every robot at one
+        revision. Kept with the observed object (one per watch event), so a system pass over a
+        thousand robots compares a hash per robot instead of a whole spec."""
+        return shared_spec_key(self.spec)
+
+
+def shared_spec_key(spec: dict[str, Any]) -> str:
+    """See `ObservedInstance.shared_spec_key`."""
+    return naming.content_hash({k: v for k, v in spec.items() if k not in ROBOT_SPEC_FIELDS}, length=16)
 
 
 @dataclass(frozen=True)

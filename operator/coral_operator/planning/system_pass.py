@@ -222,7 +222,7 @@ def _plan_deployment(
     for kept in [*templates.values(), *(i.spec for i in observed)]:
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
-    changes = instances.plan_instances(desired, observed, reachable)
+    changes = instances.plan_instances(desired, observed, reachable, builder.shared_keys)
     identity = (
         rbac.build_executor_rbac(system=system.name, namespace=system.namespace, system_uid=system.uid)
         if changes.create

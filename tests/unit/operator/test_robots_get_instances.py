@@ -122,3 +122,49 @@ def test_the_api_servers_rendering_of_the_spec_is_not_a_change(
         name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
     )
     assert instances.plan_instances(desired, [observed]).empty
+
+
+def _built(spec: dict[str, Any], robots: list[Any]) -> tuple[list[dict[str, Any]], dict[str, str]]:
+    """Manifests and their shared-spec keys, as a system pass builds them."""
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    builder = instances.InstanceBuilder(system="sys", namespace="ns", system_uid="uid")
+    return [builder.build(r, template) for r in robots], builder.shared_keys
+
+
+def test_with_shared_keys_matching_instances_are_left_alone(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
+    assert len(set(keys.values())) == 1, "every robot at one revision shares one key"
+    assert instances.plan_instances(desired, [_existing(m) for m in desired], None, keys).empty
+
+
+def test_with_shared_keys_a_hand_edited_spec_is_still_put_back(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
+    edited = [_existing(m) for m in desired]
+    edited[0].spec["drivers"][0]["image"] = "someone/else:1"
+    plan = instances.plan_instances(desired, edited, None, keys)
+    assert [m["metadata"]["name"] for m in plan.update] == ["sys-r1"]
+
+
+def test_with_shared_keys_a_robots_own_field_is_still_compared(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
+    moved = [_existing(m) for m in desired]
+    moved[1].spec["nodeName"] = "elsewhere"
+    moved[0].spec["revision"] = "older"
+    plan = instances.plan_instances(desired, moved, None, keys)
+    assert sorted(m["metadata"]["name"] for m in plan.update) == ["sys-r1", "sys-r2"]
+
+
+def test_with_shared_keys_the_api_servers_rendering_is_not_a_change(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1")])
+    stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
+    observed = ObservedInstance(
+        name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
+    )
+    assert observed.shared_spec_key != keys["sys-r1"]
+    assert instances.plan_instances(desired, [observed], None, keys).empty
