@@ -92,7 +92,20 @@ class ObservedInstance:
 
 def shared_spec_key(spec: dict[str, Any]) -> str:
     """See `ObservedInstance.shared_spec_key`."""
-    return naming.content_hash({k: v for k, v in spec.items() if k not in ROBOT_SPEC_FIELDS}, length=16)
+    return naming.content_hash(
+        {k: _numbers_as_stored(v) for k, v in spec.items() if k not in ROBOT_SPEC_FIELDS}, length=16
+    )
+
+
+def _numbers_as_stored(value: Any) -> Any:
+    # The API server stores 10.0 as 10; equal values must give equal keys.
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(value, dict):
+        return {k: _numbers_as_stored(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_numbers_as_stored(v) for v in value]
+    return value
 
 
 @dataclass(frozen=True)

@@ -166,5 +166,14 @@ def test_with_shared_keys_the_api_servers_rendering_is_not_a_change(
     observed = ObservedInstance(
         name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
     )
-    assert observed.shared_spec_key != keys["sys-r1"]
     assert instances.plan_instances(desired, [observed], None, keys).empty
+
+
+def test_a_whole_number_stored_without_its_fraction_gives_the_same_shared_key(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1")])
+    assert isinstance(desired[0]["spec"]["tree"]["tickRateHz"], float)
+    stored = _existing(desired[0])
+    stored.spec["tree"]["tickRateHz"] = int(stored.spec["tree"]["tickRateHz"])
+    assert stored.shared_spec_key == keys["sys-r1"]
