@@ -156,9 +156,9 @@ def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -
             raise RuntimeError("kubectl apply -f crds/ failed")
 
         if pairs > 1:
-            # The first run on a new control plane is slower whichever side it is (kwok spent three
-            # times the CPU of later runs on the same pods), and the ABBA order would hand it to the
-            # first pair's reference: it runs once before the pairs and is not judged.
+            # The first run on a new control plane is slower whichever side it is (kwok spent 1.5 to
+            # 3 times the CPU of later runs on the same pods), and the ABBA order would hand it to
+            # the first pair's reference: it runs once before the pairs and is not judged.
             _reference_run(api, state, log, count, timeout, "warm-up", daemonset.per_component, None)
         cpu: dict[str, float] = {}
         for layout, reference, build, ready_target, update_target in (
