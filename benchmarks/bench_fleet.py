@@ -157,7 +157,7 @@ def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -
 
         if pairs > 1:
             # The first run on a new control plane is slower whichever side it is (kwok spent 1.5 to
-            # 3 times the CPU of later runs on the same pods), and the ABBA order would hand it to
+            # 3.7 times the CPU of later runs on the same pods), and the ABBA order would hand it to
             # the first pair's reference: it runs once before the pairs and is not judged.
             _reference_run(api, state, log, count, timeout, "warm-up", daemonset.per_component, None)
         cpu: dict[str, float] = {}
