@@ -148,7 +148,7 @@ def pending_status() -> dict[str, Any]:
     """
     message = (
         "No report from the Coral operator yet; a starting robot is reported once it is Ready or "
-        "Stalled, or if its start lasts"
+        "Stalled, or when its start runs long"
     )
     waiting = {"reason": PENDING, "message": message, "last_transition_time": EPOCH}
     conditions = [

@@ -54,6 +54,12 @@ class Indexes:
         """The values under `key` of the named index; empty before it is attached."""
         return self._copy(name, lambda index: index.get(key, []))
 
+    def count(self, name: str, key: Any) -> int:
+        """How many values the named index holds under `key`, without copying them."""
+        with self._lock:
+            index = self._indexes.get(name)
+        return len(index.get(key, ())) if index is not None else 0
+
     def keys(self, name: str) -> list[Any]:
         """The keys of the named index."""
         return self._copy(name, lambda index: index)

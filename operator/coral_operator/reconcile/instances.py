@@ -23,7 +23,7 @@ from coral_operator.kube import applying, leases, observing
 from coral_operator.planning import instance_pass
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import Indexes, instance_named
+from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.memory import Memory
 from coral_operator.status import instance_status, ownership, transitions
 
@@ -39,12 +39,19 @@ PROGRESS_INTERVAL_S = 10.0
 # to this: a start of a minute and a half (a loaded control plane, a slow image pull) is reported
 # at 10, 30 and 70 s instead of every 10 s, and its robot's writes stay bounded however slow it is.
 PROGRESS_INTERVAL_MAX_S = 60.0
+# A fleet's robots start and update together, so their progress writes come together too: the
+# intervals of a large system stretch so that its robots write progress at most this often between
+# them. A CoralInstance status patch costs the API server 7 to 10 ms of CPU; at a thousand robots,
+# 10 s apart, progress was half of a first deployment's status writes and slowed the very starts
+# it reported (docs/architecture.md, "What a watch event costs the operator").
+SYSTEM_PROGRESS_WRITES_PER_S = 20.0
 
 
-def progress_interval(deferred_writes: int) -> float:
+def progress_interval(deferred_writes: int, robots: int = 1) -> float:
     """How long a status that can wait (`deferred_writes` such writes since the last verdict) waits
-    after the last write, or after the spec change for the first."""
-    return min(PROGRESS_INTERVAL_S * 2**deferred_writes, PROGRESS_INTERVAL_MAX_S)
+    after the last write, or after the spec change for the first, in a system of `robots`."""
+    first = max(PROGRESS_INTERVAL_S, robots / SYSTEM_PROGRESS_WRITES_PER_S)
+    return min(first * 2**deferred_writes, max(PROGRESS_INTERVAL_MAX_S, first))
 
 
 class InstanceReconciler:
@@ -190,7 +197,11 @@ class InstanceReconciler:
         ) or instance_status.pending_status_says_as_much(current, new):
             since = self.memory.generation_seen_at(record.uid, record.generation)
         if since is not None:
-            wait = progress_interval(self.memory.deferred_writes(record.uid)) - (self.memory.clock() - since)
+            robots = self.indexes.count(
+                "coral_instances", instances_of_system(record.namespace, record.spec.get("system", ""))
+            )
+            interval = progress_interval(self.memory.deferred_writes(record.uid), robots)
+            wait = interval - (self.memory.clock() - since)
             if wait > 0:
                 # It rides along with the next verdict, or goes out when this is due.
                 self.requeue((record.namespace, record.name), wait)

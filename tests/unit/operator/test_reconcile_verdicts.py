@@ -23,7 +23,11 @@ from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRe
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
-from coral_operator.reconcile.instances import PROGRESS_INTERVAL_S, InstanceReconciler
+from coral_operator.reconcile.instances import (
+    PROGRESS_INTERVAL_S,
+    InstanceReconciler,
+    progress_interval,
+)
 from coral_operator.reconcile.memory import WRITE_EXPECTATION_SECONDS, Memory
 from coral_operator.reconcile.systems import SystemReconciler
 from kubernetes.client.exceptions import ApiException
@@ -391,15 +395,13 @@ def test_instance_of_a_new_robot_says_how_its_start_goes_once_it_lasts(harness: 
     assert reconciling["lastTransitionTime"] == "2026-01-01T12:00:00Z", "not the pending status's epoch"
 
 
-def test_a_long_start_is_reported_less_and_less_often_so_its_writes_stay_bounded(harness: Harness) -> None:
-    """Progress that changes every second, and never a verdict: the first write after 10 s, then
-    20, 40 and at most 60 s after the one before, however long the start lasts."""
+def _progress_written_at(harness: Harness, spec: dict[str, Any], seconds: int) -> list[int]:
+    """The seconds at which a start that never ends gets its status written, its progress changing
+    every second and never a verdict (the lidar pod restarts every second)."""
     harness.kube.status["sys-r1"] = common.pending_status()
-    spec = _instance_spec()
     written_at: list[int] = []
-    for second in range(200):
+    for second in range(seconds):
         harness.seconds = 1000.0 + second
-        # The lidar pod restarts every second: its component's status changes, no verdict does.
         restarted = {"name": "lidar", "ready": False, "restartCount": second}
         harness.pods_are(ready=set(), lidar={"containerStatuses": [restarted]})
         before = len(harness.kube.of("patch status"))
@@ -407,12 +409,36 @@ def test_a_long_start_is_reported_less_and_less_often_so_its_writes_stay_bounded
         if len(harness.kube.of("patch status")) > before:
             written_at.append(second)
             assert _conditions(status)["Ready"][0] == "False"
+    return written_at
+
+
+def test_a_long_start_is_reported_less_and_less_often_so_its_writes_stay_bounded(harness: Harness) -> None:
+    """The first progress write after 10 s, then 20, 40 and at most 60 s after the one before,
+    however long the start lasts."""
+    spec = _instance_spec()
+    written_at = _progress_written_at(harness, spec, 200)
     assert written_at == [10, 30, 70, 130, 190]
     for ready in ({"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
         harness.pods_are(ready=ready)
         status = harness.pass_instance(spec)
     assert _conditions(status)["Ready"] == ("True", "Ready")
     assert len(harness.kube.of("patch status")) == len(written_at) + 1, "Ready is a verdict: at once"
+
+
+def test_a_large_fleet_reports_its_robots_starts_less_often_so_its_progress_writes_stay_bounded(
+    harness: Harness,
+) -> None:
+    """A thousand robots starting together would write progress a hundred times a second at 10 s
+    apart; a system's robots write it at most 20 times a second between them, so each waits 50 s,
+    then 60, and a start within 50 s costs one status write."""
+    harness.tables["coral_instances"][instances_of_system(NS, "sys")] = [object()] * 1000
+    assert _progress_written_at(harness, _instance_spec(), 200) == [50, 110, 170]
+
+
+def test_progress_waits_as_long_as_before_in_a_fleet_of_up_to_two_hundred_robots() -> None:
+    for robots in (1, 3, 200):
+        assert [progress_interval(writes, robots) for writes in range(4)] == [10.0, 20.0, 40.0, 60.0]
+    assert [progress_interval(writes, 2000) for writes in range(3)] == [100.0, 100.0, 100.0]
 
 
 def test_instance_of_a_new_robot_that_is_away_says_so_at_once(harness: Harness) -> None:
