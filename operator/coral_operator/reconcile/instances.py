@@ -42,8 +42,8 @@ PROGRESS_INTERVAL_MAX_S = 60.0
 # A fleet's robots start and update together, so their progress writes come together too: the
 # intervals of a large system stretch so that its robots write progress at most this often between
 # them. A CoralInstance status patch costs the API server 7 to 10 ms of CPU; at a thousand robots,
-# 10 s apart, progress was half of a first deployment's status writes and slowed the very starts
-# it reported (docs/architecture.md, "What a watch event costs the operator").
+# 10 s apart, progress was more than half of a first deployment's status writes and slowed the
+# very starts it reported (docs/architecture.md, "The operator: from spec to pods to status").
 SYSTEM_PROGRESS_WRITES_PER_S = 20.0
 
 
