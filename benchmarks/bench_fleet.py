@@ -77,7 +77,12 @@ TARGET_WRITES_PER_ROBOT = 8.0
 TARGET_APISERVER_CPU = 1.5
 # Seconds per robot at one size over the size before: near linear. Judged for Coral's layouts.
 TARGET_GROWTH = 1.25
-CORAL_LAYOUTS = ("PodPerComponent", "PodPerRobot")
+# Each Coral layout, its reference run, how that reference is built, and its time targets.
+PAIRINGS = (
+    ("PodPerComponent", "daemonsets3", daemonset.per_component, TARGET_READY, TARGET_UPDATE),
+    ("PodPerRobot", "daemonset", daemonset.single, TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE),
+)
+CORAL_LAYOUTS = tuple(layout for layout, *_ in PAIRINGS)
 WRITE_VERBS = ("create", "update", "patch", "delete", "deletecollection")
 ROOT = Path(__file__).resolve().parents[1]
 # Each run starts once the control plane is quiet (`_wait_quiet`). Idle with 1000 kwok robots it
@@ -162,16 +167,7 @@ def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -
             # the first pair's reference: it runs once before the pairs and is not judged.
             _reference_run(api, state, log, count, timeout, "warm-up", daemonset.per_component, None)
         cpu: dict[str, float] = {}
-        for layout, reference, build, ready_target, update_target in (
-            (CORAL_LAYOUTS[0], "daemonsets3", daemonset.per_component, TARGET_READY, TARGET_UPDATE),
-            (
-                CORAL_LAYOUTS[1],
-                "daemonset",
-                daemonset.single,
-                TARGET_ROBOT_POD_READY,
-                TARGET_ROBOT_POD_UPDATE,
-            ),
-        ):
+        for layout, reference, build, ready_target, update_target in PAIRINGS:
             ratios: list[tuple[float, float, float]] = []
             runs: dict[str, list[tuple[float, float]]] = {layout: [], reference: []}
             for index in range(pairs):
