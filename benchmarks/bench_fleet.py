@@ -126,7 +126,13 @@ class SizeFigures:
     times: dict[str, float]
 
 
-def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -> SizeFigures:
+def run_size(
+    count: int,
+    work: Path,
+    logs: Path | None = None,
+    pairs: int = 1,
+    layouts: tuple[str, ...] = CORAL_LAYOUTS,
+) -> SizeFigures:
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -168,6 +174,8 @@ def run_size(count: int, work: Path, logs: Path | None = None, pairs: int = 1) -
             _reference_run(api, state, log, count, timeout, "warm-up", daemonset.per_component, None)
         cpu: dict[str, float] = {}
         for layout, reference, build, ready_target, update_target in PAIRINGS:
+            if layout not in layouts:
+                continue
             ratios: list[tuple[float, float, float]] = []
             runs: dict[str, list[tuple[float, float]]] = {layout: [], reference: []}
             for index in range(pairs):
@@ -410,17 +418,24 @@ def main(argv: list[str]) -> int:
         default=PAIRS_AT_LARGEST,
         help=f"pairs of runs at the largest size (default {PAIRS_AT_LARGEST}; one at the others)",
     )
+    parser.add_argument(
+        "--layout",
+        action="append",
+        choices=CORAL_LAYOUTS,
+        help="measure only this layout against its reference (repeatable; default: every layout)",
+    )
     args = parser.parse_args(argv)
     sizes = args.sizes or SIZES
+    layouts = tuple(args.layout or CORAL_LAYOUTS)
     figures = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
         for count in sizes:
             if args.logs is not None:
                 args.logs.mkdir(parents=True, exist_ok=True)
             pairs = max(1, args.pairs) if count == max(sizes) else 1
-            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs, pairs))
+            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs, pairs, layouts))
     report_growth(figures)
-    if args.plot is not None:
+    if args.plot is not None and "PodPerComponent" in layouts:
         points = [
             plots.FleetPoint(
                 robots=f.robots,

@@ -8,6 +8,12 @@ FastDDS's writers do that every 3 s, so a snapshot or a first scan arrived up to
 that 0.1 s. A writer announces only while a reader has not acknowledged everything, so the
 shorter period costs nothing in steady state.
 
+Writers also publish synchronously: rmw_fastrtps hands every sample to a FastDDS thread of its own
+by default, so each message a component sends (a scan, a service call or its answer, a heartbeat)
+wakes a second thread to send it. On a robot computer whose cores a registration keeps busy, each
+of those wake-ups preempts it; sent from the publishing thread, a message costs none
+(docs/architecture.md, "Where the SLAM mission's CPU goes").
+
 A user's own profile always wins: nothing is set when either profile variable is set, or when
 FastDDS's own default file is in the working directory.
 """
@@ -24,10 +30,13 @@ PROFILE_VARIABLE = "FASTRTPS_DEFAULT_PROFILES_FILE"
 USER_PROFILE_VARIABLES = (PROFILE_VARIABLE, "FASTDDS_DEFAULT_PROFILES_FILE")
 # Loaded by FastDDS from the working directory when no variable names a file.
 DEFAULT_PROFILE_FILES = ("DEFAULT_FASTRTPS_PROFILES.xml", "DEFAULT_FASTDDS_PROFILES.xml")
+# rmw_fastrtps's choice between its own sending thread (ASYNCHRONOUS, its default) and the caller's.
+PUBLICATION_MODE_VARIABLE = "RMW_FASTRTPS_PUBLICATION_MODE"
 
 
 def use_coral_profile(environ: MutableMapping[str, str] | None = None, cwd: Path | None = None) -> bool:
-    """Points FastDDS at Coral's profile unless the user chose one; True when it did."""
+    """Points FastDDS at Coral's profile, with synchronous publication unless the user chose a mode,
+    unless the user chose a profile; True when it did."""
     environ = os.environ if environ is None else environ
     if any(environ.get(name) for name in USER_PROFILE_VARIABLES):
         return False
@@ -35,4 +44,6 @@ def use_coral_profile(environ: MutableMapping[str, str] | None = None, cwd: Path
     if any((folder / name).is_file() for name in DEFAULT_PROFILE_FILES):
         return False
     environ[PROFILE_VARIABLE] = str(PROFILE)
+    if not environ.get(PUBLICATION_MODE_VARIABLE):
+        environ[PUBLICATION_MODE_VARIABLE] = "SYNCHRONOUS"
     return True

@@ -14,8 +14,17 @@ NS = {"dds": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
 def test_a_process_without_a_profile_gets_corals(tmp_path: Path) -> None:
     environ: dict[str, str] = {}
     assert dds.use_coral_profile(environ, cwd=tmp_path)
-    assert environ == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(dds.PROFILE)}
+    assert environ == {
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(dds.PROFILE),
+        "RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS",
+    }
     assert dds.PROFILE.is_file()
+
+
+def test_a_users_publication_mode_wins(tmp_path: Path) -> None:
+    environ = {"RMW_FASTRTPS_PUBLICATION_MODE": "ASYNCHRONOUS"}
+    assert dds.use_coral_profile(environ, cwd=tmp_path)
+    assert environ["RMW_FASTRTPS_PUBLICATION_MODE"] == "ASYNCHRONOUS"
 
 
 @pytest.mark.parametrize("variable", ["FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"])
