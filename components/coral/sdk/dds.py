@@ -11,7 +11,7 @@ shorter period costs nothing in steady state.
 Writers also publish synchronously: rmw_fastrtps hands every sample to a FastDDS thread of its own
 by default, so each message a component sends (a scan, a service call or its answer, a heartbeat)
 wakes a second thread to send it. On a robot computer whose cores a registration keeps busy, each
-of those wake-ups preempts it; sent from the publishing thread, a message costs none
+of those wake-ups preempts it; sent from the publishing thread, a message wakes no second thread
 (docs/architecture.md, "Where the SLAM mission's CPU goes").
 
 A user's own profile always wins: nothing is set when either profile variable is set, or when
@@ -35,8 +35,8 @@ PUBLICATION_MODE_VARIABLE = "RMW_FASTRTPS_PUBLICATION_MODE"
 
 
 def use_coral_profile(environ: MutableMapping[str, str] | None = None, cwd: Path | None = None) -> bool:
-    """Points FastDDS at Coral's profile, with synchronous publication unless the user chose a mode,
-    unless the user chose a profile; True when it did."""
+    """Points FastDDS at Coral's profile, and rmw_fastrtps at synchronous publication unless the
+    user chose a mode; does nothing when the user chose a profile. True when it set the profile."""
     environ = os.environ if environ is None else environ
     if any(environ.get(name) for name in USER_PROFILE_VARIABLES):
         return False
