@@ -6,7 +6,9 @@ measured on a 2-core machine), it gets them once the writer next announces what 
 FastDDS's writers do that every 3 s, so a snapshot or a first scan arrived up to 3 s late
 (docs/architecture.md, the SLAM mission's figures). The packaged profile (`fastdds.xml`) makes
 that 0.1 s. A writer announces only while a reader has not acknowledged everything, so the
-shorter period costs nothing in steady state.
+shorter period costs no traffic in steady state; while a mission publishes, its timer wakes each
+process's DDS event thread about twice as often as the 3 s default does (docs/architecture.md,
+"Where the SLAM mission's CPU goes").
 
 Writers also publish synchronously: rmw_fastrtps hands every sample to a FastDDS thread of its own
 by default, so each message a component sends (a scan, a service call or its answer, a heartbeat)
