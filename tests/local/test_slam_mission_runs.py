@@ -158,4 +158,7 @@ def test_a_burst_of_scans_is_registered_as_it_arrives_and_handed_to_the_tree_in_
     # The tree took the backlog in batches of up to scans_per_call, not one call a scan.
     batch = params["slam"]["ros__parameters"]["scans_per_call"]
     assert 40 / batch <= stats["process_calls"] <= 20
+    # A call filling its batch is woken when the batch is full or the backlog registered, not after
+    # every scan: each wake-up while registration holds the interpreter lock costs it a preemption.
+    assert stats["batch_wakeups"] <= stats["process_calls"] + 2
     assert 0 < stats["registering_s"] <= stats["active_s"]

@@ -64,12 +64,41 @@ def export_component(
     )
 
 
-def _install_signal_handlers(stop: threading.Event) -> None:
+class _StopSignal(Exception):
+    """Raised by the signal handlers into the main thread's final wait, which it ends at once."""
+
+
+def _install_signal_handlers(stop: threading.Event, waiting: list[bool]) -> None:
+    """SIGINT and SIGTERM set `stop`; while `waiting[0]`, they also end the main thread's wait.
+
+    The handler runs on the main thread, between two of its bytecodes: it must not set the event
+    that thread waits on, whose lock that thread may hold at that moment. It raises instead, as
+    Ctrl-C raises KeyboardInterrupt out of a wait.
+    """
+
     def handle(signum: int, _frame: FrameType | None) -> None:
         stop.set()
+        if waiting[0]:
+            waiting[0] = False  # one raise: a second signal must not interrupt the first's handling
+            raise _StopSignal
 
     signal.signal(signal.SIGINT, handle)
     signal.signal(signal.SIGTERM, handle)
+
+
+def _wait_for_stop(stop: threading.Event, requested: threading.Event, waiting: list[bool]) -> None:
+    """Blocks until a signal or a stop request, with no wake-up in between: a component's main
+    thread that looked at a flag ten times a second woke about forty times a second once it had to
+    wait for the interpreter lock too, each time taking a core from whatever the component runs
+    (docs/architecture.md, "Where the SLAM mission's CPU goes")."""
+    try:
+        waiting[0] = True
+        if not stop.is_set():
+            requested.wait()
+    except _StopSignal:
+        pass
+    finally:
+        waiting[0] = False
 
 
 def run_component(
@@ -96,7 +125,8 @@ def run_component(
             return EXIT_BAD_INPUT
 
     stop = threading.Event()
-    _install_signal_handlers(stop)
+    waiting = [False]
+    _install_signal_handlers(stop, waiting)
     dds.use_coral_profile()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     component: Any = None
@@ -133,11 +163,8 @@ def run_component(
         executor.add_node(component)
         freeze_startup_heap()
         spinner = Spinner(executor, "ros-spin", on_error=component.stop_requested.set).start()
-        # The main thread only waits. A stop request wakes it at once; a signal sets `stop`, seen
-        # within the wait's bound (the handler must not set the event this thread waits on: it
-        # runs on this thread, which may hold that event's lock).
-        while not stop.is_set() and not component.stop_requested.wait(timeout=0.1):
-            pass
+        # The main thread only waits, until a signal or a stop request.
+        _wait_for_stop(stop, component.stop_requested, waiting)
         spinner.stop()
         if spinner.error is not None:
             raise spinner.error

@@ -7,6 +7,10 @@ costs the registration more than its own CPU (docs/architecture.md, "Where the S
 goes"). `Spinner` waits on rclpy's own condition instead: `spin_until_future_complete` returns as
 soon as its future is done, which `stop` does from any thread.
 
+rclpy hangs a "wake the executor" callback on that future at every turn of the loop, two per
+callback run, and a future keeps its callbacks until it is done: a component running for days
+would hold millions of them. The spinner's future keeps the first one only (`_StopFuture`).
+
 Not for rclpy's EventsExecutor: in Jazzy it does not wake when a future is completed from another
 thread (`coral.sdk.streams` polls it, which costs no Python wait set).
 """
@@ -18,15 +22,33 @@ from collections.abc import Callable
 from typing import Any
 
 
+def _stop_future() -> Any:
+    from rclpy.task import Future
+
+    class _StopFuture(Future):
+        """A future that keeps only its first done-callback: every later one rclpy adds while
+        spinning is the same wake-up of the same executor."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self._has_callback = False
+
+        def add_done_callback(self, callback: Callable[[Any], None]) -> None:
+            if self._has_callback:
+                return
+            self._has_callback = True
+            super().add_done_callback(callback)
+
+    return _StopFuture()
+
+
 class Spinner:
     """Spins `executor` on a daemon thread named `name` until `stop`. An exception raised by a
     callback ends the spinning; it is kept in `error` and `on_error` is called from that thread."""
 
     def __init__(self, executor: Any, name: str, on_error: Callable[[], None] = lambda: None) -> None:
-        from rclpy.task import Future
-
         self._executor = executor
-        self._done = Future()
+        self._done = _stop_future()
         self._on_error = on_error
         self.error: BaseException | None = None
         self._thread = threading.Thread(target=self._spin, name=name, daemon=True)

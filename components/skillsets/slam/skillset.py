@@ -88,7 +88,16 @@ class SlamSkillset(Skillset):
         self.queue: collections.deque[bytes] = collections.deque(maxlen=queue_size)
         self.typestore = clouds.cdr_typestore()
         clouds.warm_up(self.typestore)
-        self.arrived = threading.Condition()
+        # One lock, two conditions: the worker waits for scans (`arrived`), a ProcessScan call for
+        # the results it hands out (`results_ready`). A call waiting to fill its batch is woken once
+        # the batch is full or the backlog is registered, not after every scan: each wake-up of a
+        # service thread while KISS-ICP holds the interpreter lock costs registration a preemption
+        # or more (docs/architecture.md, "Where the SLAM mission's CPU goes").
+        lock = threading.RLock()
+        self.arrived = threading.Condition(lock)
+        self.results_ready = threading.Condition(lock)
+        self.results_wanted: list[int] = []
+        """How many results each waiting ProcessScan call needs before it wakes."""
         self.enabled = False
         self.source_done = False
         self.expected = 0
@@ -99,6 +108,7 @@ class SlamSkillset(Skillset):
         self.last_delivered_at: float | None = None
         self.delivered = 0
         self.process_calls = 0  # ProcessScan requests served
+        self.batch_wakeups = 0  # ProcessScan calls woken while filling their batch
         self.lookahead = max(0, int(self.param("lookahead", 0)))
         self.scans_per_call = max(1, int(self.param("scans_per_call", 1)))
         self.batch_wait_s = max(0.0, float(self.param("batch_wait_s", 0.05)))
@@ -178,6 +188,7 @@ class SlamSkillset(Skillset):
             self.source_done = True
             self.expected = int(published.get(self.points_topic, 0))
             self.arrived.notify_all()
+            self.results_ready.notify_all()
         self.get_logger().info(
             f"End of data: {self.expected} scan(s) published, {self.received} received so far"
         )
@@ -215,6 +226,7 @@ class SlamSkillset(Skillset):
             "registering_s": self.busy_s,
             "decoding_s": self.decode_s,
             "stalled_s": self.stalled_s,
+            "batch_wakeups": self.batch_wakeups,
             "queued_at_start": self.queued_at_start,
             # Relative to the first registration: negative when scans queued up before it.
             "first_arrival_s": (self.first_arrival - start) if start and self.first_arrival else 0.0,
@@ -245,6 +257,13 @@ class SlamSkillset(Skillset):
     def _results_full(self) -> bool:
         return 0 < self.lookahead <= len(self.results)
 
+    def _results_due(self, latest_ok: bool) -> bool:
+        """A waiting ProcessScan call has what it waits for (call with the lock held, after a result):
+        its batch, a failed scan (which ends a batch), or the end of the registered backlog."""
+        if not self.results_wanted:
+            return False
+        return not latest_ok or not self.queue or len(self.results) >= min(self.results_wanted)
+
     def _work(self) -> None:
         while not self.worker_stop.is_set():
             with self.arrived:
@@ -267,7 +286,8 @@ class SlamSkillset(Skillset):
                 self.results.append(outcome)
                 self.registering = False
                 self.last_registered_at = time.monotonic()
-                self.arrived.notify_all()
+                if self._results_due(outcome[0]):
+                    self.results_ready.notify_all()
 
     def register(self, raw: bytes) -> tuple[bool, dict[str, Any]]:
         started = time.perf_counter()
@@ -313,6 +333,7 @@ class SlamSkillset(Skillset):
         with self.arrived:
             self.enabled = bool(request.data)
             self.arrived.notify_all()
+            self.results_ready.notify_all()
         response.success, response.message = True, json.dumps({"enabled": self.enabled})
         self.get_logger().info(f"Localization {'enabled' if self.enabled else 'disabled'}")
         return response
@@ -326,8 +347,15 @@ class SlamSkillset(Skillset):
                 remaining = deadline - time.monotonic()
                 if remaining <= 0 or token.cancelled:
                     return False, {"error": f"no scan within {self.scan_wait_s:g} s"}
-                self.arrived.wait(min(remaining, 0.05))
+                self._wait_for_results(1, min(remaining, 0.05))
             return self.results.popleft()
+
+    def _wait_for_results(self, count: int, timeout: float) -> None:
+        self.results_wanted.append(count)
+        try:
+            self.results_ready.wait(timeout)
+        finally:
+            self.results_wanted.remove(count)
 
     def serve_process_scan(self, request: Any, response: Any, token: CancelToken) -> Any:
         """Hands out the next registered scan, plus those registered behind it (up to
@@ -354,7 +382,8 @@ class SlamSkillset(Skillset):
                 backlog = not self.results and (self.queue or self.registering)
                 if not (backlog and self.enabled) or remaining <= 0 or token.cancelled:
                     break
-                self.arrived.wait(remaining)
+                self._wait_for_results(self.scans_per_call - taken, remaining)
+                self.batch_wakeups += 1
             self.arrived.notify_all()
         payload["taken"] = taken
         self.process_calls += 1
