@@ -130,7 +130,7 @@ class Controller:
             return
         version = (body.get("metadata") or {}).get("resourceVersion")
         own_write = self.memory.is_own_write(uid, version)
-        # The echo of a system pass's create or move: that pass already handed it to a pass.
+        # The echo of a system pass's move: that pass already handed it to the instance's pass.
         if not own_write and not self.memory.is_own_record((namespace, name), version):
             self.queue.add(key)
         # The pass that wrote a status woke the system itself if the system reads a change in it.

@@ -78,7 +78,7 @@ class InstanceReconciler:
         indexed: InstanceRecord | None = next(
             iter(self.indexes.read("coral_instances", instance_named(*key))), None
         )
-        # A system pass that just created or moved this instance woke this pass with its answer.
+        # A system pass that just moved this instance woke this pass with its answer.
         record = self.memory.latest_record(key, indexed)
         if record is None:
             return

@@ -50,8 +50,8 @@ class Memory:
     _writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
     """Owner uid -> name -> (created, not deleted; when): an instance's pods, a system's instances."""
     _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
-    _records_written: dict[tuple[str, str], tuple[InstanceRecord, bool, float]] = field(default_factory=dict)
-    """(namespace, name) -> (the instance as a system pass created or updated it, created, when)."""
+    _records_written: dict[tuple[str, str], tuple[InstanceRecord, float]] = field(default_factory=dict)
+    """(namespace, name) -> (the instance as a system pass moved it, when)."""
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -152,23 +152,24 @@ class Memory:
             writes.update({name: (True, now) for name in created})
             writes.update({name: (False, now) for name in deleted})
 
-    def remember_record(self, record: InstanceRecord, *, created: bool) -> None:
-        """An instance as the API server answered a system pass's create or update of it: its
-        own pass can start from it before the watch brings it (`latest_record`)."""
+    def remember_record(self, record: InstanceRecord) -> None:
+        """An instance as the API server answered a system pass's update (a move) of it: its own
+        pass can start from it before the watch brings it (`latest_record`). Not a create: a new
+        instance's pass waits for the watch (`reconcile.systems`, `SystemReconciler._move`)."""
         with self._lock:
-            self._records_written[(record.namespace, record.name)] = (record, created, self.clock())
+            self._records_written[(record.namespace, record.name)] = (record, self.clock())
 
     def latest_record(self, key: tuple[str, str], indexed: InstanceRecord | None) -> InstanceRecord | None:
         """The newer of the instance as the index holds it and as this process last wrote it. A
         written one the index has not caught up with counts for WRITE_EXPECTATION_SECONDS at most,
-        and, while the index holds no such instance at all, only if it was created (an update
-        answered for an instance deleted since must not bring it back)."""
+        and only while the index holds the instance (an update answered for an instance deleted
+        since must not bring it back)."""
         now = self.clock()
         with self._lock:
             entry = self._records_written.get(key)
             if entry is None:
                 return indexed
-            written, created, since = entry
+            written, since = entry
             caught_up = indexed is not None and (
                 indexed.uid != written.uid
                 or ownership.at_or_after(indexed.resource_version, written.resource_version)
@@ -176,10 +177,10 @@ class Memory:
             if caught_up or now - since > WRITE_EXPECTATION_SECONDS:
                 del self._records_written[key]
                 return indexed
-        return written if indexed is not None or created else indexed
+        return written if indexed is not None else None
 
     def is_own_record(self, key: tuple[str, str], resource_version: str | None) -> bool:
-        """Whether the instance at `resource_version` is what a system pass of this process wrote
+        """Whether the instance at `resource_version` is what a system pass of this process moved
         (and handed to the instance's pass at once)."""
         with self._lock:
             entry = self._records_written.get(key)

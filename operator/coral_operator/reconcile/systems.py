@@ -123,19 +123,21 @@ class SystemReconciler:
                 )
         self._write_status(system, status, observed, plan, problem, now)
 
-    def _hand_over(
-        self,
-        write: Callable[[dict[str, Any]], dict[str, Any] | None],
-        manifest: dict[str, Any],
-        *,
-        created: bool,
-    ) -> dict[str, Any] | None:
-        """Create or move one instance and start its pass at once, from the API server's answer:
-        through the watch, each waited seconds at 1000 robots, behind every other event of the fleet."""
-        body = write(manifest)
+    def _move(self, manifest: dict[str, Any]) -> dict[str, Any] | None:
+        """Move one instance to a new revision and start its pass at once, from the API server's
+        answer: through the watch, each waited seconds at 1000 robots, behind every other event of
+        the fleet.
+
+        A created instance is not handed over so: its pass waits for the watch. Its pass creates
+        pods it owns, and the Kubernetes garbage collector verifies an owner it has not seen yet
+        with a GET of it and one of its own owner, the system. Under a fleet's load its CoralInstance
+        watch lags its pod watch, and a 1000-robot deployment that created pods from the answer
+        cost the API server up to 990 GETs of each (docs/architecture.md, "What is remembered
+        between passes")."""
+        body = applying.update_instance(manifest)
         if body is not None:
             record = observing.instance_record(body)
-            self.memory.remember_record(record, created=created)
+            self.memory.remember_record(record)
             self.wake_instance((record.namespace, record.name))
         return body
 
@@ -199,9 +201,7 @@ class SystemReconciler:
         # One Event per kind of change and pass, with a count, not one per robot.
         namespace, reference = system.namespace, system.reference
         create = [m for m in changes.create if m["metadata"]["name"] not in creating]
-        made = applying.in_parallel(
-            self.pool, partial(self._hand_over, applying.create_instance, created=True), create
-        )
+        made = applying.in_parallel(self.pool, applying.create_instance, create)
         # Created now or already there (409): either way the watch will show it.
         self.memory.expect_instances(system.uid, [m["metadata"]["name"] for m in create])
         created = [m["metadata"]["name"] for m, new in zip(create, made, strict=True) if new is not None]
@@ -212,9 +212,7 @@ class SystemReconciler:
                 "InstancesCreated",
                 f"Created {len(created)} CoralInstances: {events.names(created)}",
             )
-        applying.in_parallel(
-            self.pool, partial(self._hand_over, applying.update_instance, created=False), changes.update
-        )
+        applying.in_parallel(self.pool, self._move, changes.update)
         if changes.update:
             revision = changes.update[0]["spec"]["revision"]
             updated = [m["metadata"]["name"] for m in changes.update]

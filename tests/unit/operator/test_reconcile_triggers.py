@@ -159,15 +159,25 @@ def test_the_echo_of_its_own_status_write_queues_no_system_pass_either() -> None
     assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}, "a later change is another's"
 
 
-def test_the_echo_of_a_create_or_move_handed_over_at_once_costs_its_instance_no_pass() -> None:
+def test_the_echo_of_a_move_handed_over_at_once_costs_its_instance_no_pass() -> None:
     controller = _controller()
     instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
-    body = {**_instance(), "metadata": {"name": "fleet-r1", "namespace": "ns", "uid": "i1", "generation": 1}}
+    body = {**_instance(), "metadata": {"name": "fleet-r1", "namespace": "ns", "uid": "i1", "generation": 2}}
     answered = {**body, "metadata": {**body["metadata"], "resourceVersion": "9"}}
-    controller.memory.remember_record(observing.instance_record(answered), created=True)
+    controller.memory.remember_record(observing.instance_record(answered))
     controller.on_instance(**instance, body=answered)
     assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "its system learns of it as of any instance"
     controller.on_instance(
         **instance, body={**body, "metadata": {**body["metadata"], "resourceVersion": "10"}}
     )
     assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1")}
+
+
+def test_a_new_instance_gets_its_first_pass_from_the_watch() -> None:
+    """Its system pass created it and handed nothing over: its pass creates pods it owns, which the
+    garbage collector would otherwise check with GETs while its own watch has not shown the owner."""
+    controller = _controller()
+    body = {**_instance(), "metadata": {"name": "fleet-r1", "namespace": "ns", "uid": "i1", "generation": 1}}
+    created = {**body, "metadata": {**body["metadata"], "resourceVersion": "9"}}
+    controller.on_instance(deleted=False, namespace="ns", name="fleet-r1", uid="i1", body=created)
+    assert _drain(controller) == {(INSTANCE, "ns", "fleet-r1"), (SYSTEM, "ns", "fleet")}

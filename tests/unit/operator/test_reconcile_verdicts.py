@@ -28,7 +28,7 @@ from coral_operator.reconcile.instances import (
     InstanceReconciler,
     progress_interval,
 )
-from coral_operator.reconcile.memory import WRITE_EXPECTATION_SECONDS, Memory
+from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
 from kubernetes.client.exceptions import ApiException
 from operator_specs import BASE_SPEC, NOW, robot
@@ -90,15 +90,19 @@ class FakeKube:
             self._version += 1
             return str(self._version)
 
-        def create_instance(manifest: dict[str, Any]) -> dict[str, Any]:
-            if self.refuse_instances:
-                raise self._refused(self.refuse_instances)
+        def write_instance(verb: str, manifest: dict[str, Any], generation: int) -> dict[str, Any]:
+            """Stores the instance and answers as the API server would."""
             name = manifest["metadata"]["name"]
-            self.writes.append(("create instance", name))
+            self.writes.append((verb, name))
             self.instances[name] = manifest
             self._version += 1
             metadata = {**manifest["metadata"], "uid": "uid-" + name, "resourceVersion": str(self._version)}
-            return {**manifest, "metadata": {**metadata, "generation": 1}}
+            return {**manifest, "metadata": {**metadata, "generation": generation}}
+
+        def create_instance(manifest: dict[str, Any]) -> dict[str, Any]:
+            if self.refuse_instances:
+                raise self._refused(self.refuse_instances)
+            return write_instance("create instance", manifest, 1)
 
         def record(verb: str) -> Callable[..., None]:
             return lambda *args: self.writes.append((verb, str(args[-1] if verb != "apply rbac" else "")))
@@ -114,9 +118,7 @@ class FakeKube:
             "patch_system_status": patch_status,
             "delete_instance": lambda ns, name: self.writes.append(("delete instance", name)),
             "create_instance": create_instance,
-            "update_instance": lambda manifest: self.writes.append(
-                ("update instance", manifest["metadata"]["name"])
-            ),
+            "update_instance": lambda manifest: write_instance("update instance", manifest, 2),
             "retire_instance": lambda ns, name: self.writes.append(("retire instance", name)),
             "create_config_map": lambda manifest: self.writes.append(
                 ("create configmap", manifest["metadata"]["name"])
@@ -563,27 +565,43 @@ def test_a_robot_ready_counts_for_its_system_before_the_watch_brings_its_status_
     assert _conditions(status)["Ready"] == ("True", "Ready")
 
 
-def test_a_new_instance_starts_its_robot_before_the_watch_brings_it(harness: Harness) -> None:
+def test_a_new_instance_starts_its_robot_once_the_watch_brings_it(harness: Harness) -> None:
+    """Its pods name it their owner, and the garbage collector checks an owner it has not seen
+    with a GET of it and of its system; its watch sees the instance about when this one does."""
+    harness.pass_system(_spec())
+    assert harness.kube.of("create instance") == ["sys-r1"]
+    assert harness.handed_over == [], "the create's answer starts no pass"
+    harness.instances.reconcile((NS, "sys-r1"))  # woken early: the index holds no such instance yet
+    assert harness.kube.of("create pod") == []
+    harness.pass_instance(harness.kube.instances["sys-r1"]["spec"])  # the watch brings it
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"]
+    assert _conditions(harness.kube.status["sys-r1"])["Reconciling"] == ("True", "Progressing")
+
+
+def test_a_moved_instance_starts_its_new_revision_before_the_watch_brings_it(harness: Harness) -> None:
     """Its system pass hands the API server's answer to the instance's pass, which at 1000 robots
     would otherwise wait seconds for the watch, behind every other event of the fleet."""
     harness.pass_system(_spec())
+    spec = harness.kube.instances["sys-r1"]["spec"]
+    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+        harness.pods_are(ready=ready)
+        harness.pass_instance(spec)
+    harness.instances_are(ready=True)
+    env = [{"name": "MISSION", "value": "2"}]
+    harness.pass_system(_spec(skillsets=[{"name": "slam", "image": "example/slam:1", "env": env}]))
+    assert harness.kube.of("update instance") == ["sys-r1"]
     assert harness.handed_over == [(NS, "sys-r1")]
-    harness.instances.reconcile((NS, "sys-r1"))  # the index holds no such instance yet
-    assert harness.kube.of("create pod") == ["sys-r1-lidar"]
-    assert _conditions(harness.kube.status["sys-r1"])["Reconciling"] == ("True", "Progressing")
+    harness.instances.reconcile((NS, "sys-r1"))  # the index still holds the old revision
+    assert harness.kube.of("delete pod") == ["sys-r1-slam"], "the changed skillset is replaced at once"
 
 
 def test_an_update_answered_for_an_instance_deleted_since_brings_nothing_back(harness: Harness) -> None:
     answered = observing.instance_record(
         {"metadata": {"name": "sys-r1", "namespace": NS, "uid": "uid-sys-r1", "resourceVersion": "7"}}
     )
-    harness.memory.remember_record(answered, created=False)
+    harness.memory.remember_record(answered)
     harness.instances.reconcile((NS, "sys-r1"))  # the index no longer holds it
     assert harness.kube.writes == []
-    harness.memory.remember_record(answered, created=True)
-    harness.seconds += WRITE_EXPECTATION_SECONDS + 1
-    harness.instances.reconcile((NS, "sys-r1"))
-    assert harness.kube.writes == [], "nor does a create the index never showed, once it is old"
 
 
 def test_system_ready_when_every_instance_is_ready(harness: Harness) -> None:
