@@ -66,6 +66,13 @@ def _system(root: Any, name: str, robot: str, layout: str, domain: int) -> dict[
     return manifest
 
 
+def _set_bag_rate(manifest: dict[str, Any], rate: float) -> None:
+    """Plays the bag at `rate` times its recorded timing (the bag player's `rate` parameter)."""
+    parameters = yaml.safe_load(manifest["spec"]["parameters"]["inline"])
+    parameters["bag_player"]["ros__parameters"]["rate"] = rate
+    manifest["spec"]["parameters"]["inline"] = yaml.safe_dump(parameters)
+
+
 def _instance(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
     items = custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances")["items"]
     return next((i for i in items if i["spec"]["system"] == system), None)
@@ -189,6 +196,10 @@ def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
     core = k8s.CoreV1Api(cluster.api_client)
     custom = k8s.CustomObjectsApi(cluster.api_client)
     manifest = _system(pytestconfig.rootpath, "slam-kill", real_robot_name, "PodPerRobot", domain)
+    # The short bag lasts 4 s at its recorded rate: a loaded machine could report the loop and
+    # reach the container after the data ran out, and the kill would land in EndSLAM instead.
+    # At a tenth of the rate the loop lasts 40 s; the stop request below ends it sooner.
+    _set_bag_rate(manifest, 0.1)
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
 
     def current() -> dict[str, Any]:
