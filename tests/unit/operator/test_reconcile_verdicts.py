@@ -225,6 +225,15 @@ class Harness:
         self.instances.reconcile((NS, name))
         return self.kube.status.get(name, {})
 
+    def start_every_component(self, spec: dict[str, Any]) -> dict[str, Any]:
+        """Robot r1's start, one pass per stage as each stage's pods become Ready (drivers, then
+        skillsets, then the executor); returns the status of the last pass."""
+        status: dict[str, Any] = {}
+        for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
+            self.pods_are(ready=ready)
+            status = self.pass_instance(spec)
+        return status
+
     # --- systems -----------------------------------------------------------------------------
 
     def system(self, spec: dict[str, Any], name: str = "sys") -> None:
@@ -330,9 +339,7 @@ def test_instance_progress_without_a_verdict_change_waits_instead_of_writing(har
 
 def test_instance_ready_once_every_component_is_ready(harness: Harness) -> None:
     spec = _instance_spec()
-    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
-        harness.pods_are(ready=ready)
-        status = harness.pass_instance(spec)
+    status = harness.start_every_component(spec)
     assert _conditions(status)["Ready"] == ("True", "Ready")
     assert _conditions(status)["Reconciling"][0] == "False"
     assert [c["ready"] for c in status["components"]] == [True, True, True]
@@ -345,9 +352,7 @@ def test_instance_updated_writes_its_status_once_when_ready_at_the_new_generatio
     """While the status written for the old generation stands, every reader already sees the
     update in progress: "progressing" is written only if it lasts, and Ready once it is."""
     spec = _instance_spec()
-    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
-        harness.pods_are(ready=ready)
-        harness.pass_instance(spec)
+    harness.start_every_component(spec)
     writes = len(harness.kube.of("patch status"))
     updated = copy.deepcopy(spec)
     updated["executors"][0]["image"] = "coral/executor:0.2.0"
@@ -555,9 +560,7 @@ def test_a_robot_ready_counts_for_its_system_before_the_watch_brings_its_status_
     harness.pass_system(_spec())
     harness.instances_are(ready=False)  # as the watch showed the new instance
     spec = harness.kube.instances["sys-r1"]["spec"]
-    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
-        harness.pods_are(ready=ready)
-        harness.pass_instance(spec)
+    harness.start_every_component(spec)
     assert _conditions(harness.kube.status["sys-r1"])["Ready"] == ("True", "Ready")
     assert harness.woken and set(harness.woken) == {(NS, "sys")}
     status = harness.pass_system(_spec())  # the index still shows the instance not ready
@@ -583,9 +586,7 @@ def test_a_moved_instance_starts_its_new_revision_before_the_watch_brings_it(har
     would otherwise wait seconds for the watch, behind every other event of the fleet."""
     harness.pass_system(_spec())
     spec = harness.kube.instances["sys-r1"]["spec"]
-    for ready in (set(), {"lidar"}, {"lidar", "slam"}, {"lidar", "slam", "executor"}):
-        harness.pods_are(ready=ready)
-        harness.pass_instance(spec)
+    harness.start_every_component(spec)
     harness.instances_are(ready=True)
     env = [{"name": "MISSION", "value": "2"}]
     harness.pass_system(_spec(skillsets=[{"name": "slam", "image": "example/slam:1", "env": env}]))
