@@ -62,6 +62,35 @@ def wait_for(
     return retrying(predicate)
 
 
+def wait_until_steady(
+    predicate: Callable[[], bool],
+    steady_for: float,
+    timeout: float,
+    interval: float = 0.2,
+    message: str | Callable[[], str] = "condition",
+) -> None:
+    """Waits until `predicate` has held on every check for `steady_for` seconds in a row.
+
+    For states a controller may leave for a moment before it settles: a watch event still on its
+    way can flip the state once more after the first check that sees it hold.
+
+    Raises:
+        WaitTimeout: the predicate did not hold for `steady_for` seconds before `timeout`.
+    """
+    held_since: list[float] = []
+
+    def steady() -> bool:
+        now = time.monotonic()
+        if not predicate():
+            held_since.clear()
+            return False
+        if not held_since:
+            held_since.append(now)
+        return now - held_since[0] >= steady_for
+
+    wait_for(steady, timeout=timeout, interval=interval, message=message)
+
+
 def holds_for(
     predicate: Callable[[], bool],
     duration: float,

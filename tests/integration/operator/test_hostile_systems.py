@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 from coral_api import Coral, condition, executor_client, fleet_mission, is_current_and_true
 from coral_testbed.cluster import processes
-from coral_testbed.waiting import holds_for, wait_for
+from coral_testbed.waiting import holds_for, wait_for, wait_until_steady
 from fixtures.cluster import create_test_namespace
 from fixtures.processes import stop_process_group
 from kubernetes import client as k8s
@@ -403,10 +403,11 @@ def test_a_condition_forged_with_the_executors_own_identity_is_overwritten(stage
         )
 
     wait_for(restored, timeout=CLEAR_WITHIN_S, interval=0.3, message="the operator's conditions restored")
-    # The forged generation made this robot look out of date to its own system for a moment; the
-    # system follows the restored instance back to Ready.
-    wait_for(
+    # The forged generation makes this robot look out of date to its own system for a moment, and
+    # the system may only see that after the instance is restored: Ready is judged once it settles.
+    wait_until_steady(
         lambda: is_current_and_true(coral.system("healthy"), "Ready"),
+        steady_for=5,
         timeout=CLEAR_WITHIN_S,
         interval=0.3,
         message="the healthy system Ready again",
