@@ -119,6 +119,7 @@ _UNWRAPPED_CAUSES = (
     "ExprUnaryArithmetic: undefined",
     "no known safe conversion",
     "Implicit casting to bool",
+    "Loss of precision",
 )
 _CAUSES = (
     "Missing parameter",
@@ -158,15 +159,18 @@ def _probe_factory() -> btpy.BehaviorTreeFactory:
 
 
 def _is_text_entry(board: btpy.Blackboard, key: str) -> bool:
-    """Does this entry hold text? Asked of BT.CPP itself: `key + 0` is refused for a string only."""
+    """Does this entry hold text? Asked of BT.CPP itself: `key + 0` is "not permitted" for a string.
+
+    An int beyond 2^53 is refused too, for the precision a double would lose; that entry is a number.
+    """
     probe = (
         f'<root BTCPP_format="4"><BehaviorTree ID="Probe"><Script code="{key} + 0"/></BehaviorTree></root>'
     )
     tree = _probe_factory().create_tree_from_text(probe, board)
     try:
         tree.tick_exactly_once()
-    except Exception:  # noqa: BLE001 - "Operation not permitted": the entry is a string
-        return True
+    except Exception as error:  # noqa: BLE001 - BT.CPP's RuntimeError, whose message tells why
+        return "Operation not permitted" in str(error)
     return False
 
 

@@ -95,6 +95,32 @@ def test_an_integer_variable_takes_an_integral_double_as_an_integer() -> None:
     assert run.boards[-1] == {"a": "5"}
 
 
+def test_an_integer_beyond_2_53_stays_an_integer_and_refuses_double_arithmetic() -> None:
+    # 1e17 is an exact double; stored in an int entry it is an int that no double holds exactly
+    # once it grows, so BT.CPP refuses to widen it again ("Loss of precision").
+    run = both('<Sequence><Script code="a := 1; a *= 1e17"/><Script code="c := a + 0"/></Sequence>')
+    assert run.statuses == [ERROR] and "Loss of precision" in run.error
+    assert run.boards[-1] == {"a": "100000000000000000", "c": EMPTY_TEXT}
+
+
+@pytest.mark.parametrize(
+    "code, cause",
+    [
+        ("c := -a", "Loss of precision"),
+        ("c := (a == 1)", "Loss of precision"),
+        ("c := (a ? 1 : 2)", "Loss of precision"),
+        ("a += 1", "Loss of precision"),
+        # Both sides become doubles before BT.CPP looks at the operator.
+        ("c := (a & 1)", "Loss of precision"),
+        ("c := (a .. 1)", "Loss of precision"),
+        ("c := (1e19 & 1)", "not an integer"),
+    ],
+)
+def test_every_operator_refuses_an_integer_no_double_holds(code: str, cause: str) -> None:
+    run = both(f'<Sequence><Script code="a := 1; a *= 1e17"/><Script code="{code}"/></Sequence>')
+    assert run.statuses == [ERROR] and cause in run.error
+
+
 # 3. script operators -------------------------------------------------------------------------
 def test_concatenation_prints_doubles_like_std_to_string() -> None:
     run = both("<Script code=\"s := 'ab' .. 1.0; t := 'ab' .. 1; u := 'x' .. (1/3)\"/>")

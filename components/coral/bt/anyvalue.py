@@ -110,6 +110,22 @@ def bool_cast(v: object) -> bool:
     raise ValueError(f"[Any::convert]: no known safe conversion between [{kind_of(v)}] and [bool]")
 
 
+# BT.CPP refuses to widen an int64 beyond 2^53 - 1 into a double ("Loss of precision"). Its check
+# takes std::abs of the int, which leaves the smallest int64 negative, so that one passes.
+_MAX_EXACT_INT = 2**53 - 1
+_INT64_MIN = -(2**63)
+
+
+def exact_double(value: Any) -> float:
+    """BT.CPP's checked `Any::cast<double>()` of a number: an int that a double cannot hold
+    exactly is refused (ValueError with BT.CPP's message)."""
+    if type(value) is int and not -_MAX_EXACT_INT <= value <= _MAX_EXACT_INT and value != _INT64_MIN:
+        raise ValueError(
+            f"Loss of precision when converting a large integer number to floating point:{value}"
+        )
+    return float(value)
+
+
 def to_int64(value: float) -> int:
     """BT.CPP's checked double -> int64 conversion: only integral values in int64's range convert
     (2^63 included, as 4.10 fixed: 4.8 let it wrap to the smallest int64)."""
@@ -135,7 +151,7 @@ def copy_into(dst: Any, value: Any) -> Any:
         return value
     if is_number(dst) and is_number(value):
         if isinstance(dst, float):
-            return float(value)
+            return exact_double(value)
         if isinstance(value, float):
             return to_int64(value)
         return int(value)

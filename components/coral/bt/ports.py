@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from coral.bt.anyvalue import STOD_PREFIX, bool_cast, std_to_string, text_to_double, to_int64
+from coral.bt.anyvalue import STOD_PREFIX, bool_cast, exact_double, std_to_string, text_to_double, to_int64
 from coral.bt.status import PortDirection, parse_status
 
 
@@ -197,7 +197,7 @@ def coerce_value(value: Any, type_name: str, enums: Mapping[str, int] | None = N
             )
         return status
     if type_name == "double" and isinstance(value, (int, bool)):
-        return float(value)
+        return exact_double(value)
     if type_name == "bool" and isinstance(value, (int, float)):
         return bool_cast(value)
     if type_name == "string" and isinstance(value, (int, float)):

@@ -14,6 +14,7 @@ from coral.bt.anyvalue import EMPTY, bool_cast, is_number, kind_of, std_to_strin
 from coral.bt.errors import ScriptError
 from coral.bt.scripting.tokenizer import Token, tokenize
 from coral.bt.scripting.values import (
+    as_double,
     compare,
     condition_holds,
     ieee_divide,
@@ -180,7 +181,7 @@ def _assignment(name: str, op: str, rhs: Fn) -> Fn:
         if is_number(value):
             if not is_number(current):
                 raise ScriptError("This Assignment operator can't be used with a non-numeric type")
-            result: Any = _numeric(arith, float(current), float(value))
+            result: Any = _numeric(arith, as_double(current), as_double(value))
         elif isinstance(value, str):
             if arith != "+":
                 raise ScriptError("Operator not supported for strings")
@@ -211,20 +212,22 @@ def _arith(op: str, a: Any, b: Any) -> Any:
     if b is EMPTY:
         raise ScriptError(not_initialized("right", op))
     if isinstance(a, _NUMBER) and isinstance(b, _NUMBER):
+        # BT.CPP reads both as doubles before it looks at the operator, whichever it is.
+        x, y = as_double(a), as_double(b)
         if op in ("+", "-", "*", "/"):
-            return _numeric(op, float(a), float(b))
+            return _numeric(op, x, y)
         if op in ("&", "|", "^"):
-            x, y = to_int(a, op), to_int(b, op)
-            return float(x & y if op == "&" else x | y if op == "|" else x ^ y)
+            i, j = to_int(a, op), to_int(b, op)
+            return float(i & j if op == "&" else i | j if op == "|" else i ^ j)
         if op == "&&" or op == "||":
             try:
-                x, y = bool_cast(a), bool_cast(b)
+                p, q = bool_cast(a), bool_cast(b)
             except ValueError:
                 raise ScriptError(
                     "Logic operators are not allowed if one of the operands is not castable to bool "
                     f"({std_to_string(a)} {op} {std_to_string(b)})"
                 ) from None
-            return 1.0 if (x and y if op == "&&" else x or y) else 0.0
+            return 1.0 if (p and q if op == "&&" else p or q) else 0.0
         # `..` between two numbers falls through BT.CPP's operator to an empty result.
         return EMPTY
     elif isinstance(a, str) and isinstance(b, str) and op == "+":
@@ -270,7 +273,7 @@ def _unary(op: str, operand: Fn) -> Fn:
     def run(env: ScriptEnv) -> Any:
         value = operand(env)
         if is_number(value):
-            v = float(value)
+            v = as_double(value)
             if op == "-":
                 return -v
             if op == "!":

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from coral.bt.anyvalue import EMPTY, bool_cast, is_number, kind_of, text_to_double
+from coral.bt.anyvalue import EMPTY, bool_cast, exact_double, is_number, kind_of, text_to_double, to_int64
 from coral.bt.errors import BTRuntimeError, ScriptError
 
 # BT.CPP compares doubles within float (not double) epsilon.
@@ -27,13 +27,26 @@ def ieee_divide(a: float, b: float) -> float:
     return -math.inf if negative else math.inf
 
 
+def as_double(v: object) -> float:
+    """A number as a script's operators read it: BT.CPP's checked cast to double."""
+    try:
+        return exact_double(v)
+    except ValueError as err:
+        raise ScriptError(str(err)) from None
+
+
 def to_int(v: object, op: str) -> int:
+    """An operand of a bitwise operator: an int as it is, a double only when it is a whole int64."""
     if not is_number(v):
         raise ScriptError(f"operator '{op}' needs numbers, got {v!r}")
-    f = float(v)  # type: ignore[arg-type]
-    if not math.isfinite(f) or f != int(f):
-        raise ScriptError("Binary operators are not allowed if one of the operands is not an integer")
-    return int(f)
+    if isinstance(v, int):
+        return int(v)
+    try:
+        return to_int64(v)  # type: ignore[arg-type]
+    except ValueError:
+        raise ScriptError(
+            "Binary operators are not allowed if one of the operands is not an integer"
+        ) from None
 
 
 def truthy(v: object) -> bool:
@@ -58,7 +71,7 @@ def condition_holds(v: object) -> bool:
         except ValueError as err:
             raise ScriptError(str(err)) from None
     if is_number(v):
-        return float(v) != 0.0  # type: ignore[arg-type]
+        return as_double(v) != 0.0
     raise ScriptError("Any::cast failed because it is empty")
 
 
@@ -82,11 +95,11 @@ def compare(op: str, a: object, b: object, enums: Mapping[str, int]) -> bool:
         y: object = b
     else:
         if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-            x, y = float(a), float(b)
+            x, y = as_double(a), as_double(b)
         elif isinstance(a, str) and is_number(b):
-            x, y = string_to_number(a, enums), float(b)  # type: ignore[arg-type]
+            x, y = string_to_number(a, enums), as_double(b)
         elif is_number(a) and isinstance(b, str):
-            x, y = float(a), string_to_number(b, enums)  # type: ignore[arg-type]
+            x, y = as_double(a), string_to_number(b, enums)
         else:
             raise ScriptError(
                 "Can't mix different types in Comparison. "
