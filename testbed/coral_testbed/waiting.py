@@ -77,16 +77,17 @@ def wait_until_steady(
     Raises:
         WaitTimeout: the predicate did not hold for `steady_for` seconds before `timeout`.
     """
-    held_since: list[float] = []
+    held_since: float | None = None
 
     def steady() -> bool:
+        nonlocal held_since
         now = time.monotonic()
         if not predicate():
-            held_since.clear()
+            held_since = None
             return False
-        if not held_since:
-            held_since.append(now)
-        return now - held_since[0] >= steady_for
+        if held_since is None:
+            held_since = now
+        return now - held_since >= steady_for
 
     wait_for(steady, timeout=timeout, interval=interval, message=message)
 
