@@ -32,7 +32,9 @@ The Coral side runs in a ROS domain of its own, so no other mission on the machi
 The machine is shared, so the two sides alternate (`--repeat` pairs, in ABBA order, so a load
 trend favours neither) and the ratio is judged on the median of the per-pair ratios (each pair ran
 under similar load); the worst pair and the best ratio (best Coral over best KISS-ICP) are printed
-too. Both trajectories are scored the same way (ATE after rigid alignment, coral.lidar.trajectory).
+too, and so is the ratio of each run to the one before it when both ran the same side: identical
+work, so it shows how far the host alone moved a pair. Both trajectories are scored the same way
+(ATE after rigid alignment, coral.lidar.trajectory).
 Run: `python benchmarks/bench_slam.py [--scans N] [--seed S] [--repeat R] [--plot DIR]` (prints BENCH
 lines; with --plot, also DIR/slam_throughput.png).
 """
@@ -43,6 +45,7 @@ import argparse
 import contextlib
 import dataclasses
 import io
+import itertools
 import json
 import os
 import shutil
@@ -134,6 +137,17 @@ def cpu_table(title: str, runs: list[Run]) -> list[str]:
         f"{median([sum(r.cpu_total.values()) for r in runs]):11.2f}"
     )
     return lines
+
+
+def back_to_back(in_order: list[tuple[str, float]]) -> dict[str, list[float]]:
+    """The ratio of each run to the run just before it when both ran the same side (ABBA puts
+    two such pairs in every four runs): identical work, so how far it strays from 1 is the host's
+    own noise, the yardstick for reading one pair's ratio."""
+    spread: dict[str, list[float]] = {}
+    for (side, earlier), (next_side, later) in itertools.pairwise(in_order):
+        if side == next_side:
+            spread.setdefault(side, []).append(later / earlier)
+    return spread
 
 
 def kiss_icp_process(dataset: Path, scratch: Path, threads: int) -> Run:
@@ -237,14 +251,17 @@ def main() -> None:
     # Kept when a run fails (coral_run exits with its path), for the components' logs.
     scratch = Path(tempfile.mkdtemp(prefix="coral-bench-slam-"))
     pairs: list[tuple[Run, Run]] = []
+    in_order: list[tuple[str, float]] = []  # (side, scans/s) as the runs happened
     for index in range(max(1, args.repeat)):
         # ABBA order: a load trend over the run favours neither side.
         if index % 2 == 0:
             kiss = kiss_icp_process(dataset, scratch, args.threads)
             coral = coral_run(dataset, scratch, args.threads)
+            in_order += [("kiss-icp", kiss.scans_per_s), ("coral", coral.scans_per_s)]
         else:
             coral = coral_run(dataset, scratch, args.threads)
             kiss = kiss_icp_process(dataset, scratch, args.threads)
+            in_order += [("coral", coral.scans_per_s), ("kiss-icp", kiss.scans_per_s)]
         pairs.append((kiss, coral))
         print(f"pair {index + 1}: kiss-icp {kiss.scans_per_s:.1f} scans/s ({kiss.detail})")
         print(f"pair {index + 1}: kiss-icp {cpu_line(kiss)}")
@@ -258,6 +275,10 @@ def main() -> None:
     ratios = [c.scans_per_s / k.scans_per_s for k, c in pairs]
     for line in [*cpu_table("kiss-icp", kiss_runs), *cpu_table("coral", coral_runs)]:
         print(line)
+    spread = back_to_back(in_order)
+    if spread:
+        described = "; ".join(f"{side} {', '.join(f'{r:.2f}' for r in rs)}" for side, rs in spread.items())
+        print(f"the machine's own spread, the same side run twice in a row (later/earlier): {described}")
     best_kiss = max(run.scans_per_s for run in kiss_runs)
     best_coral = max(run.scans_per_s for run in coral_runs)
     kiss_ate = statistics.median(run.ate_m for run in kiss_runs)
