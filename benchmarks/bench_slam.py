@@ -290,13 +290,9 @@ def main() -> None:
         ">=",
         0,
     )
-    bench(
-        "slam_coral_scans_per_s",
-        statistics.median(r.scans_per_s for r in coral_runs),
-        "scans/s",
-        ">=",
-        THROUGHPUT_TARGET * statistics.median(r.scans_per_s for r in kiss_runs),
-    )
+    # Each side's own median is for reading, not judging: it sets runs against each other that did
+    # not run side by side, so the host's moves between pairs land in it (the pairs carry the targets).
+    bench("slam_coral_scans_per_s", statistics.median(r.scans_per_s for r in coral_runs), "scans/s", ">=", 0)
     bench("slam_throughput_ratio", statistics.median(ratios), "x", ">=", THROUGHPUT_TARGET)
     bench("slam_throughput_ratio_worst", min(ratios), "x", ">=", WORST_PAIR_TARGET)
     bench("slam_throughput_ratio_best", best_coral / best_kiss, "x", ">=", THROUGHPUT_TARGET)
