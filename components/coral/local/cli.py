@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 from rich.text import Text
 
+from coral import userfiles
 from coral.local import polling, state
 
 # How `coral ps` colours run and component states on a terminal.
@@ -55,9 +56,23 @@ TREE_PNG = click.option(
 )
 
 
+def _checked_handle(_context: click.Context, _parameter: click.Parameter, value: str | None) -> str | None:
+    # The handle names the run's folder: it must stay one plain name inside the runs folder.
+    if value is not None and not state.HANDLE_RE.match(value):
+        raise click.BadParameter(
+            f"{value!r}: use letters, digits, '.', '_' and '-', starting with a letter or digit"
+        )
+    return value
+
+
 @click.command("run")
 @TARGET
-@click.option("--handle", default=None, help="Name of this instance (default: <project>-<random>).")
+@click.option(
+    "--handle",
+    default=None,
+    callback=_checked_handle,
+    help="Name of this instance (default: <project>-<random>).",
+)
 @click.option("--group", default=None, help="Group for `coral stop --group` (default: the project name).")
 @output_option(None, "Folder for what components write ($CORAL_OUTPUT_DIR; default: ./out/<project>).")
 @click.option("--detach", "-d", is_flag=True, help="Run in the background; print the handle.")
@@ -207,6 +222,13 @@ def logs_command(handle: str, services: tuple[str, ...], follow: bool) -> None:
         time.sleep(0.2)  # tailing files: no event to wait on
 
 
+def _user_text(data: bytes, source: str) -> str:
+    try:
+        return userfiles.decode(data)
+    except userfiles.NotText as err:
+        raise click.ClickException(f"{source}:{err.line}: {err.reason}") from None
+
+
 @click.command("validate")
 @click.argument("target", type=click.Path(exists=True, allow_dash=True, path_type=Path))
 def validate_command(target: Path) -> None:
@@ -218,9 +240,11 @@ def validate_command(target: Path) -> None:
     from coral.local import checking, manifest_checking
 
     if str(target) == "-":
-        report = manifest_checking.validate_manifests(sys.stdin.read(), "<stdin>")
+        text = _user_text(sys.stdin.buffer.read(), "<stdin>")
+        report = manifest_checking.validate_manifests(text, "<stdin>")
     elif target.is_file() and manifest_checking.looks_like_manifests(target.read_text(errors="replace")):
-        report = manifest_checking.validate_manifests(target.read_text(), str(target))
+        source = str(target)
+        report = manifest_checking.validate_manifests(_user_text(target.read_bytes(), source), source)
     else:
         report = checking.validate(target)
     for warning in report.warnings:

@@ -3,7 +3,8 @@
 What Coral reads from compose (everything else, e.g. `network_mode`, `volumes`, is accepted and
 ignored on one machine):
 
-- `name`: project name (default: the folder's name).
+- `name`: project name (default: the folder's name, lowercased without the characters Docker
+  Compose refuses in a project name).
 - `services.<name>.profiles`: exactly one of `drivers`, `skillsets`, `executors` gives the role.
 - `services.<name>.image`: looked up as an installed component (see `coral.local.components`).
 - `services.<name>.environment`: mapping or `KEY=VALUE` list. Every value of the file is
@@ -22,6 +23,8 @@ and `coral.local.validating`.
 
 from __future__ import annotations
 
+import io
+import math
 import os
 import re
 from dataclasses import dataclass, field
@@ -31,8 +34,12 @@ from typing import Any
 import yaml
 from dotenv.parser import parse_stream
 
+from coral import userfiles
+
 ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
 COMPOSE_NAMES = ("compose.yaml", "compose.yml", "docker-compose.yaml", "docker-compose.yml")
+# Docker Compose's rule for project names.
+PROJECT_NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
 SERVICE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 SERVICE_EXTENSION_KEYS = {"command", "transient", "ready_timeout_s", "main_tree", "rate", "component"}
 TOP_EXTENSION_KEYS = {"tree", "params", "ready_timeout_s", "on_timeout", "main_tree", "rate"}
@@ -103,18 +110,18 @@ def read_dotenv(folder: Path, environ: dict[str, str]) -> dict[str, str]:
     if not path.is_file():
         return {}
     values: dict[str, str] = {}
-    with path.open(encoding="utf-8") as stream:
-        for binding in parse_stream(stream):
-            if binding.error:
-                raise ComposeError(path, binding.original.line, f"cannot parse {binding.original.string!r}")
-            if binding.key is None or binding.value is None:
-                continue
-            literal = binding.original.string.partition("=")[2].lstrip().startswith("'")
-            values[binding.key] = (
-                binding.value
-                if literal
-                else interpolate(binding.value, {**values, **environ}, path, binding.original.line)
-            )
+    text = _read(path)
+    for binding in parse_stream(io.StringIO(text)):
+        if binding.error:
+            raise ComposeError(path, binding.original.line, f"cannot parse {binding.original.string!r}")
+        if binding.key is None or binding.value is None:
+            continue
+        literal = binding.original.string.partition("=")[2].lstrip().startswith("'")
+        values[binding.key] = (
+            binding.value
+            if literal
+            else interpolate(binding.value, {**values, **environ}, path, binding.original.line)
+        )
     return values
 
 
@@ -217,12 +224,49 @@ def _scalar(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> str:
     return interpolate(str(node.value), env, file, _line(node))
 
 
-def _number(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> float:
+def _read(file: Path) -> str:
+    try:
+        return userfiles.read_text(file)
+    except OSError as err:
+        raise ComposeError(file, None, f"cannot read: {err.strerror}") from err
+    except userfiles.NotText as err:
+        raise ComposeError(file, err.line, err.reason) from err
+
+
+def _project_name(node: yaml.Node, file: Path, env: dict[str, str]) -> str:
+    name = _scalar(node, file, "name", env)
+    if not PROJECT_NAME_RE.match(name):
+        raise ComposeError(
+            file,
+            _line(node),
+            f"name {name!r} must hold only lowercase letters, digits, dashes and underscores, and start "
+            "with a letter or digit (as Docker Compose requires): it names the run's folders",
+        )
+    return name
+
+
+def _folder_project_name(file: Path) -> str:
+    """The folder's name made a project name as Docker Compose does: lowercased, without the
+    characters a name cannot hold, and without leading dashes and underscores."""
+    name = re.sub(r"[^a-z0-9_-]", "", file.parent.name.lower()).lstrip("_-")
+    if not name:
+        raise ComposeError(
+            file, None, f"the folder name {file.parent.name!r} gives no project name; set a top-level name"
+        )
+    return name
+
+
+def _positive_number(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> float:
     text = _scalar(node, file, what, env)
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
-        raise ComposeError(file, _line(node), f"{what} must be a number, not {text!r}") from None
+        value = math.nan
+    # Both of Coral's numbers are a duration or a rate: zero, negative or infinite would mean a
+    # timeout that fires at once or never, or a tree that never ticks.
+    if not (math.isfinite(value) and value > 0):
+        raise ComposeError(file, _line(node), f"{what} must be a positive number, not {text!r}")
+    return value
 
 
 def _boolean(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> bool:
@@ -301,11 +345,12 @@ def _service(name: str, key: yaml.Node, node: yaml.Node, file: Path, env: dict[s
             if service.transient and service.role != "driver":
                 raise ComposeError(file, _line(extension["transient"][0]), "only drivers can be transient")
         if "ready_timeout_s" in extension:
-            service.ready_timeout_s = _number(extension["ready_timeout_s"][1], file, "ready_timeout_s", env)
+            timeout_node = extension["ready_timeout_s"][1]
+            service.ready_timeout_s = _positive_number(timeout_node, file, "ready_timeout_s", env)
         if "main_tree" in extension:
             service.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
         if "rate" in extension:
-            service.rate = _number(extension["rate"][1], file, "rate", env)
+            service.rate = _positive_number(extension["rate"][1], file, "rate", env)
     if service.image is None and service.command is None and service.role != "executor":
         raise ComposeError(file, service.line, f"service {name} needs an image or an x-coral command")
     return service
@@ -336,10 +381,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
     `lenient` (for validation) lets unset required variables pass as placeholders, with warnings.
     """
     file = Path(file).resolve()
-    try:
-        text = file.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ComposeError(file, None, f"cannot read: {err.strerror}") from err
+    text = _read(file)
     environ = dict(os.environ if environ is None else environ)
     env = {**read_dotenv(file.parent, environ), **environ}
     warnings: list[str] = []
@@ -347,7 +389,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
         placeholders, warnings = _placeholders_for_required(text, env, file)
         env.update(placeholders)
     try:
-        root = yaml.compose(text)
+        root = userfiles.compose_yaml(text)
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         raise ComposeError(
@@ -363,7 +405,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
         for name, (key, node) in _mapping(top["services"][1], file, "services").items()
     ]
     project = Project(
-        name=_scalar(top["name"][1], file, "name", env) if "name" in top else file.parent.name,
+        name=_project_name(top["name"][1], file, env) if "name" in top else _folder_project_name(file),
         file=file,
         services=services,
         tree=None,
@@ -388,7 +430,8 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
     elif (file.parent / "params.yaml").is_file():
         project.params = file.parent / "params.yaml"
     if "ready_timeout_s" in extension:
-        project.ready_timeout_s = _number(extension["ready_timeout_s"][1], file, "ready_timeout_s", env)
+        timeout_node = extension["ready_timeout_s"][1]
+        project.ready_timeout_s = _positive_number(timeout_node, file, "ready_timeout_s", env)
     if "on_timeout" in extension:
         project.on_timeout = _scalar(extension["on_timeout"][1], file, "on_timeout", env).lower()
         if project.on_timeout not in ("block", "proceed"):
@@ -396,7 +439,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
     if "main_tree" in extension:
         project.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
     if "rate" in extension:
-        project.rate = _number(extension["rate"][1], file, "rate", env)
+        project.rate = _positive_number(extension["rate"][1], file, "rate", env)
     if project.by_role("executor") and project.tree is None:
         raise ComposeError(
             file, None, "executors need a tree: set x-coral.tree or keep exactly one *.xml beside the file"

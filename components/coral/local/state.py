@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import secrets
 import signal
 from dataclasses import asdict, dataclass, field
@@ -33,6 +34,10 @@ def state_root() -> Path:
 
 def runs_root() -> Path:
     return state_root() / "runs"
+
+
+# A handle is a folder name under the runs folder, never a path.
+HANDLE_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 def new_handle(project: str) -> str:

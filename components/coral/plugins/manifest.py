@@ -14,6 +14,8 @@ from typing import Literal
 
 import pydantic
 
+from coral import userfiles
+
 SCHEMA_VERSION = 1
 MANIFEST_NAME = "manifest.json"
 READY_NAME = "ready"
@@ -151,7 +153,9 @@ def parse_manifest(text: str, source: str) -> PluginManifest:
 def read_manifest(plugin_dir: Path) -> PluginManifest:
     path = plugin_dir / MANIFEST_NAME
     try:
-        text = path.read_text(encoding="utf-8")
+        text = userfiles.read_text(path)
     except OSError as err:
         raise ManifestError(f"{path}: cannot read: {err.strerror}") from err
+    except userfiles.NotText as err:
+        raise ManifestError(f"{path}:{err.line}: {err.reason}") from err
     return parse_manifest(text, str(path))

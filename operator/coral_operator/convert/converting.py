@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from coral import bt
+from coral import bt, userfiles
 
 from coral_operator.api import names
 from coral_operator.api.names import API_VERSION
@@ -80,8 +80,8 @@ def convert(
     ros = _ros([s.environment for s in project.services])
     if ros:
         spec["ros"] = ros
-    tree_text = tree_file.read_text()
-    params_text = params_file.read_text() if params_file else ""
+    tree_text = _read(tree_file)
+    params_text = _read(params_file) if params_file else ""
     included = _included_files(tree_file)
     problems = validation.validate_tree(
         tree_text, tree_file.name, files=included, files_label="files"
@@ -129,8 +129,17 @@ def _included_files(tree_file: Path) -> dict[str, str]:
                 f"{tree_file.name}: includes {path}; a CoralSystem carries only files beside its tree "
                 "(spec.tree.files), so keep included files in the tree's folder"
             )
-        files[included.name] = included.read_text()
+        files[included.name] = _read(included)
     return files
+
+
+def _read(path: Path) -> str:
+    try:
+        return userfiles.read_text(path)
+    except OSError as err:
+        raise ConvertError(f"{path}: cannot read: {err.strerror}") from err
+    except userfiles.NotText as err:
+        raise ConvertError(f"{path}:{err.line}: {err.reason}") from err
 
 
 class _BlockDumper(yaml.SafeDumper):

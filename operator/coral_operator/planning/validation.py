@@ -16,7 +16,7 @@ import re
 from collections.abc import Mapping
 
 import yaml
-from coral import bt
+from coral import bt, userfiles
 from coral.bt.limits import IncludeBudget, TreeLimits, check_document
 from coral.bt.loader import IncludeResolver
 
@@ -99,14 +99,14 @@ def _static_problems(document: bt.TreeDocument, filename: str) -> list[str]:
 def validate_parameters(text: str, filename: str) -> list[str]:
     """Problems of a ROS parameters YAML, each `file:line: message`; empty when it is valid."""
     try:
-        document = yaml.safe_load(text)
+        document = userfiles.load_yaml(text)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         line = mark.line + 1 if mark else 1
         return [f"{filename}:{line}: invalid YAML: {error.problem or error}"]
     except yaml.YAMLError as error:
         return [f"{filename}:1: invalid YAML: {error}"]
-    except Exception as error:  # noqa: BLE001 - deep nesting and the like: a problem, not a crash
+    except Exception as error:  # noqa: BLE001 - one bad document must never stop the operator
         return [f"{filename}:1: the parameters could not be read ({type(error).__name__})"]
     if document is not None and not isinstance(document, dict):
         return [f"{filename}:1: parameters must be a mapping of node names, got {type(document).__name__}"]

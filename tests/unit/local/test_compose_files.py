@@ -141,6 +141,27 @@ def test_dotenv_values_are_parsed_by_dotenv_rules_and_interpolated(tmp_path: Pat
         pytest.param(
             "services:\n  a:\n    image: [x\n", None, r"compose.yaml:4: invalid YAML", id="invalid YAML"
         ),
+        pytest.param(
+            "name: ../../elsewhere\nservices: {}\n",
+            None,
+            r"compose.yaml:1: name '../../elsewhere' must hold only lowercase letters",
+            id="project name that is a path",
+        ),
+        pytest.param(
+            "name: Mission\nservices: {}\n", None, r"compose.yaml:1: name 'Mission'", id="uppercase name"
+        ),
+        pytest.param(
+            "x-coral:\n  ready_timeout_s: -5\nservices: {}\n",
+            None,
+            r"compose.yaml:2: ready_timeout_s must be a positive number, not '-5'",
+            id="negative timeout",
+        ),
+        pytest.param(
+            "services:\n  e:\n    profiles: [executors]\n    x-coral:\n      rate: .inf\n",
+            None,
+            r"compose.yaml:5: rate must be a positive number, not '.inf'",
+            id="infinite rate",
+        ),
     ],
 )
 def test_a_file_coral_cannot_run_is_refused_with_file_and_line(
@@ -172,3 +193,13 @@ def test_a_missing_tree_file_is_reported(tmp_path: Path) -> None:
 def test_a_folder_without_a_compose_file_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ComposeError, match="no compose file"):
         find_compose_file(tmp_path)
+
+
+def test_a_folder_name_becomes_a_project_name_as_docker_compose_makes_it(tmp_path: Path) -> None:
+    folder = tmp_path / "_Field.Trial 2"
+    folder.mkdir()
+    assert parse_compose(_project(folder, "services: {}\n"), {}).name == "fieldtrial2"
+    nameless = tmp_path / "..."
+    nameless.mkdir()
+    with pytest.raises(ComposeError, match=r"folder name '...' gives no project name; set a top-level name"):
+        parse_compose(_project(nameless, "services: {}\n"), {})

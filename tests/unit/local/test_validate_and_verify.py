@@ -2,22 +2,11 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 from coral.cli import main
-
-EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
-
-
-@pytest.fixture
-def project(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    monkeypatch.setenv("CORAL_BAG", str(tmp_path / "bag"))
-    target = tmp_path / "lidar-slam"
-    shutil.copytree(EXAMPLE, target)
-    return target
 
 
 def _line_of(path: Path, text: str) -> int:

@@ -104,7 +104,7 @@ def test_a_script_nested_past_the_stack_is_a_problem_not_a_crash() -> None:
 
 def test_deeply_nested_parameters_are_a_problem_not_a_crash() -> None:
     (problem,) = validation.validate_parameters("a: " + "[" * 5000 + "]" * 5000 + "\n", "params.yaml")
-    assert problem.startswith("params.yaml:")
+    assert problem == "params.yaml:1: invalid YAML: the document nests too deeply to be read"
 
 
 def test_the_robot_still_reads_includes_from_its_folder(tmp_path: Path) -> None:
