@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import pytest
 from coral.plugins import manifest as manifests
 from fixtures.processes import Spawn
 
-from .runtime_processes import finish, start_skillset
+from .runtime_processes import PYTHON, finish, start_skillset
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -60,3 +61,19 @@ def test_an_idle_skillset_main_thread_sleeps_until_it_is_stopped(
     process.send_signal(signal.SIGTERM)
     assert finish(process, 30, log) == 0, log.read_text()
     assert "Component lab_examples stopping" in log.read_text()
+
+
+def test_a_namespace_ros_refuses_is_bad_input_not_a_crash(
+    tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
+) -> None:
+    log = tmp_path / "skillset.log"
+    plugins = str(tmp_path / "plugins")
+    process = spawned(
+        [PYTHON, "-m", "coral_skillsets.examples", "--plugins", plugins, "--namespace", "lab//a"],
+        env=ros_env,
+        stdout=log.open("w"),
+        stderr=subprocess.STDOUT,
+    )
+    assert finish(process, 60, log) == 2, log.read_text()
+    assert "error: Invalid namespace: namespace must not contain repeated '/'" in log.read_text()
+    assert "Traceback" not in log.read_text()

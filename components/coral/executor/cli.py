@@ -2,10 +2,20 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
 import click
+
+from coral.executor import MAX_TICK_RATE_HZ
+
+
+def _finite(_context: click.Context, _parameter: click.Parameter, value: float) -> float:
+    # A range passes NaN: every comparison with it is false.
+    if not math.isfinite(value):
+        raise click.BadParameter(f"{value} is not a number of Hz")
+    return value
 
 
 @click.command("executor")
@@ -32,7 +42,8 @@ import click
 @click.option(
     "--rate",
     "rate_hz",
-    type=click.FloatRange(min=0.1),
+    type=click.FloatRange(min=0.0, min_open=True, max=MAX_TICK_RATE_HZ),
+    callback=_finite,
     default=10.0,
     show_default=True,
     help="Tick rate in Hz (wake-ups tick at once in between).",

@@ -80,7 +80,20 @@ def _build_sinks(options: ExecutorOptions) -> sinks.SinkFanout:
     return fanout
 
 
+def _check_ros_names(options: ExecutorOptions) -> None:
+    """Raises rclpy's own error for a node name or status topic ROS would refuse, before anything
+    starts, so it reads as bad input rather than a crash of the executor."""
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    from rclpy.validate_node_name import validate_node_name
+
+    validate_node_name(options.node_name)
+    validate_full_topic_name(expand_topic_name(options.status_topic, options.node_name, "/"))
+
+
 def run_executor(options: ExecutorOptions) -> int:
+    from rclpy.exceptions import NameValidationException
+
     from coral import bt
     from coral.sdk import params
 
@@ -101,10 +114,11 @@ def run_executor(options: ExecutorOptions) -> int:
         main_tree=options.main_tree,
     )
     try:
+        _check_ros_names(options)
         if options.params is not None:
             params.validate_file(options.params)
         document = bt.load_tree_file(options.tree, None, main_tree=options.main_tree)
-    except (bt.BTError, params.ParamsError) as err:
+    except (bt.BTError, params.ParamsError, NameValidationException) as err:
         _emit(fanout, "error", message=str(err))
         _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
         fanout.close()

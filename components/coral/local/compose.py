@@ -35,6 +35,7 @@ import yaml
 from dotenv.parser import parse_stream
 
 from coral import userfiles
+from coral.executor import MAX_TICK_RATE_HZ
 
 ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
 COMPOSE_NAMES = ("compose.yaml", "compose.yml", "docker-compose.yaml", "docker-compose.yml")
@@ -256,7 +257,9 @@ def _folder_project_name(file: Path) -> str:
     return name
 
 
-def _positive_number(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> float:
+def _positive_number(
+    node: yaml.Node, file: Path, what: str, env: dict[str, str], at_most: float = math.inf
+) -> float:
     text = _scalar(node, file, what, env)
     try:
         value = float(text)
@@ -264,9 +267,15 @@ def _positive_number(node: yaml.Node, file: Path, what: str, env: dict[str, str]
         value = math.nan
     # Both of Coral's numbers are a duration or a rate: zero, negative or infinite would mean a
     # timeout that fires at once or never, or a tree that never ticks.
-    if not (math.isfinite(value) and value > 0):
-        raise ComposeError(file, _line(node), f"{what} must be a positive number, not {text!r}")
+    if not (math.isfinite(value) and 0 < value <= at_most):
+        bound = "" if math.isinf(at_most) else f" up to {at_most:g}"
+        raise ComposeError(file, _line(node), f"{what} must be a positive number{bound}, not {text!r}")
     return value
+
+
+def _tick_rate(node: yaml.Node, file: Path, env: dict[str, str]) -> float:
+    # The executor's limit, and a CoralSystem's (tree.tickRateHz).
+    return _positive_number(node, file, "rate", env, at_most=MAX_TICK_RATE_HZ)
 
 
 def _boolean(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> bool:
@@ -350,7 +359,7 @@ def _service(name: str, key: yaml.Node, node: yaml.Node, file: Path, env: dict[s
         if "main_tree" in extension:
             service.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
         if "rate" in extension:
-            service.rate = _positive_number(extension["rate"][1], file, "rate", env)
+            service.rate = _tick_rate(extension["rate"][1], file, env)
     if service.image is None and service.command is None and service.role != "executor":
         raise ComposeError(file, service.line, f"service {name} needs an image or an x-coral command")
     return service
@@ -439,7 +448,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
     if "main_tree" in extension:
         project.main_tree = _scalar(extension["main_tree"][1], file, "main_tree", env)
     if "rate" in extension:
-        project.rate = _positive_number(extension["rate"][1], file, "rate", env)
+        project.rate = _tick_rate(extension["rate"][1], file, env)
     if project.by_role("executor") and project.tree is None:
         raise ComposeError(
             file, None, "executors need a tree: set x-coral.tree or keep exactly one *.xml beside the file"

@@ -113,6 +113,7 @@ def run_component(
     """Runs the component until SIGINT/SIGTERM or `request_stop`; returns the process exit code."""
     import rclpy
     from rclpy.duration import Duration
+    from rclpy.exceptions import NameValidationException
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import String
@@ -177,7 +178,7 @@ def run_component(
         component.on_stop()
         executor.shutdown(timeout_sec=1.0)
         return component.exit_code or 0
-    except (ValueError, exporting.ExportError) as err:
+    except (ValueError, exporting.ExportError, NameValidationException) as err:
         print(f"error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except Exception:  # noqa: BLE001 - a crash in the component's own code gets its own exit code

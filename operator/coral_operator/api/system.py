@@ -11,6 +11,7 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
+from coral.executor import MAX_TICK_RATE_HZ
 from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.base import CamelModel
@@ -141,7 +142,7 @@ class TreeSpec(SourceSpec):
 
     main_tree_id: str | None = Field(default=None, max_length=253)
     """ID of the tree to run; the document's `main_tree_to_execute` when omitted."""
-    tick_rate_hz: float = Field(default=10.0, gt=0, le=1000)
+    tick_rate_hz: float = Field(default=10.0, gt=0, le=MAX_TICK_RATE_HZ)
     """How often the executor ticks the tree."""
 
 

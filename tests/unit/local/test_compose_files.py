@@ -159,7 +159,7 @@ def test_dotenv_values_are_parsed_by_dotenv_rules_and_interpolated(tmp_path: Pat
         pytest.param(
             "services:\n  e:\n    profiles: [executors]\n    x-coral:\n      rate: .inf\n",
             None,
-            r"compose.yaml:5: rate must be a positive number, not '.inf'",
+            r"compose.yaml:5: rate must be a positive number up to 1000, not '.inf'",
             id="infinite rate",
         ),
     ],
