@@ -18,9 +18,9 @@ DEFAULT_EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam
 BAG_OPTIONS = (
     ("seed", int, "Scene and noise seed."),
     ("scans", click.IntRange(min=2), "Number of 10 Hz sweeps."),
-    ("beams", click.IntRange(min=2), "Lasers per column."),
-    ("columns", click.IntRange(min=16), "Firing columns per sweep."),
-    ("speed", float, "Metres per second."),
+    ("beams", click.IntRange(min=2, max=generating.MAX_BEAMS), "Lasers per column."),
+    ("columns", click.IntRange(min=16, max=generating.MAX_COLUMNS), "Firing columns per sweep."),
+    ("speed", click.FloatRange(min=0), "Metres per second."),
 )
 
 
@@ -34,6 +34,13 @@ def bag_options(function: click.decorators.FC) -> click.decorators.FC:
     return function
 
 
+def _bag_params(seed: int, scans: int, beams: int, columns: int, speed: float) -> generating.BagParams:
+    try:
+        return generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
+    except ValueError as err:
+        raise click.UsageError(str(err)) from err
+
+
 @click.command("generate-bag")
 @bag_options
 @output_option(None, "Dataset folder to create (default: the cache, ~/.cache/coral-on-kubernetes/bags/...).")
@@ -41,7 +48,7 @@ def generate_bag_command(
     seed: int, scans: int, beams: int, columns: int, speed: float, output_dir: Path | None
 ) -> None:
     """Write a synthetic LiDAR ROS 2 bag (PointCloud2 + ground truth) from a seed; print its folder."""
-    params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
+    params = _bag_params(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
     try:
         with terminal.progress("Generating the bag", stream=sys.stderr) as step:
             folder = (
@@ -80,7 +87,7 @@ def slam_demo_command(
     """The LiDAR SLAM mission end to end: bag, `coral run`, map, trajectory error against ground truth."""
     from coral.lidar import demo
 
-    params = generating.BagParams(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
+    params = _bag_params(seed=seed, scans=scans, beams=beams, columns=columns, speed=speed)
     result = demo.run_demo(
         example, params, output_dir=output_dir.resolve(), live=live, echo=click.echo, tree_png=tree_png
     )

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -38,6 +39,11 @@ START_NS = 1_700_000_000_000_000_000
 FORMAT_VERSION = 1
 
 
+# The largest spinning LiDARs: 128 lasers, 4096 columns a sweep.
+MAX_BEAMS = 128
+MAX_COLUMNS = 4096
+
+
 @dataclass(frozen=True)
 class BagParams:
     """Everything that determines the bag's content; equal params give byte-equal scans."""
@@ -49,6 +55,17 @@ class BagParams:
     speed: float = 1.0
     range_noise: float = 0.01
     rooms: int = 4
+
+    def __post_init__(self) -> None:
+        # NaN would fill the bag with NaN points; a sensor beyond the largest spinning LiDARs would
+        # need gigabytes a scan before anything said so.
+        if not (math.isfinite(self.speed) and self.speed >= 0):
+            raise ValueError(f"speed must be a number of m/s of at least 0, not {self.speed}")
+        if not (2 <= self.beams <= MAX_BEAMS and 16 <= self.columns <= MAX_COLUMNS):
+            raise ValueError(
+                f"a scan of {self.beams} beams by {self.columns} columns is not a LiDAR's: "
+                f"use 2 to {MAX_BEAMS} beams and 16 to {MAX_COLUMNS} columns"
+            )
 
     def key(self) -> str:
         text = json.dumps({**dataclasses.asdict(self), "format": FORMAT_VERSION}, sort_keys=True)

@@ -2,25 +2,52 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import click
 
+# A namespace is a DNS-1123 label.
+NAMESPACE_RE = re.compile(r"^[a-z0-9]([-a-z0-9]{0,61}[a-z0-9])?$")
+
 
 def _selector(values: tuple[str, ...]) -> dict[str, str]:
+    from pydantic import ValidationError
+
+    from coral_operator.api.common import LabelSelector
+
     result = {}
     for value in values:
         key, sep, label = value.partition("=")
         if not sep or not key:
             raise click.UsageError(f"--robots {value!r}: expected KEY=VALUE")
+        try:
+            LabelSelector.model_validate({"matchLabels": {key: label}})
+        except ValidationError as error:
+            first = error.errors()[0]
+            reason = (
+                f"{label!r} is not a Kubernetes label value (up to 63 letters, digits, '-', '_' and '.', "
+                "starting and ending with a letter or digit)"
+                if len(first["loc"]) > 1  # the value's own location: ("matchLabels", key)
+                else first["msg"].removeprefix("Value error, ")
+            )
+            raise click.UsageError(f"--robots {value!r}: {reason}") from None
         result[key] = label
     return result
+
+
+def _checked_namespace(_context: click.Context, _parameter: click.Parameter, value: str | None) -> str | None:
+    if value is not None and not NAMESPACE_RE.match(value):
+        raise click.BadParameter(
+            f"{value!r} is not a namespace name (lowercase letters, digits and '-', at most 63)"
+        )
+    return value
 
 
 @click.command("convert")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--name", help="CoralSystem name; the compose project's name when omitted.")
-@click.option("--namespace", help="Namespace to put in the manifest.")
+@click.option("--namespace", callback=_checked_namespace, help="Namespace to put in the manifest.")
 @click.option(
     "--robots",
     "robots",

@@ -12,12 +12,13 @@ from typing import Any
 
 import yaml
 from coral import bt, userfiles
+from pydantic import ValidationError
 
 from coral_operator.api import names
 from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.convert.compose import ConvertError, component_name, kubernetes_fields
-from coral_operator.planning import naming, validation
+from coral_operator.planning import naming, system_pass, validation
 
 PARAMS_IN_CONTAINER = "/etc/coral/params.yaml"
 GROUPS = {"driver": "drivers", "skillset": "skillsets", "executor": "executors"}
@@ -104,8 +105,8 @@ def convert(
     }
     try:
         CoralSystemSpec.model_validate(spec)
-    except ValueError as error:
-        raise ConvertError(f"{compose_file.name}: {error}") from error
+    except ValidationError as error:
+        raise ConvertError(f"{compose_file.name}: {system_pass.format_validation(error)}") from error
     metadata: dict[str, Any] = {"name": naming.dns_label(name or project.name)}
     if namespace:
         metadata["namespace"] = namespace

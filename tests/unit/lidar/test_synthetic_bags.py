@@ -75,6 +75,29 @@ def test_asking_for_more_scans_than_the_path_lasts_is_refused_with_the_reason(tm
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"speed": float("nan")}, "speed must be a number of m/s of at least 0, not nan"),
+        ({"speed": -1.0}, "speed must be a number of m/s of at least 0, not -1.0"),
+        ({"beams": 100_000}, "a scan of 100000 beams by 1024 columns is not a LiDAR's"),
+        ({"columns": 8}, "a scan of 16 beams by 8 columns is not a LiDAR's"),
+    ],
+)
+def test_a_sensor_no_lidar_has_is_refused_before_any_work(fields: dict[str, float], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        BagParams(**fields)  # type: ignore[arg-type]
+
+
+def test_generate_bag_names_a_speed_that_is_not_a_number(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+    from coral.cli import main
+
+    result = CliRunner().invoke(main, ["generate-bag", "--speed", "nan", "--output", str(tmp_path / "bag")])
+    assert result.exit_code == 2 and "speed must be a number of m/s of at least 0, not nan" in result.output
+    assert not (tmp_path / "bag").exists()
+
+
 def test_kiss_icps_own_rosbag_loader_reads_the_bag(short_dataset: Path) -> None:
     from kiss_icp.datasets.rosbag import RosbagDataset
 

@@ -124,3 +124,22 @@ def test_included_files_beside_the_tree_travel_in_the_system(tmp_path: Path) -> 
     assert result.exit_code == 0, result.output
     spec = CoralSystemSpec.model_validate(yaml.safe_load(result.stdout)["spec"])
     assert spec.tree.files == {"nav.xml": nav}
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--namespace", "Field_Trials"], "'Field_Trials' is not a namespace name"),
+        (["--robots", "fleet zone=a"], "--robots 'fleet zone=a': 'fleet zone' is not a Kubernetes label key"),
+        (
+            ["--robots", "zone=north east"],
+            "--robots 'zone=north east': 'north east' is not a Kubernetes label value",
+        ),
+    ],
+)
+def test_a_namespace_or_robot_label_kubernetes_refuses_is_named_before_conversion(
+    tmp_path: Path, arguments: list[str], message: str
+) -> None:
+    result = CliRunner().invoke(convert_command, [str(_folder(tmp_path)), *arguments])
+    assert result.exit_code == 2
+    assert message in result.output and "errors.pydantic.dev" not in result.output
