@@ -97,3 +97,30 @@ def test_a_double_beyond_int64_does_not_wrap() -> None:
     with pytest.raises(ScriptError, match="Invalid floating point to integer conversion"):
         run("x := 2; x *= 4611686018427387904.0")
     assert run("x := 2; x *= 2305843009213693952.0; x") == 2**62
+
+
+def test_a_long_chain_of_operators_costs_one_level_of_the_stack() -> None:
+    # 20,000 terms, evaluated one operator at a time, left to right, as BT.CPP's AST does.
+    board = Blackboard()
+    terms = "+".join(["1"] * 10_000) + "-" + "-".join(["1"] * 9_999)
+    assert compile_script(f"x := {terms}")(ScriptEnv(board, {})) == 1.0
+    assert board.get("x") == 1.0
+    assert compile_script("y := 2 * 3 + 4 * 5 - 6 / 2 .. 'a'")(ScriptEnv(board, {})) == "23.000000a"
+
+
+@pytest.mark.parametrize(
+    "nested",
+    [
+        lambda depth: "(" * depth + "1" + ")" * depth,
+        lambda depth: "-" * depth + "1",
+        lambda depth: "1 ? " * depth + "1" + " : 0" * depth,
+    ],
+    ids=["parentheses", "prefix operators", "ternaries"],
+)
+def test_a_script_nested_past_the_limit_is_refused_when_it_compiles(nested: object) -> None:
+    from coral.bt.scripting.parser import MAX_NESTING
+
+    make = nested  # type: ignore[assignment]
+    compile_script(f"x := {make(MAX_NESTING - 1)}")  # type: ignore[operator]
+    with pytest.raises(ScriptError, match=f"the script nests more than {MAX_NESTING} levels deep"):
+        compile_script(f"x := {make(MAX_NESTING)}")  # type: ignore[operator]

@@ -42,6 +42,11 @@ class ScriptEnv:
         self.enums = enums
 
 
+# How deep a script may nest (parentheses, prefix operators, right operands, `?:`). BT.CPP's parser
+# has limits of its own (1,024 parentheses; 255 prefix operators in a row); the engine parses and
+# evaluates recursively, on the stack that also holds the tree's own nesting, so it refuses a
+# script past this depth when the tree loads instead of overflowing the stack at a tick.
+MAX_NESTING = 128
 _COMPARISONS = {"==", "!=", "<", ">", "<=", ">="}
 _ASSIGN = {":=", "=", "+=", "-=", "*=", "/="}
 _BINARY_PREC = {"||": 3, "&&": 4, "|": 6, "^": 6, "&": 7, "+": 8, "-": 8, "..": 8, "*": 9, "/": 9}
@@ -52,6 +57,7 @@ class _Parser:
         self.text = text
         self.tokens = tokenize(text)
         self.i = 0
+        self.nesting = 0
 
     def peek(self) -> Token:
         return self.tokens[self.i]
@@ -62,7 +68,9 @@ class _Parser:
         return tok
 
     def fail(self, msg: str) -> ScriptError:
-        return ScriptError(f"{msg} in script [{self.text}]")
+        # A generated script can be hundreds of kilobytes; the message names where, not all of it.
+        shown = self.text if len(self.text) <= 200 else self.text[:200] + "..."
+        return ScriptError(f"{msg} in script [{shown}]")
 
     def expect(self, op: str) -> None:
         tok = self.next()
@@ -92,35 +100,46 @@ class _Parser:
         return self.expression(1)
 
     def expression(self, min_prec: int) -> Fn:
-        left = self.prefix()
-        while True:
-            tok = self.peek()
-            if tok.kind != "op":
-                return left
-            op = str(tok.value)
-            if op in _ASSIGN:
-                raise self.fail(f"assignment '{op}' needs a variable on its left (position {tok.pos})")
-            if op == "?" and min_prec <= 2:
+        self.nesting += 1
+        if self.nesting > MAX_NESTING:
+            raise self.fail(
+                f"the script nests more than {MAX_NESTING} levels deep (parentheses, operators, ?:) "
+                f"at position {self.peek().pos}"
+            )
+        try:
+            left = self.prefix()
+            # Operators of this level apply left to right: `a + b - c * d` is one fold over
+            # [(+, b), (-, c * d)], so a long chain costs one level of the stack, not one per operator.
+            steps: list[tuple[str, Fn]] = []
+            while True:
+                tok = self.peek()
+                if tok.kind != "op":
+                    return _fold(left, steps)
+                op = str(tok.value)
+                if op in _ASSIGN:
+                    raise self.fail(f"assignment '{op}' needs a variable on its left (position {tok.pos})")
+                if op == "?" and min_prec <= 2:
+                    self.next()
+                    then = self.expression(1)
+                    self.expect(":")
+                    other = self.expression(2)
+                    left, steps = _ternary(_fold(left, steps), then, other), []
+                    continue
+                if op in _COMPARISONS and min_prec <= 5:
+                    operands = [_fold(left, steps)]
+                    ops: list[str] = []
+                    while self.peek().kind == "op" and self.peek().value in _COMPARISONS:
+                        ops.append(str(self.next().value))
+                        operands.append(self.expression(6))
+                    left, steps = _chain(ops, operands), []
+                    continue
+                prec = _BINARY_PREC.get(op)
+                if prec is None or prec < min_prec:
+                    return _fold(left, steps)
                 self.next()
-                then = self.expression(1)
-                self.expect(":")
-                other = self.expression(2)
-                left = _ternary(left, then, other)
-                continue
-            if op in _COMPARISONS and min_prec <= 5:
-                operands = [left]
-                ops: list[str] = []
-                while self.peek().kind == "op" and self.peek().value in _COMPARISONS:
-                    ops.append(str(self.next().value))
-                    operands.append(self.expression(6))
-                left = _chain(ops, operands)
-                continue
-            prec = _BINARY_PREC.get(op)
-            if prec is None or prec < min_prec:
-                return left
-            self.next()
-            right = self.expression(prec + 1)
-            left = _binary(op, left, right)
+                steps.append((op, self.expression(prec + 1)))
+        finally:
+            self.nesting -= 1
 
     def prefix(self) -> Fn:
         tok = self.next()
@@ -242,9 +261,22 @@ def _arith(op: str, a: Any, b: Any) -> Any:
     raise ScriptError(f"Operation not permitted: [{op}] between {kind_of(a)} and {kind_of(b)}")
 
 
-def _binary(op: str, left: Fn, right: Fn) -> Fn:
-    # Both sides are always evaluated: BT.CPP's && and || do not short-circuit.
-    return lambda env: _arith(op, left(env), right(env))
+def _fold(first: Fn, steps: list[tuple[str, Fn]]) -> Fn:
+    """Left-associative binary operators in order: `((first op1 a) op2 b) ...`."""
+    if not steps:
+        return first
+    if len(steps) == 1:
+        ((op, right),) = steps
+        # Both sides are always evaluated: BT.CPP's && and || do not short-circuit.
+        return lambda env: _arith(op, first(env), right(env))
+
+    def run(env: ScriptEnv) -> Any:
+        value = first(env)
+        for op, operand in steps:
+            value = _arith(op, value, operand(env))
+        return value
+
+    return run
 
 
 def _chain(ops: list[str], operands: list[Fn]) -> Fn:
