@@ -288,6 +288,42 @@ def test_a_negative_literal_for_an_unsigned_port_is_a_load_error(node: str) -> N
     assert run.verdict == "REJECT" and "can not be converted to unsigned" in run.error
 
 
+@pytest.mark.parametrize(
+    ("node", "loads"),
+    [
+        ('<Repeat num_cycles="2147483647"><AlwaysFailure/></Repeat>', True),
+        ('<Repeat num_cycles="2147483648"><AlwaysFailure/></Repeat>', False),
+        ('<RetryUntilSuccessful num_attempts="-2147483649"><AlwaysFailure/></RetryUntilSuccessful>', False),
+        ('<Parallel success_count="99999999999999999999"><AlwaysSuccess/></Parallel>', False),
+        ('<Delay delay_msec="4294967295"><AlwaysSuccess/></Delay>', True),
+        ('<Sleep msec="4294967296"/>', False),
+        ('<Timeout msec="99999999999999999999"><AlwaysSuccess/></Timeout>', False),
+        ('<LoopInt queue="1;2147483647" value="{v}"><AlwaysSuccess/></LoopInt>', True),
+        ('<LoopInt queue="1;-2147483649" value="{v}"><AlwaysSuccess/></LoopInt>', False),
+        ('<Script code="x := 9223372036854775807"/>', True),
+        ('<Script code="x := 9223372036854775808"/>', False),
+        ('<Script code="x := 0x8000000000000000"/>', False),
+        ('<Script code="x := 1e308"/>', True),
+        ('<Script code="x := 1e309"/>', False),
+        ('<Script code="x := 1e-310"/>', False),
+    ],
+)
+def test_a_literal_outside_its_ports_cpp_type_is_a_load_error(node: str, loads: bool) -> None:
+    # BT.CPP's own nodes declare `int` and `unsigned`: 32 bits, whatever Python's ints hold. A
+    # script's integer literal is an int64, and its other numbers go through std::stod.
+    run = both(node)
+    assert (run.verdict == "LOADED") == loads, run.error
+
+
+@pytest.mark.parametrize("code", ["x := 3000000000", "x := -2147483649", "x := 2147483647"])
+def test_an_int_port_refuses_an_entry_outside_32_bits_when_it_reads_it(code: str) -> None:
+    run = both(
+        f'<Sequence><Script code="{code}"/><Repeat num_cycles="{{x}}"><AlwaysFailure/></Repeat></Sequence>'
+    )
+    fits = code.endswith("2147483647")
+    assert run.statuses == ([3] if fits else [ERROR]), run.error
+
+
 @pytest.mark.parametrize("node", ['<Sleep msec="{x}"/>', '<Timeout msec="{x}"><AlwaysSuccess/></Timeout>'])
 def test_an_unsigned_port_refuses_a_negative_entry(node: str) -> None:
     run = both(f'<Sequence><Script code="x := -1"/>{node}</Sequence>')

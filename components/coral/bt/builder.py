@@ -6,6 +6,7 @@ the registry (file:line errors), uids in document order and BT.CPP-style full pa
 from __future__ import annotations
 
 import re
+from collections import deque
 from typing import Any
 
 from coral.bt.anyvalue import kind_of, text_to_double
@@ -13,8 +14,16 @@ from coral.bt.blackboard import Blackboard, Entry, strongly_typed
 from coral.bt.errors import BTError, BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, RESERVED_ATTRS, NodeElement, TreeDocument
 from coral.bt.nodes.base import NodeConfig, TreeNode
-from coral.bt.ports import PortSpec, blackboard_key, convert_string, is_typed, is_unsigned, normalize_type
-from coral.bt.registry import NodeRegistry
+from coral.bt.ports import (
+    PortSpec,
+    blackboard_key,
+    convert_string,
+    element_type,
+    fits_integer,
+    is_typed,
+    normalize_type,
+)
+from coral.bt.registry import BUILTIN_SOURCE, V3_SOURCE, NodeRegistry
 from coral.bt.runtime import Runtime
 from coral.bt.scripting import compile_script
 from coral.bt.status import NodeKind, PortDirection
@@ -55,6 +64,17 @@ def is_port_attribute(name: str) -> bool:
     return bool(name) and name[0].isalpha() and name not in RESERVED_ATTRS
 
 
+def _literal_fits(value: Any, type_name: str, cpp_widths: bool) -> bool:
+    """Whether a converted literal's integers fit the port's integer type, or its elements' (a
+    LoopInt queue of `std::deque<int>`)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return fits_integer(value, type_name, cpp_widths)
+    inner = element_type(type_name)
+    if inner is not None and isinstance(value, (list, deque)):
+        return all(_literal_fits(item, inner, cpp_widths) for item in value)
+    return True
+
+
 class _Builder:
     def __init__(self, doc: TreeDocument, registry: NodeRegistry, runtime: Runtime) -> None:
         self.doc = doc
@@ -89,6 +109,7 @@ class _Builder:
             path += f"::{uid}"
         specs = {p.name: p for p in spec.ports}
         ports: dict[str, str] = {}
+        cpp_widths = spec.source in (BUILTIN_SOURCE, V3_SOURCE)
         if spec.kind != NodeKind.SUBTREE:
             for key, value in el.attrs.items():
                 if not is_port_attribute(key):
@@ -101,8 +122,10 @@ class _Builder:
                         path,
                     )
                 ports[key] = value
-            self._check_ports(el, ports, specs, board, path)
-        config = NodeConfig(el.node_id, uid, path, board, self.runtime, ports, specs, el.file, el.line)
+            self._check_ports(el, ports, specs, board, path, cpp_widths)
+        config = NodeConfig(
+            el.node_id, uid, path, board, self.runtime, ports, specs, el.file, el.line, cpp_widths
+        )
         try:
             node = spec.cls(name, config)
         except BTError as err:
@@ -142,7 +165,13 @@ class _Builder:
             raise self.fail(el, f"{what} may not have children, has {count}")
 
     def _check_ports(
-        self, el: NodeElement, ports: dict[str, str], specs: dict[str, PortSpec], board: Blackboard, path: str
+        self,
+        el: NodeElement,
+        ports: dict[str, str],
+        specs: dict[str, PortSpec],
+        board: Blackboard,
+        path: str,
+        cpp_widths: bool,
     ) -> None:
         for name, spec in specs.items():
             raw = ports.get(name, spec.default)
@@ -153,12 +182,12 @@ class _Builder:
             if key == "=":
                 key = name
             if key is None:
-                if spec.direction == PortDirection.INPUT and is_typed(type_name) and name in ports:
+                if spec.direction != PortDirection.OUTPUT and is_typed(type_name) and name in ports:
                     try:
                         value = convert_string(raw, type_name, self.runtime.enums)
                     except ValueError as err:
                         raise self.fail(el, f"port [{name}]: {err}", path) from None
-                    if is_unsigned(spec.type) and isinstance(value, int) and value < 0:
+                    if not _literal_fits(value, spec.type, cpp_widths):
                         raise self.fail(
                             el,
                             f'The port with name "{name}" and value "{raw}" can not be converted '

@@ -86,6 +86,50 @@ def is_unsigned(type_name: str) -> bool:
     return low in _INT and (low.startswith(("unsigned", "uint")) or low == "size_t")
 
 
+# The widths of C++ integer types, for the ports of BT.CPP's own nodes: their `int` is 32 bits and
+# their `unsigned` too, and a literal outside the type is refused when the tree is created.
+_CPP_INT_BITS = {
+    "short": (16, True),
+    "int": (32, True),
+    "int32": (32, True),
+    "int32_t": (32, True),
+    "unsigned": (32, False),
+    "unsigned int": (32, False),
+    "uint": (32, False),
+    "uint32": (32, False),
+    "uint32_t": (32, False),
+    "long": (64, True),
+    "int64": (64, True),
+    "int64_t": (64, True),
+    "unsigned long": (64, False),
+    "uint64": (64, False),
+    "uint64_t": (64, False),
+    "size_t": (64, False),
+}
+
+
+def fits_integer(value: int, type_name: str, cpp_widths: bool) -> bool:
+    """Whether an integer literal fits a port of `type_name`. With `cpp_widths` (BT.CPP's own
+    nodes) the C++ type's width counts; a plugin's `int` is Python's, unbounded, and only its
+    unsigned types refuse a negative value."""
+    bits_signed = _CPP_INT_BITS.get(type_name.strip().lower()) if cpp_widths else None
+    if bits_signed is None:
+        return not (is_unsigned(type_name) and value < 0)
+    bits, signed = bits_signed
+    low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
+    return low <= value <= high
+
+
+def element_type(type_name: str) -> str | None:
+    """The element type of a declared container type (`std::deque<int>` gives `int`), else None."""
+    text = type_name.strip()
+    for opening, closing in (("<", ">"), ("[", "]")):
+        start = text.find(opening)
+        if start > 0 and text.endswith(closing):
+            return text[start + 1 : -1].strip()
+    return None
+
+
 def is_typed(norm: str) -> bool:
     """Does a literal for this type need converting (and checking at load time)?"""
     return norm not in ("any", "Any", "string")

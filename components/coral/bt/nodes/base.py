@@ -50,6 +50,7 @@ class NodeConfig:
         specs: dict[str, PortSpec],
         file: str = "",
         line: int = 0,
+        cpp_widths: bool = False,
     ) -> None:
         self.node_id = node_id
         self.uid = uid
@@ -60,6 +61,8 @@ class NodeConfig:
         self.specs = specs
         self.file = file
         self.line = line
+        # BT.CPP's own nodes: their integer ports have C++ widths (`ports.fits_integer`).
+        self.cpp_widths = cpp_widths
 
 
 class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
@@ -96,6 +99,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         self.port_specs = config.specs
         self.file = config.file
         self.line = config.line
+        self.cpp_widths = config.cpp_widths
         self._status: int = IDLE
         self.last_result: int = IDLE
         self._pre: list[tuple[int, Script]] | None = None

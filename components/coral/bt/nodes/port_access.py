@@ -8,7 +8,14 @@ from typing import TYPE_CHECKING, Any
 from coral.bt.anyvalue import kind_of
 from coral.bt.blackboard import EMPTY
 from coral.bt.errors import BTRuntimeError, ScriptError
-from coral.bt.ports import blackboard_key, coerce_value, convert_string, is_unsigned, normalize_type
+from coral.bt.ports import (
+    blackboard_key,
+    coerce_value,
+    convert_string,
+    fits_integer,
+    is_unsigned,
+    normalize_type,
+)
 
 if TYPE_CHECKING:
     from coral.bt.blackboard import Blackboard
@@ -26,6 +33,7 @@ class PortAccess:
     board: Blackboard
     rt: Runtime
     path: str
+    cpp_widths: bool
     _port_cache: dict[str, tuple[str | None, Any, str]]
 
     def _port(self, name: str) -> tuple[str | None, Any, str]:
@@ -71,13 +79,17 @@ class PortAccess:
             value = coerce_value(entry.value, type_name, self.rt.enums)
         except ValueError as err:
             raise BTRuntimeError(f"Missing parameter [{name}]: {err}", node_path=self.path) from None
-        if type_name == "int" and isinstance(value, int) and value < 0:
-            # "int" stands for every integer type; an unsigned port refuses what BT.CPP's cast does.
+        if type_name == "int" and isinstance(value, int) and not isinstance(value, bool):
+            # "int" stands for every integer type; the port's own type refuses what BT.CPP's cast does.
             spec = self.port_specs.get(name)
-            if spec is not None and is_unsigned(spec.type):
+            if spec is not None and not fits_integer(value, spec.type, self.cpp_widths):
+                reason = (
+                    "Value is negative and can't be converted to unsigned"
+                    if value < 0 and is_unsigned(spec.type)
+                    else f"Value out of bound when converting to {spec.type}"
+                )
                 raise BTRuntimeError(
-                    f"Missing parameter [{name}]: Value is negative and can't be converted to unsigned "
-                    f"(the entry [{key}] holds {value})",
+                    f"Missing parameter [{name}]: {reason} (the entry [{key}] holds {value})",
                     node_path=self.path,
                 )
         return value

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from coral.bt.anyvalue import text_to_double
 from coral.bt.errors import ScriptError
 
 _OPERATORS = [
@@ -39,6 +40,7 @@ _OPERATORS = [
     ";",
 ]
 _IDENT = re.compile(r"[A-Za-z_@][A-Za-z0-9_]*")
+_INT64_MAX = 2**63 - 1
 _HEX = re.compile(r"0[xX][0-9a-fA-F]+")
 _NUMBER = re.compile(r"[0-9]+(\.[0-9]+)?([eE][+-]?[0-9]+)?")
 
@@ -76,7 +78,20 @@ def tokenize(text: str) -> list[Token]:
                 assert m is not None
                 end = m.end()
                 lit = m.group(0)
-                value = float(lit) if (m.group(1) or m.group(2)) else int(lit)
+                if m.group(1) or m.group(2):
+                    try:
+                        value = text_to_double(lit)
+                    except ValueError:
+                        # BT.CPP reads the literal with std::stod, which refuses a number that
+                        # overflows or underflows a double, and the tree does not load.
+                        raise ScriptError(
+                            f"number '{lit}' is out of a double's range (stod) in [{text}]"
+                        ) from None
+                else:
+                    value = int(lit)
+            if isinstance(value, int) and value > _INT64_MAX:
+                # BT.CPP's grammar reads integer literals as int64 (a minus sign is an operator).
+                raise ScriptError(f"integer '{text[i:end]}' does not fit in 64 bits in [{text}]")
             if end < n and (text[end].isalnum() or text[end] in "_.@") and text[end : end + 2] != "..":
                 raise ScriptError(f"malformed number '{text[i : end + 1]}' in [{text}]")
             tokens.append(Token("num", value, i))
