@@ -81,6 +81,7 @@ def component_target(service: Service, known: dict[str, str] | None = None) -> s
 
 
 def render_command(template: list[str], project: Project, service: Service, paths: Paths) -> list[str]:
+    # The keys are compose.COMMAND_PLACEHOLDERS, which the compose parser checks commands against.
     values = {
         "plugins": str(paths.plugins),
         "params": str(project.params or ""),

@@ -27,6 +27,7 @@ import io
 import math
 import os
 import re
+import string
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,6 +40,8 @@ from coral.executor import MAX_TICK_RATE_HZ
 
 ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
 COMPOSE_NAMES = ("compose.yaml", "compose.yml", "docker-compose.yaml", "docker-compose.yml")
+# What `coral run` fills into an x-coral.command (coral.local.components.render_command).
+COMMAND_PLACEHOLDERS = ("python", "plugins", "params", "tree", "name", "output")
 # Docker Compose's rule for project names.
 PROJECT_NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
 SERVICE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -225,6 +228,24 @@ def _scalar(node: yaml.Node, file: Path, what: str, env: dict[str, str]) -> str:
     return interpolate(str(node.value), env, file, _line(node))
 
 
+def _check_placeholders(command: list[str], file: Path, line: int, service: str) -> None:
+    """Every `{placeholder}` of an x-coral.command must be one `coral run` fills in."""
+    for part in command:
+        try:
+            names = [name for _, name, _, _ in string.Formatter().parse(part) if name is not None]
+        except ValueError as err:
+            raise ComposeError(file, line, f"service {service}: x-coral.command {part!r}: {err}") from None
+        for name in names:
+            if name not in COMMAND_PLACEHOLDERS:
+                raise ComposeError(
+                    file,
+                    line,
+                    f"service {service}: x-coral.command has placeholder {{{name}}}; known: "
+                    + ", ".join(f"{{{known}}}" for known in COMMAND_PLACEHOLDERS)
+                    + " (write {{ and }} for braces)",
+                )
+
+
 def _read(file: Path) -> str:
     try:
         return userfiles.read_text(file)
@@ -347,6 +368,7 @@ def _service(name: str, key: yaml.Node, node: yaml.Node, file: Path, env: dict[s
                 if isinstance(node_, yaml.ScalarNode)
                 else _strings(node_, file, "command", env)
             )
+            _check_placeholders(service.command, file, _line(node_), name)
         if "component" in extension:
             service.component = _scalar(extension["component"][1], file, "component", env)
         if "transient" in extension:

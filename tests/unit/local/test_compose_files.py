@@ -151,6 +151,13 @@ def test_dotenv_values_are_parsed_by_dotenv_rules_and_interpolated(tmp_path: Pat
             "name: Mission\nservices: {}\n", None, r"compose.yaml:1: name 'Mission'", id="uppercase name"
         ),
         pytest.param(
+            "services:\n  d:\n    profiles: [drivers]\n    x-coral:\n"
+            "      command: ['{python}', '{plugin}']\n",
+            None,
+            r"compose.yaml:5: service d: x-coral.command has placeholder \{plugin\}; known: \{python\}",
+            id="unknown command placeholder",
+        ),
+        pytest.param(
             "x-coral:\n  ready_timeout_s: -5\nservices: {}\n",
             None,
             r"compose.yaml:2: ready_timeout_s must be a positive number, not '-5'",
