@@ -13,7 +13,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from coral import userfiles
+from coral import parsing
 from coral.bt.errors import BTLoadError
 from coral.bt.limits import IncludeBudget, check_document
 from coral.bt.model import NodeElement, TreeDef, TreeDocument
@@ -71,10 +71,10 @@ def load_tree_file(
 ) -> TreeDocument:
     path = os.path.abspath(os.fspath(path))
     try:
-        text = userfiles.read_text(path)
+        text = parsing.read_text(path)
     except OSError as err:
         raise BTLoadError(f"cannot read tree file: {err.strerror}", file=path) from None
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise BTLoadError(err.reason, file=path, line=err.line) from None
     return _load(text, path, os.path.dirname(path), registry, main_tree)
 
@@ -190,12 +190,12 @@ def _include(el: XmlElement, filename: str, base_dir: str, state: _State) -> Non
         chain = " -> ".join(state.stack + [target])
         raise BTLoadError(f"include cycle: {chain}", file=filename, line=el.line)
     try:
-        text = userfiles.read_text(target)
+        text = parsing.read_text(target)
     except OSError as err:
         raise BTLoadError(
             f"cannot read included file [{rel}]: {err.strerror}", file=filename, line=el.line
         ) from None
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise BTLoadError(err.reason, file=target, line=err.line) from None
     _parse_document(text, target, os.path.dirname(target), state)
 

@@ -6,13 +6,13 @@ get_input and the blackboard (converting strings written to typed entries).
 
 from __future__ import annotations
 
-import json
 import re
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from coral import parsing
 from coral.bt.anyvalue import STOD_PREFIX, bool_cast, exact_double, std_to_string, text_to_double, to_int64
 from coral.bt.status import PortDirection, parse_status
 
@@ -195,7 +195,7 @@ def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = 
     if type_name.startswith("list:"):
         elem = type_name[5:]
         if text.startswith("json:"):
-            data = json.loads(text[5:])
+            data = parsing.load_json(text[5:])
             if not isinstance(data, list):
                 raise ValueError(f"json literal '{text}' is not a list")
             return data

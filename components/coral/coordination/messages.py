@@ -10,6 +10,8 @@ import json
 import uuid
 from dataclasses import asdict, dataclass
 
+from coral import parsing
+
 TRIGGER_TOPIC = "/coral/coordination/triggers"
 ACK_TOPIC = "/coral/coordination/acks"
 VALUE_TOPIC = "/coral/coordination/values"
@@ -52,7 +54,7 @@ def encode(message: Trigger | Ack | SharedValue) -> str:
 
 def decode_trigger(text: str) -> Trigger | None:
     try:
-        raw = json.loads(text)
+        raw = parsing.load_json(text)
         return Trigger(str(raw["id"]), str(raw["sender"]), str(raw["target"]), str(raw["process"]))
     except (ValueError, KeyError, TypeError):
         return None
@@ -60,7 +62,7 @@ def decode_trigger(text: str) -> Trigger | None:
 
 def decode_ack(text: str) -> Ack | None:
     try:
-        raw = json.loads(text)
+        raw = parsing.load_json(text)
         return Ack(str(raw["id"]), str(raw["sender"]))
     except (ValueError, KeyError, TypeError):
         return None
@@ -68,7 +70,7 @@ def decode_ack(text: str) -> Ack | None:
 
 def decode_value(text: str) -> SharedValue | None:
     try:
-        raw = json.loads(text)
+        raw = parsing.load_json(text)
         return SharedValue(
             str(raw["id"]),
             str(raw["sender"]),

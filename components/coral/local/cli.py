@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 from rich.text import Text
 
-from coral import userfiles
+from coral import parsing
 from coral.local import polling, state
 
 # How `coral ps` colours run and component states on a terminal.
@@ -224,8 +224,8 @@ def logs_command(handle: str, services: tuple[str, ...], follow: bool) -> None:
 
 def _user_text(data: bytes, source: str) -> str:
     try:
-        return userfiles.decode(data)
-    except userfiles.NotText as err:
+        return parsing.decode(data)
+    except parsing.NotText as err:
         raise click.ClickException(f"{source}:{err.line}: {err.reason}") from None
 
 

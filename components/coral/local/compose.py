@@ -35,7 +35,7 @@ from typing import Any
 import yaml
 from dotenv.parser import parse_stream
 
-from coral import userfiles
+from coral import parsing
 from coral.executor import MAX_TICK_RATE_HZ
 
 ROLES = {"drivers": "driver", "skillsets": "skillset", "executors": "executor"}
@@ -248,10 +248,10 @@ def _check_placeholders(command: list[str], file: Path, line: int, service: str)
 
 def _read(file: Path) -> str:
     try:
-        return userfiles.read_text(file)
+        return parsing.read_text(file)
     except OSError as err:
         raise ComposeError(file, None, f"cannot read: {err.strerror}") from err
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise ComposeError(file, err.line, err.reason) from err
 
 
@@ -420,7 +420,7 @@ def parse_compose(file: Path, environ: dict[str, str] | None = None, *, lenient:
         placeholders, warnings = _placeholders_for_required(text, env, file)
         env.update(placeholders)
     try:
-        root = userfiles.compose_yaml(text)
+        root = parsing.compose_yaml(text)
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         raise ComposeError(

@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from coral import userfiles
+from coral import parsing
 from coral.local import checking
 
 _ROLES = ("drivers", "skillsets")
@@ -28,7 +28,7 @@ class _Inputs:
 def looks_like_manifests(text: str) -> bool:
     """Whether a YAML file holds Kubernetes objects (rather than a compose project)."""
     try:
-        documents = [d for d in userfiles.load_all_yaml(text) if isinstance(d, dict)]
+        documents = [d for d in parsing.load_all_yaml(text) if isinstance(d, dict)]
     except yaml.YAMLError:
         return False
     return any("apiVersion" in d and "kind" in d for d in documents)
@@ -37,7 +37,7 @@ def looks_like_manifests(text: str) -> bool:
 def _collect(text: str, source: str, problems: list[str]) -> _Inputs:
     inputs = _Inputs()
     try:
-        documents = userfiles.load_all_yaml(text)
+        documents = parsing.load_all_yaml(text)
     except yaml.YAMLError as err:
         problems.append(f"{source}: not YAML: {err}")
         return inputs

@@ -14,7 +14,7 @@ from typing import Literal
 
 import pydantic
 
-from coral import userfiles
+from coral import parsing
 
 SCHEMA_VERSION = 1
 MANIFEST_NAME = "manifest.json"
@@ -134,9 +134,11 @@ def palette_behaviors(plugins: Iterable[PluginManifest]) -> list[BehaviorEntry]:
 def parse_manifest(text: str, source: str) -> PluginManifest:
     """Parse manifest JSON; `source` (a file name) prefixes every error."""
     try:
-        raw = json.loads(text)
+        raw = parsing.load_json(text)
     except json.JSONDecodeError as err:
         raise ManifestError(f"{source}:{err.lineno}: invalid JSON: {err.msg}") from err
+    except ValueError as err:
+        raise ManifestError(f"{source}: invalid JSON: {err}") from err
     if not isinstance(raw, dict):
         raise ManifestError(f"{source}: manifest must be a JSON object")
     version = raw.get("schema_version")
@@ -153,9 +155,9 @@ def parse_manifest(text: str, source: str) -> PluginManifest:
 def read_manifest(plugin_dir: Path) -> PluginManifest:
     path = plugin_dir / MANIFEST_NAME
     try:
-        text = userfiles.read_text(path)
+        text = parsing.read_text(path)
     except OSError as err:
         raise ManifestError(f"{path}: cannot read: {err.strerror}") from err
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise ManifestError(f"{path}:{err.line}: {err.reason}") from err
     return parse_manifest(text, str(path))

@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from coral import userfiles
+from coral import parsing
 
 PARAMS_KEY = "ros__parameters"
 
@@ -66,7 +66,7 @@ def _check_node_entry(path: str, key: str, node: yaml.Node) -> None:
 def validate_text(text: str, path: str = "<params>") -> dict[str, Any]:
     """Checks a parameters document and returns it parsed; raises `ParamsError` naming file and line."""
     try:
-        root = userfiles.compose_yaml(text)
+        root = parsing.compose_yaml(text)
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
@@ -77,15 +77,15 @@ def validate_text(text: str, path: str = "<params>") -> dict[str, Any]:
         raise ParamsError(f"{_where(path, root)}: a parameters file must map node names to '{PARAMS_KEY}'")
     for key_node, value_node in root.value:
         _check_node_entry(path, str(key_node.value), value_node)
-    return userfiles.load_yaml(text) or {}
+    return parsing.load_yaml(text) or {}
 
 
 def validate_file(path: Path) -> dict[str, Any]:
     try:
-        text = userfiles.read_text(path)
+        text = parsing.read_text(path)
     except OSError as err:
         raise ParamsError(f"{path}: cannot read parameters file: {err.strerror}") from err
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise ParamsError(f"{path}:{err.line}: {err.reason}") from err
     return validate_text(text, str(path))
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 
+from coral import parsing
+
 # Every component publishes `Heartbeat` records here; executors watch it to detect dead skillsets.
 HEARTBEAT_TOPIC = "/coral/heartbeat"
 # Three beats per timeout. Every beat wakes the executors and the beating component's own rclpy
@@ -42,7 +44,7 @@ class Heartbeat:
     @classmethod
     def decode(cls, text: str) -> Heartbeat | None:
         try:
-            raw = json.loads(text)
+            raw = parsing.load_json(text)
             return cls(
                 str(raw["component"]),
                 str(raw["kind"]),
@@ -65,7 +67,7 @@ class CancelRequest:
     @classmethod
     def decode(cls, text: str) -> CancelRequest | None:
         try:
-            raw = json.loads(text)
+            raw = parsing.load_json(text)
             return cls(str(raw["service"]), str(raw["requester"]))
         except (ValueError, KeyError, TypeError):
             return None

@@ -8,9 +8,9 @@ object in `message`.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
+from coral import parsing
 from coral.bt import Status
 from coral.bt.leaves import ConditionNode, StatefulAction
 from coral.sdk.behaviors import ServiceBehavior
@@ -29,7 +29,7 @@ def optional_output(node: Any, port: str, value: Any) -> None:
 
 def _payload(response: Any) -> dict[str, Any]:
     try:
-        value = json.loads(response.message or "{}")
+        value = parsing.load_json(response.message or "{}")
     except ValueError:
         return {"error": response.message}
     return value if isinstance(value, dict) else {}
@@ -205,7 +205,7 @@ class IsDataExhausted(ConditionNode):
         if message is None:
             return Status.FAILURE
         try:
-            status = json.loads(message.data)
+            status = parsing.load_json(message.data)
         except ValueError:
             return Status.FAILURE
         self.feedback_message = f"{status.get('processed')} processed, {status.get('queued')} queued"

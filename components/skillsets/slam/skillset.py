@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from coral import parsing
 from coral.lidar import clouds
 from coral.sdk import CancelToken, Skillset
 from coral.sdk.streams import RawStream
@@ -177,7 +178,7 @@ class SlamSkillset(Skillset):
 
     def on_end(self, message: String) -> None:
         try:
-            signal = json.loads(message.data)
+            signal = parsing.load_json(message.data)
             done, published = bool(signal["done"]), dict(signal.get("published", {}))
         except (ValueError, KeyError, TypeError, AttributeError):
             self.get_logger().warning(f"Ignored a malformed end-of-data message: {message.data!r}")

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
+from coral import parsing
 from coral.bt import Status
 from coral.bt.leaves import StatefulAction
 from coral.sdk.calls import ServiceCall
@@ -44,7 +44,7 @@ class TakeSnapshot(StatefulAction):
             return status
         response: Any = self.call.response
         try:
-            payload = json.loads(response.message or "{}")
+            payload = parsing.load_json(response.message or "{}")
         except ValueError:
             payload = {"error": response.message}
         if not response.success:

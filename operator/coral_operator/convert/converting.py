@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from coral import bt, userfiles
+from coral import bt, parsing
 from pydantic import ValidationError
 
 from coral_operator.api import names
@@ -136,10 +136,10 @@ def _included_files(tree_file: Path) -> dict[str, str]:
 
 def _read(path: Path) -> str:
     try:
-        return userfiles.read_text(path)
+        return parsing.read_text(path)
     except OSError as err:
         raise ConvertError(f"{path}: cannot read: {err.strerror}") from err
-    except userfiles.NotText as err:
+    except parsing.NotText as err:
         raise ConvertError(f"{path}:{err.line}: {err.reason}") from err
 
 

@@ -16,7 +16,7 @@ import re
 from collections.abc import Mapping
 
 import yaml
-from coral import bt, userfiles
+from coral import bt, parsing
 from coral.bt.limits import IncludeBudget, TreeLimits, check_document
 from coral.bt.loader import IncludeResolver
 
@@ -99,7 +99,7 @@ def _static_problems(document: bt.TreeDocument, filename: str) -> list[str]:
 def validate_parameters(text: str, filename: str) -> list[str]:
     """Problems of a ROS parameters YAML, each `file:line: message`; empty when it is valid."""
     try:
-        document = userfiles.load_yaml(text)
+        document = parsing.load_yaml(text)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         line = mark.line + 1 if mark else 1

@@ -1,14 +1,17 @@
-"""Reading the files a user writes (compose, `.env`, parameters, trees): a file that is not UTF-8
-text, or YAML nested deeper than the parser's recursion can follow, is an error that names the file
-and the line, like any other mistake in it, never a traceback.
+"""Parsing text that comes from outside the process: the files a user writes (compose, `.env`,
+parameters, trees, manifests) and the JSON other processes send (heartbeats, plugin manifests,
+messages between robots). A file that is not UTF-8 text, or a document nested deeper than the
+parser's recursion can follow, is an error like any other mistake in it, never a traceback or a
+crashed thread.
 
 A stray Latin-1 byte (a `°` typed in an editor set to another encoding) or a truncated binary
-copied over a YAML file are mistakes a robotics team makes; PyYAML's composer recurses once per
-nesting level, so a few hundred unclosed `[` exhaust Python's stack.
+copied over a YAML file are mistakes a robotics team makes; PyYAML's composer and the json module
+recurse once per nesting level, so a few thousand unclosed `[` exhaust Python's stack.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from typing import Any
 
@@ -71,3 +74,11 @@ def load_all_yaml(text: str) -> list[Any]:
         return list(yaml.safe_load_all(text))
     except RecursionError:
         raise NestedTooDeep() from None
+
+
+def load_json(text: str | bytes) -> Any:
+    """`json.loads`, with too deep a nesting raised as a `ValueError` (as malformed JSON is)."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("the JSON nests too deeply to be read") from None
