@@ -474,3 +474,30 @@ def test_a_subtree_literal_under_autoremap_loads_and_fails_only_where_it_is_read
         host={"x": 1},
     )
     assert run.verdict == "TICKERR" and run.statuses == [ERROR] and run.boards[-1] == {"x": "1"}
+
+
+# 5. literals BT.CPP reads its own way ----------------------------------------------------------
+@pytest.mark.parametrize(
+    ("body", "verdict"),
+    [
+        # A NodeStatus literal is read when the node needs it, so a bad one fails at the tick.
+        ('<Precondition if="false" else="1"><AlwaysSuccess/></Precondition>', "TICKERR"),
+        ('<Precondition if="false" else="FAILURE"><AlwaysSuccess/></Precondition>', "LOADED"),
+        # A queue is text split on ';': `json:` belongs to vectors only.
+        ('<LoopString queue="json:[1,2]" value="{x}"><AlwaysSuccess/></LoopString>', "LOADED"),
+        ('<LoopInt queue="json:[1,2]" value="{x}"><AlwaysSuccess/></LoopInt>', "REJECT"),
+        # '+' is the sign of a decimal literal, not an operator.
+        ('<Script code="x := +3"/>', "LOADED"),
+        ('<Script code="x := 2 ++3.5"/>', "LOADED"),
+        ('<Script code="x := -+3"/>', "LOADED"),
+        ('<Script code="x := + 3"/>', "REJECT"),
+        ('<Script code="x := +0x10"/>', "REJECT"),
+        ('<Sequence><Script code="y := 1"/><Script code="x := +y"/></Sequence>', "REJECT"),
+        # A blank pre- or post-condition does not load.
+        ('<AlwaysSuccess _skipIf=""/>', "REJECT"),
+        ('<AlwaysSuccess _post=" "/>', "REJECT"),
+    ],
+)
+def test_literals_load_or_fail_where_bt_cpp_reads_them(body: str, verdict: str) -> None:
+    run = both(body)
+    assert run.verdict == verdict, run.error

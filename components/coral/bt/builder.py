@@ -6,7 +6,6 @@ the registry (file:line errors), uids in document order and BT.CPP-style full pa
 from __future__ import annotations
 
 import re
-from collections import deque
 from typing import Any
 
 from coral.bt.anyvalue import kind_of, text_to_double
@@ -18,14 +17,13 @@ from coral.bt.ports import (
     PortSpec,
     blackboard_key,
     convert_string,
-    element_type,
-    fits_integer,
     is_typed,
+    literal_fits,
     normalize_type,
 )
 from coral.bt.registry import BUILTIN_SOURCE, V3_SOURCE, NodeRegistry
 from coral.bt.runtime import Runtime
-from coral.bt.scripting import compile_script
+from coral.bt.scripting import compile_condition
 from coral.bt.status import NodeKind, PortDirection
 from coral.bt.tree import Tree
 from coral.bt.validation import verify_structure
@@ -62,17 +60,6 @@ def _async_children(el: NodeElement) -> int:
 
 def is_port_attribute(name: str) -> bool:
     return bool(name) and name[0].isalpha() and name not in RESERVED_ATTRS
-
-
-def _literal_fits(value: Any, type_name: str, cpp_widths: bool) -> bool:
-    """Whether a converted literal's integers fit the port's integer type, or its elements' (a
-    LoopInt queue of `std::deque<int>`)."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        return fits_integer(value, type_name, cpp_widths)
-    inner = element_type(type_name)
-    if inner is not None and isinstance(value, (list, deque)):
-        return all(_literal_fits(item, inner, cpp_widths) for item in value)
-    return True
 
 
 class _Builder:
@@ -182,12 +169,15 @@ class _Builder:
             if key == "=":
                 key = name
             if key is None:
-                if spec.direction != PortDirection.OUTPUT and is_typed(type_name) and name in ports:
+                # BT.CPP checks literals when the tree loads, except a NodeStatus: that one fails
+                # ("Missing parameter") when the node reads it.
+                checked = is_typed(type_name) and type_name != "NodeStatus"
+                if spec.direction != PortDirection.OUTPUT and checked and name in ports:
                     try:
                         value = convert_string(raw, type_name, self.runtime.enums)
                     except ValueError as err:
                         raise self.fail(el, f"port [{name}]: {err}", path) from None
-                    if not _literal_fits(value, spec.type, cpp_widths):
+                    if not literal_fits(value, spec.type, cpp_widths):
                         raise self.fail(
                             el,
                             f'The port with name "{name}" and value "{raw}" can not be converted '
@@ -232,7 +222,7 @@ class _Builder:
 
     def _script(self, el: NodeElement, attr: str, path: str) -> Any:
         try:
-            return compile_script(el.attrs[attr])
+            return compile_condition(el.attrs[attr])
         except ScriptError as err:
             raise self.fail(el, f"invalid script in {attr}: {err.message}", path) from None
 

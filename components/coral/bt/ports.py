@@ -130,6 +130,17 @@ def element_type(type_name: str) -> str | None:
     return None
 
 
+def literal_fits(value: Any, type_name: str, cpp_widths: bool) -> bool:
+    """Whether a converted literal's integers fit the port's integer type, or its elements' (a
+    LoopInt queue of `std::deque<int>`)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return fits_integer(value, type_name, cpp_widths)
+    inner = element_type(type_name)
+    if inner is not None and isinstance(value, (list, deque)):
+        return all(literal_fits(item, inner, cpp_widths) for item in value)
+    return True
+
+
 def is_typed(norm: str) -> bool:
     """Does a literal for this type need converting (and checking at load time)?"""
     return norm not in ("any", "Any", "string")
@@ -191,7 +202,9 @@ def convert_string(text: str, type_name: str, enums: Mapping[str, int] | None = 
     if type_name == "NodeStatus":
         return parse_status(text)
     if type_name.startswith("queue:"):
-        return deque(convert_string(text, "list:" + type_name[6:], enums))
+        # BT.CPP's queue converter splits on ';' only: `json:` is a vector's, not a queue's.
+        elem = type_name[6:]
+        return deque(convert_string(part, elem, enums) for part in text.split(";")) if text else deque()
     if type_name.startswith("list:"):
         elem = type_name[5:]
         if text.startswith("json:"):

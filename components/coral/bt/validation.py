@@ -10,8 +10,16 @@ from typing import TYPE_CHECKING
 
 from coral.bt.errors import BTLoadError, ScriptError
 from coral.bt.model import POST_CONDITIONS, PRE_CONDITIONS, NodeElement
-from coral.bt.ports import blackboard_key, convert_string, has_trailing_text, is_typed, normalize_type
-from coral.bt.scripting import compile_script
+from coral.bt.ports import (
+    blackboard_key,
+    convert_string,
+    has_trailing_text,
+    is_typed,
+    literal_fits,
+    normalize_type,
+)
+from coral.bt.registry import BUILTIN_SOURCE, V3_SOURCE
+from coral.bt.scripting import compile_condition, compile_script
 from coral.bt.status import NodeKind, PortDirection
 
 if TYPE_CHECKING:
@@ -87,7 +95,7 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
     for attr in PRE_CONDITIONS + POST_CONDITIONS:
         if attr in el.attrs:
             try:
-                compile_script(el.attrs[attr])
+                compile_condition(el.attrs[attr])
             except ScriptError as err:
                 out.append(_err(el, f"invalid script in {attr}: {err.message}"))
     if spec.kind == NodeKind.SUBTREE:
@@ -116,11 +124,14 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
                 out.append(_err(el, f"invalid script in [{key}]: {err.message}"))
             continue
         type_name = normalize_type(port.type)
-        if blackboard_key(value) is None and port.direction == PortDirection.INPUT and is_typed(type_name):
+        if blackboard_key(value) is None and port.direction != PortDirection.OUTPUT and is_typed(type_name):
             try:
-                convert_string(value, type_name, registry.enums)
+                converted = convert_string(value, type_name, registry.enums)
             except ValueError as err:
                 out.append(_err(el, f"port [{key}] expects {port.type}: {err}"))
+                continue
+            if not literal_fits(converted, port.type, spec.source in (BUILTIN_SOURCE, V3_SOURCE)):
+                out.append(_err(el, f"port [{key}] expects {port.type}: '{value}' is out of its range"))
             else:
                 # BT.CPP would silently use the numeric prefix; the static check points it out.
                 if value.strip() not in registry.enums and has_trailing_text(value, type_name):

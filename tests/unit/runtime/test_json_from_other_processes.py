@@ -1,11 +1,11 @@
 """JSON that other processes send (heartbeats, cancel requests, messages between robots, plugin
-manifests, a tree's `json:` literal) is refused like any malformed message when it nests deeper
+manifests, a vector port's `json:` literal) is refused like any malformed message when it nests deeper
 than the json module can follow, instead of raising RecursionError on a ROS thread."""
 
 from __future__ import annotations
 
 import pytest
-from coral import bt
+from coral.bt.ports import convert_string
 from coral.coordination import messages
 from coral.plugins import manifest as manifests
 from coral.sdk.topics import CancelRequest, Heartbeat
@@ -32,11 +32,7 @@ def test_a_plugin_manifest_nested_too_deeply_is_refused_with_its_file() -> None:
         manifests.parse_manifest(DEEP, "m.json")
 
 
-def test_a_json_literal_nested_too_deeply_is_a_load_error() -> None:
-    xml = (
-        '<root BTCPP_format="4"><BehaviorTree ID="M">'
-        f'<LoopString queue="json:{DEEP}" value="{{v}}"><AlwaysSuccess/></LoopString>'
-        "</BehaviorTree></root>"
-    )
-    with pytest.raises(bt.BTLoadError, match="the JSON nests too deeply"):
-        bt.load_tree_text(xml).build(bt.NodeRegistry.with_builtins())
+def test_a_vector_ports_json_literal_nested_too_deeply_is_refused() -> None:
+    # A `json:` literal is how a tree writes a std::vector port (a plugin's list port).
+    with pytest.raises(ValueError, match="the JSON nests too deeply"):
+        convert_string(f"json:{DEEP}", "list:int")

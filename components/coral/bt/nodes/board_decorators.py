@@ -27,7 +27,7 @@ class LoopBase(DecoratorNode):
         self.current: deque[Any] | None = None
         raw = config.ports.get("queue")
         if raw is not None and blackboard_key(raw) is None:
-            self.static_queue = list(convert_string(raw, "list:" + self.ELEMENT, self.rt.enums))
+            self.static_queue = list(convert_string(raw, "queue:" + self.ELEMENT, self.rt.enums))
 
     def tick(self) -> int:
         popped = False
@@ -67,7 +67,7 @@ class LoopBase(DecoratorNode):
         if isinstance(value, str):
             # BT.CPP 4.10 also reads a queue written as text ("1;2;3").
             try:
-                converted = deque(convert_string(value, "list:" + self.ELEMENT, self.rt.enums))
+                converted = deque(convert_string(value, "queue:" + self.ELEMENT, self.rt.enums))
             except ValueError as err:
                 raise BTRuntimeError(f"[queue]: {err}", node_path=self.path) from None
             entry.value = converted

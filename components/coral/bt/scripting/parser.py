@@ -141,6 +141,18 @@ class _Parser:
         finally:
             self.nesting -= 1
 
+    def _signed_number(self, plus: Token) -> bool:
+        # BT.CPP has no unary plus: a '+' written against a decimal number is that number's sign
+        # (`+3`, `2 ++3`), while `+ 3`, `+x`, `+0x10` and `++3` do not parse.
+        following = self.peek()
+        at = following.pos
+        return (
+            following.kind == "num"
+            and at == plus.pos + 1
+            and self.text[at].isdigit()
+            and self.text[at : at + 2].lower() != "0x"
+        )
+
     def prefix(self) -> Fn:
         tok = self.next()
         if tok.kind == "num" or tok.kind == "str":
@@ -153,6 +165,9 @@ class _Parser:
                 inner = self.expression(1)
                 self.expect(")")
                 return inner
+            if tok.value == "+" and self._signed_number(tok):
+                value = self.next().value
+                return lambda env: value
             if tok.value in ("-", "!", "~"):
                 operand = self.expression(10)
                 return _unary(str(tok.value), operand)
@@ -320,6 +335,14 @@ def _unary(op: str, operand: Fn) -> Fn:
         raise ScriptError(f"ExprUnaryArithmetic: undefined (the operand of [{op}] is not initialized)")
 
     return run
+
+
+def compile_condition(text: str) -> Callable[[ScriptEnv], Any]:
+    """A pre- or post-condition attribute (`_skipIf`, `_post`, ...): BT.CPP refuses a blank one
+    when the tree loads."""
+    if not text.strip():
+        raise ScriptError(f'Error in the script "{text}": Empty Script')
+    return compile_script(text)
 
 
 def compile_script(text: str) -> Callable[[ScriptEnv], Any]:
