@@ -493,6 +493,18 @@ def test_a_subtree_literal_under_autoremap_loads_and_fails_only_where_it_is_read
         ('<Script code="x := + 3"/>', "REJECT"),
         ('<Script code="x := +0x10"/>', "REJECT"),
         ('<Sequence><Script code="y := 1"/><Script code="x := +y"/></Sequence>', "REJECT"),
+        # Text written into an entry a built-in port declared must fit the port's C++ width.
+        (
+            '<Sequence><SetBlackboard output_key="x" value="2147483648"/><Repeat num_cycles="{x}">'
+            "<AlwaysFailure/></Repeat></Sequence>",
+            "TICKERR",
+        ),
+        ('<Sequence><SetBlackboard output_key="x" value="-1"/><Sleep msec="{x}"/></Sequence>', "TICKERR"),
+        (
+            '<Sequence><SetBlackboard output_key="x" value="1;2147483648"/><LoopInt queue="{x}" value="{v}">'
+            "<AlwaysSuccess/></LoopInt></Sequence>",
+            "TICKERR",
+        ),
         # A blank pre- or post-condition does not load.
         ('<AlwaysSuccess _skipIf=""/>', "REJECT"),
         ('<AlwaysSuccess _post=" "/>', "REJECT"),

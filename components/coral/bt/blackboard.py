@@ -32,13 +32,16 @@ def parses_text(type_name: str) -> bool:
 
 
 class Entry:
-    __slots__ = ("value", "type", "seq", "stamp")
+    __slots__ = ("value", "type", "seq", "stamp", "cpp_type")
 
     def __init__(self, type_name: str = "any", value: Any = EMPTY) -> None:
         self.value = value
         self.type = type_name
         self.seq = 0
         self.stamp = 0.0
+        # The C++ type of the built-in node's port that declared the entry (`int`, `unsigned`,
+        # `std::deque<int>`): text written into it must fit that width (`ports.literal_fits`).
+        self.cpp_type: str | None = None
 
     def touch(self) -> None:
         self.seq += 1

@@ -190,9 +190,11 @@ class _Builder:
                 # BT.CPP creates every remapped entry (empty, declared with the port's type) at
                 # construction; an entry a first port left untyped is never typed later on.
                 try:
-                    board.create_entry(key, type_name)
+                    created = board.create_entry(key, type_name)
                 except ScriptError as err:
                     raise self.fail(el, err.message, path) from None
+                if cpp_widths and created.type == type_name:
+                    created.cpp_type = spec.type
             elif (
                 strongly_typed(existing.type)
                 and strongly_typed(type_name)

@@ -10,7 +10,7 @@ from coral.bt.errors import BTLoadError, BTRuntimeError, ScriptError
 from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
 from coral.bt.nodes.base import NodeConfig
 from coral.bt.nodes.board_decorators import entry_key
-from coral.bt.ports import PortSpec, blackboard_key, convert_string
+from coral.bt.ports import PortSpec, blackboard_key, convert_string, literal_fits
 from coral.bt.runtime import Timer
 from coral.bt.scripting import compile_script
 from coral.bt.scripting.values import truthy
@@ -135,12 +135,19 @@ class SetBlackboard(SyncAction):
                     node_path=self.path,
                 )
             if parses_text(dst.type):
+                text = value
                 try:
-                    value = convert_string(value, dst.type, self.rt.enums)
+                    value = convert_string(text, dst.type, self.rt.enums)
                 except ValueError as err:
                     raise BTRuntimeError(
-                        f"Can't convert string [{value}] to type [{dst.type}]: {err}", node_path=self.path
+                        f"Can't convert string [{text}] to type [{dst.type}]: {err}", node_path=self.path
                     ) from None
+                if dst.cpp_type is not None and not literal_fits(value, dst.cpp_type, cpp_widths=True):
+                    raise BTRuntimeError(
+                        f"Can't convert string [{text}] to type [{dst.cpp_type}]: Value out of bound "
+                        f"when converting [{text}] to integer",
+                        node_path=self.path,
+                    )
                 # Parsed into the entry's own type (a queue, say), which set() must know.
                 parsed_as = dst.type
             elif not strongly_typed(dst.type):
