@@ -21,7 +21,7 @@ from coral.bt.ports import (
     literal_fits,
     normalize_type,
 )
-from coral.bt.registry import BUILTIN_SOURCE, V3_SOURCE, NodeRegistry
+from coral.bt.registry import NodeRegistry
 from coral.bt.runtime import Runtime
 from coral.bt.scripting import compile_condition
 from coral.bt.status import NodeKind, PortDirection
@@ -96,7 +96,7 @@ class _Builder:
             path += f"::{uid}"
         specs = {p.name: p for p in spec.ports}
         ports: dict[str, str] = {}
-        cpp_widths = spec.source in (BUILTIN_SOURCE, V3_SOURCE)
+        cpp_widths = spec.is_builtin
         if spec.kind != NodeKind.SUBTREE:
             for key, value in el.attrs.items():
                 if not is_port_attribute(key):

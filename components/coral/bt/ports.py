@@ -28,23 +28,25 @@ class PortSpec:
     """The node cannot run without this port (BT.CPP finds out at the first tick; we at load time)."""
 
 
-_INT = {
-    "int",
-    "int32",
-    "int64",
-    "long",
-    "unsigned",
-    "unsigned int",
-    "uint",
-    "uint32",
-    "uint64",
-    "size_t",
-    "int32_t",
-    "int64_t",
-    "uint32_t",
-    "uint64_t",
-    "unsigned long",
-    "short",
+# Every C++ integer type a port may name, with its width and whether it is signed: BT.CPP's own
+# nodes have these widths (`fits_integer`), and all of them normalize to "int".
+_CPP_INT_BITS = {
+    "short": (16, True),
+    "int": (32, True),
+    "int32": (32, True),
+    "int32_t": (32, True),
+    "unsigned": (32, False),
+    "unsigned int": (32, False),
+    "uint": (32, False),
+    "uint32": (32, False),
+    "uint32_t": (32, False),
+    "long": (64, True),
+    "int64": (64, True),
+    "int64_t": (64, True),
+    "unsigned long": (64, False),
+    "uint64": (64, False),
+    "uint64_t": (64, False),
+    "size_t": (64, False),
 }
 _FLOAT = {"double", "float"}
 _STRING = {"string", "std::string", "str", "script"}
@@ -63,7 +65,7 @@ def normalize_type(type_name: str) -> str:
         return "Any"
     if low in _STRING:
         return "string"
-    if low in _INT:
+    if low in _CPP_INT_BITS:
         return "int"
     if low in _FLOAT:
         return "double"
@@ -83,29 +85,8 @@ def normalize_type(type_name: str) -> str:
 def is_unsigned(type_name: str) -> bool:
     """An unsigned C++ integer type, which "int" (every integer type's normalized name) does not say."""
     low = type_name.strip().lower()
-    return low in _INT and (low.startswith(("unsigned", "uint")) or low == "size_t")
-
-
-# The widths of C++ integer types, for the ports of BT.CPP's own nodes: their `int` is 32 bits and
-# their `unsigned` too, and a literal outside the type is refused when the tree is created.
-_CPP_INT_BITS = {
-    "short": (16, True),
-    "int": (32, True),
-    "int32": (32, True),
-    "int32_t": (32, True),
-    "unsigned": (32, False),
-    "unsigned int": (32, False),
-    "uint": (32, False),
-    "uint32": (32, False),
-    "uint32_t": (32, False),
-    "long": (64, True),
-    "int64": (64, True),
-    "int64_t": (64, True),
-    "unsigned long": (64, False),
-    "uint64": (64, False),
-    "uint64_t": (64, False),
-    "size_t": (64, False),
-}
+    bits_signed = _CPP_INT_BITS.get(low)
+    return bits_signed is not None and not bits_signed[1]
 
 
 def fits_integer(value: int, type_name: str, cpp_widths: bool) -> bool:

@@ -24,6 +24,12 @@ class NodeSpec:
     source: str | None = None
     cls: type[TreeNode] | None = None
 
+    @property
+    def is_builtin(self) -> bool:
+        """One of BT.CPP's own nodes (or a v3 name for one), not a plugin's: its integer ports have
+        C++ widths (`ports.fits_integer`)."""
+        return self.source in (BUILTIN_SOURCE, V3_SOURCE)
+
     def port(self, name: str) -> PortSpec | None:
         for p in self.ports:
             if p.name == name:
@@ -136,5 +142,5 @@ class NodeRegistry:
         False (Groot2 knows them already)."""
         specs = (self._specs[node_id] for node_id in self.node_ids())
         if only_plugins:
-            specs = (spec for spec in specs if spec.source not in (BUILTIN_SOURCE, V3_SOURCE))
+            specs = (spec for spec in specs if not spec.is_builtin)
         return treenodesmodel.build_tree_nodes_model(specs)

@@ -18,7 +18,6 @@ from coral.bt.ports import (
     literal_fits,
     normalize_type,
 )
-from coral.bt.registry import BUILTIN_SOURCE, V3_SOURCE
 from coral.bt.scripting import compile_condition, compile_script
 from coral.bt.status import NodeKind, PortDirection
 
@@ -130,7 +129,7 @@ def _check_element(el: NodeElement, doc: TreeDocument, registry: NodeRegistry) -
             except ValueError as err:
                 out.append(_err(el, f"port [{key}] expects {port.type}: {err}"))
                 continue
-            if not literal_fits(converted, port.type, spec.source in (BUILTIN_SOURCE, V3_SOURCE)):
+            if not literal_fits(converted, port.type, spec.is_builtin):
                 out.append(_err(el, f"port [{key}] expects {port.type}: '{value}' is out of its range"))
             else:
                 # BT.CPP would silently use the numeric prefix; the static check points it out.
