@@ -4,7 +4,14 @@ Plugged into the executor with `--sink coral.executor.kubernetes_sink:create_sin
 puts it in the executor's default command). It patches only when the summary changed, at most
 once per `min_interval_s`, with the last pending summary flushed by a background thread and on
 close. It authenticates as the robot's executor ServiceAccount, whose Role allows nothing but
-this status patch. A failed patch is logged once per kind of error and retried with the next change.
+this status patch.
+
+A robot's link to the API server comes and goes, so every patch has a deadline
+(`REQUEST_TIMEOUT_S`): a request that stalls on a dead connection would otherwise hold the sink
+forever, freezing the robot's status and keeping a finished executor from exiting. A failed patch
+is retried by the background thread with a growing pause (up to `RETRY_MAX_S`) even when the
+summary does not change again, which is the case once a tree has ended; closing keeps trying for
+`close_grace_s`. An outage is logged when it starts (once per kind of error) and when it ends.
 """
 
 from __future__ import annotations
@@ -21,6 +28,15 @@ from coral_operator.api import keys, names
 
 LOG = logging.getLogger(__name__)
 Patcher = Callable[[dict[str, Any]], None]
+
+# (connect, read) seconds. A status patch answers in milliseconds; the read deadline leaves room
+# for an API server under load without letting a dead connection hold the sink for long.
+REQUEST_TIMEOUT_S = (5.0, 10.0)
+# Pauses after consecutive failed patches double from 1 s up to this, so a fleet whose API server
+# is away does not hammer it on its return.
+RETRY_MAX_S = 30.0
+# How long closing waits for the last summary to land: within a pod's default 30 s grace period.
+CLOSE_GRACE_S = 20.0
 
 
 def _rfc3339(seconds: float | None) -> str | None:
@@ -99,23 +115,26 @@ class KubernetesStatusSink:
         patcher: Patcher,
         *,
         min_interval_s: float = 1.0,
+        close_grace_s: float = CLOSE_GRACE_S,
         clock: Callable[[], float] = time.monotonic,
         wall: Callable[[], float] = time.time,
         background: bool = True,
     ) -> None:
         self._patcher = patcher
         self._interval = min_interval_s
+        self._close_grace = close_grace_s
         self._clock = clock
         self._wall = wall
         self._state: dict[str, Any] = {}
         self._written: dict[str, Any] = {}
-        self._last_write = float("-inf")
+        self._not_before = float("-inf")
+        self._failures = 0
         self._lock = threading.Lock()
         # One patch at a time, so patches land in the order their states were taken: a stale patch
         # still in flight must not overwrite the final one.
         self._sending = threading.Lock()
         self._wake = threading.Event()
-        self._closed = False
+        self._closing = threading.Event()
         self._errors: set[str] = set()
         self.patches = 0
         self._thread: threading.Thread | None = None
@@ -126,13 +145,24 @@ class KubernetesStatusSink:
     def emit(self, record: dict[str, Any]) -> None:
         with self._lock:
             self._state = summarize(self._state, record)
-        self.flush(force=False)
+        if self._thread is not None:
+            # The tick thread never waits on the API server: the background thread sends.
+            self._wake.set()
+        else:
+            self.flush(force=False)
+
+    @property
+    def pending(self) -> bool:
+        """Whether the summary has changed since the last patch that landed."""
+        with self._lock:
+            return self._state != self._written
 
     def flush(self, *, force: bool) -> bool:
-        """Patch if the summary changed and the rate limit allows (or `force`); True if it patched.
+        """Patch if the summary changed and the rate limit (or a failure's pause) allows, or `force`;
+        True if it patched.
 
         A forced flush waits for a patch in flight; otherwise a flush that finds one leaves the
-        change to the background loop, so the tick thread never waits on the API server."""
+        change to the background loop."""
         if not self._sending.acquire(blocking=force):
             self._wake.set()
             return False
@@ -145,48 +175,85 @@ class KubernetesStatusSink:
         with self._lock:
             if self._state == self._written:
                 return False
-            if not force and self._clock() - self._last_write < self._interval:
+            if not force and self._clock() < self._not_before:
                 self._wake.set()
                 return False
             state = {key: dict(value) for key, value in self._state.items()}
-            self._last_write = self._clock()
+            self._not_before = self._clock() + self._interval
         if keys.INSTANCE_STATUS.tree in state:
             state[keys.INSTANCE_STATUS.tree][keys.TREE.updated_at] = _rfc3339(self._wall())
         try:
             self._patcher({"status": state})
         except Exception as error:  # noqa: BLE001 - a sink must never stop the mission
-            kind = type(error).__name__ + str(getattr(error, "status", ""))
-            if kind not in self._errors:
-                self._errors.add(kind)
-                LOG.warning("Status patch of the CoralInstance failed: %s", error)
+            self._failed(error)
             return False
         with self._lock:
             for key in state:
                 self._written[key] = {k: v for k, v in state[key].items() if k != keys.TREE.updated_at}
             self.patches += 1
+            failures, self._failures = self._failures, 0
+            self._errors.clear()
+        if failures:
+            LOG.warning("Status patches of the CoralInstance land again, after %d failed", failures)
         return True
 
+    def _failed(self, error: Exception) -> None:
+        kind = type(error).__name__ + str(getattr(error, "status", ""))
+        with self._lock:
+            self._failures += 1
+            pause = min(2.0 ** (self._failures - 1), RETRY_MAX_S)
+            self._not_before = self._clock() + max(self._interval, pause)
+            first_of_kind = kind not in self._errors
+            self._errors.add(kind)
+        if first_of_kind:
+            LOG.warning("Status patch of the CoralInstance failed (retrying): %s", error)
+        # Retried without waiting for the next change: a finished tree has none.
+        self._wake.set()
+
     def _flush_loop(self) -> None:
-        while not self._closed:
+        while True:
             self._wake.wait()
             self._wake.clear()
-            if self._closed:
+            if self._closing.is_set():
                 return
-            delay = self._interval - (self._clock() - self._last_write)
-            if delay > 0:
-                time.sleep(min(delay, self._interval))
+            delay = self._not_before - self._clock()
+            if delay > 0 and self._closing.wait(delay):
+                return
             self.flush(force=False)
 
     def close(self) -> None:
-        self._closed = True
+        """Stops the background thread and patches the last summary, retrying for `close_grace_s`."""
+        deadline = time.monotonic() + self._close_grace
+        self._closing.set()
         self._wake.set()
         if self._thread is not None:
-            self._thread.join(timeout=self._interval + 5.0)
-        self.flush(force=True)
+            # A patch in flight ends within its request timeout.
+            self._thread.join(timeout=max(0.0, deadline - time.monotonic()))
+        while self.pending:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not self._sending.acquire(timeout=remaining):
+                LOG.warning("The tree's last status was not written: the API server did not take it in time")
+                return
+            try:
+                if self._send(force=True):
+                    return
+            finally:
+                self._sending.release()
+            with self._lock:
+                pause = self._not_before - self._clock()
+            time.sleep(min(max(pause, 0.0), max(0.0, deadline - time.monotonic())))
 
 
-def build_patcher(api_client: Any, namespace: str, instance: str, *, api: Any = None) -> Patcher:
-    """A patcher that merge-patches `coralinstances/<instance>/status` through `api_client`.
+def build_patcher(
+    api_client: Any,
+    namespace: str,
+    instance: str,
+    *,
+    api: Any = None,
+    timeout: tuple[float, float] = REQUEST_TIMEOUT_S,
+) -> Patcher:
+    """A patcher that merge-patches `coralinstances/<instance>/status` through `api_client`, each
+    request bounded by `timeout` (connect, read seconds).
 
     `api` replaces the client's CustomObjectsApi (the contract test records the address with it).
     """
@@ -204,6 +271,7 @@ def build_patcher(api_client: Any, namespace: str, instance: str, *, api: Any = 
             instance,
             body,
             _content_type="application/merge-patch+json",
+            _request_timeout=timeout,
         )
 
     return patch

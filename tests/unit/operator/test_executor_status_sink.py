@@ -1,10 +1,20 @@
-"""The executor's Kubernetes sink patches the instance's status on change, rate limited."""
+"""The executor's Kubernetes sink patches the instance's status on change, rate limited, and gets the
+last one through an API server that stalls or refuses for a while."""
 
 from __future__ import annotations
 
+import json
+import logging
+import threading
+import time
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
+import pytest
 from coral.executor import kubernetes_sink as sink
+from coral_testbed.waiting import wait_for
+from kubernetes import client as k8s
 
 
 class Clock:
@@ -99,3 +109,116 @@ def test_a_failing_patch_never_raises_into_the_executor() -> None:
     status_sink = sink.KubernetesStatusSink(refuse, clock=Clock(), background=False)
     status_sink.emit(_status("RUNNING", 1))
     assert status_sink.patches == 0
+
+
+class ApiServerStandIn:
+    """A real HTTP server on 127.0.0.1 that answers each status patch as scripted: "stall" (reads
+    the request and never answers, as over a link that died mid-request), an HTTP status code, or
+    "ok" once the script runs out. It records every patch body it accepted."""
+
+    def __init__(self, script: list[str | int]) -> None:
+        self.script = list(script)
+        self.accepted: list[dict[str, Any]] = []
+        self.requests = 0
+        self.release = threading.Event()
+        stand_in = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_PATCH(self) -> None:  # noqa: N802 - the http.server hook's name
+                body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+                stand_in.requests += 1
+                answer = stand_in.script.pop(0) if stand_in.script else "ok"
+                if answer == "stall":
+                    stand_in.release.wait(timeout=30)
+                    self.close_connection = True
+                    return
+                code = 200 if answer == "ok" else int(answer)
+                if code == 200:
+                    stand_in.accepted.append(body)
+                payload = b"{}"
+                self.send_response(code)
+                self.send_header("Content-Type", "application/json")
+                self.send_header("Content-Length", str(len(payload)))
+                self.end_headers()
+                self.wfile.write(payload)
+
+            def log_message(self, *_: Any) -> None:
+                pass
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.server.daemon_threads = True
+        threading.Thread(target=self.server.serve_forever, daemon=True).start()
+
+    def patcher(self, timeout: tuple[float, float]) -> sink.Patcher:
+        configuration = k8s.Configuration()
+        configuration.host = f"http://127.0.0.1:{self.server.server_address[1]}"
+        return sink.build_patcher(k8s.ApiClient(configuration), "fleet", "patrol-r1", timeout=timeout)
+
+    def last_tree(self) -> dict[str, Any]:
+        return self.accepted[-1]["status"]["tree"] if self.accepted else {}
+
+    def stop(self) -> None:
+        self.release.set()
+        self.server.shutdown()
+        self.server.server_close()
+
+
+@pytest.fixture
+def stand_in(request: pytest.FixtureRequest) -> Iterator[ApiServerStandIn]:
+    server = ApiServerStandIn(request.param)
+    yield server
+    server.stop()
+
+
+@pytest.mark.parametrize("stand_in", [["stall"]], indirect=True)
+def test_a_stalled_patch_is_given_up_and_the_finished_tree_still_reaches_its_instance(
+    stand_in: ApiServerStandIn,
+) -> None:
+    status_sink = sink.KubernetesStatusSink(stand_in.patcher(timeout=(1.0, 0.5)), min_interval_s=0.05)
+    try:
+        started = time.monotonic()
+        status_sink.emit(_status("RUNNING", 1))
+        assert time.monotonic() - started < 0.1, "the tick thread must not wait on the API server"
+        wait_for(lambda: stand_in.requests == 1, timeout=5, message="the first patch to reach the server")
+        status_sink.emit(_status("SUCCESS", 9))
+        # No record follows the last one: the sink must retry by itself.
+        wait_for(
+            lambda: stand_in.last_tree().get("rootStatus") == "SUCCESS",
+            timeout=10,
+            message=lambda: f"SUCCESS patched after the stall; server saw {stand_in.requests} requests",
+        )
+    finally:
+        status_sink.close()
+    assert stand_in.last_tree()["tickCount"] == 9
+
+
+@pytest.mark.parametrize("stand_in", [[503, 503]], indirect=True)
+def test_a_refused_last_status_is_retried_until_the_api_server_takes_it(stand_in: ApiServerStandIn) -> None:
+    status_sink = sink.KubernetesStatusSink(stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05)
+    try:
+        status_sink.emit(_status("FAILURE", 4))
+        wait_for(
+            lambda: stand_in.last_tree().get("rootStatus") == "FAILURE",
+            timeout=15,
+            message=lambda: f"FAILURE patched after two refusals; server saw {stand_in.requests} requests",
+        )
+    finally:
+        status_sink.close()
+    assert stand_in.requests == 3
+
+
+@pytest.mark.parametrize("stand_in", [["stall"] * 20], indirect=True)
+def test_closing_gives_up_after_its_grace_when_the_api_server_never_answers(
+    stand_in: ApiServerStandIn, caplog: pytest.LogCaptureFixture
+) -> None:
+    status_sink = sink.KubernetesStatusSink(
+        stand_in.patcher(timeout=(0.5, 0.3)), min_interval_s=0.05, close_grace_s=1.0
+    )
+    status_sink.emit(_status("SUCCESS", 3))
+    started = time.monotonic()
+    with caplog.at_level(logging.WARNING):
+        status_sink.close()
+    # The grace, plus at most one request's deadline already under way.
+    assert time.monotonic() - started < 1.0 + 0.8 + 0.5
+    assert stand_in.accepted == [] and status_sink.patches == 0
+    assert "last status was not written" in caplog.text
