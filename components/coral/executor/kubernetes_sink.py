@@ -10,8 +10,11 @@ A robot's link to the API server comes and goes, so every patch has a deadline
 (`REQUEST_TIMEOUT_S`): a request that stalls on a dead connection would otherwise hold the sink
 forever, freezing the robot's status and keeping a finished executor from exiting. A failed patch
 is retried by the background thread with a growing pause (up to `RETRY_MAX_S`) even when the
-summary does not change again, which is the case once a tree has ended; closing keeps trying for
-`close_grace_s`. An outage is logged when it starts (once per kind of error) and when it ends.
+summary does not change again, which is the case once a tree has ended. Closing keeps trying for
+`finished_grace_s` when the tree ended by itself (its result is what the mission is for, and a
+robot that finished out of reach reports it when it is back), or for `close_grace_s` when a
+signal stopped it (within the pod's grace period). An outage is logged when it starts (once per
+kind of error) and when it ends.
 """
 
 from __future__ import annotations
@@ -35,8 +38,13 @@ REQUEST_TIMEOUT_S = (5.0, 10.0)
 # Pauses after consecutive failed patches double from 1 s up to this, so a fleet whose API server
 # is away does not hammer it on its return.
 RETRY_MAX_S = 30.0
-# How long closing waits for the last summary to land: within a pod's default 30 s grace period.
+# How long closing waits for the last summary to land after a signal: within a pod's default 30 s
+# grace period.
 CLOSE_GRACE_S = 20.0
+# ... and after the tree ended by itself, when nothing is waiting for the process to go.
+FINISHED_GRACE_S = 600.0
+# The executor's exit codes from 128 on mean a signal stopped it (`coral.executor.running`).
+_STOPPED_BY_SIGNAL = 128
 
 
 def _rfc3339(seconds: float | None) -> str | None:
@@ -116,6 +124,7 @@ class KubernetesStatusSink:
         *,
         min_interval_s: float = 1.0,
         close_grace_s: float = CLOSE_GRACE_S,
+        finished_grace_s: float = FINISHED_GRACE_S,
         clock: Callable[[], float] = time.monotonic,
         wall: Callable[[], float] = time.time,
         background: bool = True,
@@ -123,6 +132,8 @@ class KubernetesStatusSink:
         self._patcher = patcher
         self._interval = min_interval_s
         self._close_grace = close_grace_s
+        self._finished_grace = finished_grace_s
+        self._ended_by_itself = False
         self._clock = clock
         self._wall = wall
         self._state: dict[str, Any] = {}
@@ -145,6 +156,8 @@ class KubernetesStatusSink:
     def emit(self, record: dict[str, Any]) -> None:
         with self._lock:
             self._state = summarize(self._state, record)
+            if record.get("event") == "finished":
+                self._ended_by_itself = int(record.get("exit_code") or 0) < _STOPPED_BY_SIGNAL
         if self._thread is not None:
             # The tick thread never waits on the API server: the background thread sends.
             self._wake.set()
@@ -222,13 +235,16 @@ class KubernetesStatusSink:
             self.flush(force=False)
 
     def close(self) -> None:
-        """Stops the background thread and patches the last summary, retrying for `close_grace_s`."""
-        deadline = time.monotonic() + self._close_grace
+        """Stops the background thread and patches the last summary, retrying for `finished_grace_s`
+        after a tree that ended by itself, else for `close_grace_s`."""
+        grace = self._finished_grace if self._ended_by_itself else self._close_grace
+        deadline = time.monotonic() + grace
         self._closing.set()
         self._wake.set()
         if self._thread is not None:
             # A patch in flight ends within its request timeout.
             self._thread.join(timeout=max(0.0, deadline - time.monotonic()))
+        warned = False
         while self.pending:
             remaining = deadline - time.monotonic()
             if remaining <= 0 or not self._sending.acquire(timeout=remaining):
@@ -239,6 +255,9 @@ class KubernetesStatusSink:
                     return
             finally:
                 self._sending.release()
+            if not warned:
+                warned = True
+                LOG.warning("Trying for up to %.0f s more to write the tree's last status", remaining)
             with self._lock:
                 pause = self._not_before - self._clock()
             time.sleep(min(max(pause, 0.0), max(0.0, deadline - time.monotonic())))
@@ -298,4 +317,9 @@ def create_sink(options: dict[str, Any]) -> KubernetesStatusSink:
     # Named in audit logs and as the field manager of its writes in managedFields.
     api.user_agent = names.EXECUTOR_MANAGER
     interval = float(options.get("min_interval_s") or os.environ.get("CORAL_STATUS_MIN_INTERVAL_S", "1.0"))
-    return KubernetesStatusSink(build_patcher(api, namespace, instance), min_interval_s=interval)
+    finished_grace = float(
+        options.get("finished_grace_s") or os.environ.get("CORAL_STATUS_FINISHED_GRACE_S", FINISHED_GRACE_S)
+    )
+    return KubernetesStatusSink(
+        build_patcher(api, namespace, instance), min_interval_s=interval, finished_grace_s=finished_grace
+    )

@@ -193,28 +193,29 @@ def test_a_stalled_patch_is_given_up_and_the_finished_tree_still_reaches_its_ins
 
 
 @pytest.mark.parametrize("stand_in", [[503, 503]], indirect=True)
-def test_a_refused_last_status_is_retried_until_the_api_server_takes_it(stand_in: ApiServerStandIn) -> None:
-    status_sink = sink.KubernetesStatusSink(stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05)
-    try:
-        status_sink.emit(_status("FAILURE", 4))
-        wait_for(
-            lambda: stand_in.last_tree().get("rootStatus") == "FAILURE",
-            timeout=15,
-            message=lambda: f"FAILURE patched after two refusals; server saw {stand_in.requests} requests",
-        )
-    finally:
-        status_sink.close()
+def test_a_tree_that_ended_by_itself_waits_past_the_signal_grace_for_its_result_to_land(
+    stand_in: ApiServerStandIn,
+) -> None:
+    status_sink = sink.KubernetesStatusSink(
+        stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05, close_grace_s=0.5, finished_grace_s=30
+    )
+    status_sink.emit(_status("FAILURE", 4))
+    status_sink.emit({"event": "finished", "root_status": "FAILURE", "exit_code": 1, "tick_count": 4})
+    status_sink.close()
+    # Refused twice, then taken: 1 s and 2 s pauses, more than the 0.5 s a signal would allow.
+    assert stand_in.last_tree().get("rootStatus") == "FAILURE", stand_in.requests
     assert stand_in.requests == 3
 
 
 @pytest.mark.parametrize("stand_in", [["stall"] * 20], indirect=True)
-def test_closing_gives_up_after_its_grace_when_the_api_server_never_answers(
+def test_a_tree_stopped_by_a_signal_gives_up_its_last_status_after_the_short_grace(
     stand_in: ApiServerStandIn, caplog: pytest.LogCaptureFixture
 ) -> None:
     status_sink = sink.KubernetesStatusSink(
-        stand_in.patcher(timeout=(0.5, 0.3)), min_interval_s=0.05, close_grace_s=1.0
+        stand_in.patcher(timeout=(0.5, 0.3)), min_interval_s=0.05, close_grace_s=1.0, finished_grace_s=60
     )
-    status_sink.emit(_status("SUCCESS", 3))
+    status_sink.emit(_status("RUNNING", 3))
+    status_sink.emit({"event": "finished", "root_status": "IDLE", "exit_code": 143, "tick_count": 3})
     started = time.monotonic()
     with caplog.at_level(logging.WARNING):
         status_sink.close()
