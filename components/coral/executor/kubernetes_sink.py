@@ -10,7 +10,8 @@ A robot's link to the API server comes and goes, so every patch has a deadline
 (`REQUEST_TIMEOUT_S`): a request that stalls on a dead connection would otherwise hold the sink
 forever, freezing the robot's status and keeping a finished executor from exiting. A failed patch
 is retried by the background thread with a growing pause (up to `RETRY_MAX_S`) even when the
-summary does not change again, which is the case once a tree has ended. Closing keeps trying for
+summary does not change again, which is the case once a tree has ended; an answer that a retry
+would get again (`_FINAL_REFUSALS`) waits for the next change instead. Closing keeps trying for
 `finished_grace_s` when the tree ended by itself (its result is what the mission is for, and a
 robot that finished out of reach reports it when it is back), or for `close_grace_s` when a
 signal stopped it (within the pod's grace period). An outage is logged when it starts (once per
@@ -45,6 +46,10 @@ CLOSE_GRACE_S = 20.0
 FINISHED_GRACE_S = 600.0
 # The executor's exit codes from 128 on mean a signal stopped it (`coral.executor.running`).
 _STOPPED_BY_SIGNAL = 128
+# Answers that the same patch would get again: the instance is gone (its system was deleted, which
+# also stops the executor), the identity may not write it, or the body is refused. Retrying them
+# would only hold a stopping pod.
+_FINAL_REFUSALS = frozenset({400, 403, 404, 422})
 
 
 def _rfc3339(seconds: float | None) -> str | None:
@@ -140,6 +145,7 @@ class KubernetesStatusSink:
         self._written: dict[str, Any] = {}
         self._not_before = float("-inf")
         self._failures = 0
+        self._refused = False
         self._lock = threading.Lock()
         # One patch at a time, so patches land in the order their states were taken: a stale patch
         # still in flight must not overwrite the final one.
@@ -205,23 +211,29 @@ class KubernetesStatusSink:
                 self._written[key] = {k: v for k, v in state[key].items() if k != keys.TREE.updated_at}
             self.patches += 1
             failures, self._failures = self._failures, 0
+            self._refused = False
             self._errors.clear()
         if failures:
             LOG.warning("Status patches of the CoralInstance land again, after %d failed", failures)
         return True
 
     def _failed(self, error: Exception) -> None:
-        kind = type(error).__name__ + str(getattr(error, "status", ""))
+        status = getattr(error, "status", None)
+        kind = type(error).__name__ + str(status or "")
+        refused = status in _FINAL_REFUSALS
         with self._lock:
             self._failures += 1
+            self._refused = refused
             pause = min(2.0 ** (self._failures - 1), RETRY_MAX_S)
             self._not_before = self._clock() + max(self._interval, pause)
             first_of_kind = kind not in self._errors
             self._errors.add(kind)
         if first_of_kind:
-            LOG.warning("Status patch of the CoralInstance failed (retrying): %s", error)
-        # Retried without waiting for the next change: a finished tree has none.
-        self._wake.set()
+            then = "tried again with the next change" if refused else "retrying"
+            LOG.warning("Status patch of the CoralInstance failed (%s): %s", then, error)
+        if not refused:
+            # Retried without waiting for the next change: a finished tree has none.
+            self._wake.set()
 
     def _flush_loop(self) -> None:
         while True:
@@ -255,6 +267,9 @@ class KubernetesStatusSink:
                     return
             finally:
                 self._sending.release()
+            if self._refused:
+                LOG.warning("The tree's last status was not written: the API server refused it")
+                return
             if not warned:
                 warned = True
                 LOG.warning("Trying for up to %.0f s more to write the tree's last status", remaining)

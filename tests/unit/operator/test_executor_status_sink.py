@@ -223,3 +223,22 @@ def test_a_tree_stopped_by_a_signal_gives_up_its_last_status_after_the_short_gra
     assert time.monotonic() - started < 1.0 + 0.8 + 0.5
     assert stand_in.accepted == [] and status_sink.patches == 0
     assert "last status was not written" in caplog.text
+
+
+@pytest.mark.parametrize("stand_in", [[404] * 20], indirect=True)
+def test_a_last_status_whose_instance_is_gone_is_not_retried(
+    stand_in: ApiServerStandIn, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Deleting a system removes its instances as it stops their executors: waiting out a grace
+    period against 404s would only hold each stopping pod."""
+    status_sink = sink.KubernetesStatusSink(
+        stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05, close_grace_s=20, finished_grace_s=60
+    )
+    status_sink.emit(_status("SUCCESS", 7))
+    status_sink.emit({"event": "finished", "root_status": "SUCCESS", "exit_code": 0, "tick_count": 7})
+    started = time.monotonic()
+    with caplog.at_level(logging.WARNING):
+        status_sink.close()
+    assert time.monotonic() - started < 2.0
+    assert stand_in.requests <= 2 and stand_in.accepted == []
+    assert "refused it" in caplog.text
