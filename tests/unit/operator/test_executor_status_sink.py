@@ -170,6 +170,27 @@ def stand_in(request: pytest.FixtureRequest) -> Iterator[ApiServerStandIn]:
     server.stop()
 
 
+def _ended(
+    stand_in: ApiServerStandIn,
+    root: str,
+    exit_code: int,
+    *,
+    timeout: tuple[float, float],
+    close_grace_s: float,
+    finished_grace_s: float,
+) -> sink.KubernetesStatusSink:
+    """A sink whose tree has ended with `root` and the executor's `exit_code`, not yet closed."""
+    status_sink = sink.KubernetesStatusSink(
+        stand_in.patcher(timeout=timeout),
+        min_interval_s=0.05,
+        close_grace_s=close_grace_s,
+        finished_grace_s=finished_grace_s,
+    )
+    status_sink.emit(_status(root, 4))
+    status_sink.emit({"event": "finished", "root_status": root, "exit_code": exit_code, "tick_count": 4})
+    return status_sink
+
+
 @pytest.mark.parametrize("stand_in", [["stall"]], indirect=True)
 def test_a_stalled_patch_is_given_up_and_the_finished_tree_still_reaches_its_instance(
     stand_in: ApiServerStandIn,
@@ -196,11 +217,7 @@ def test_a_stalled_patch_is_given_up_and_the_finished_tree_still_reaches_its_ins
 def test_a_tree_that_ended_by_itself_waits_past_the_signal_grace_for_its_result_to_land(
     stand_in: ApiServerStandIn,
 ) -> None:
-    status_sink = sink.KubernetesStatusSink(
-        stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05, close_grace_s=0.5, finished_grace_s=30
-    )
-    status_sink.emit(_status("FAILURE", 4))
-    status_sink.emit({"event": "finished", "root_status": "FAILURE", "exit_code": 1, "tick_count": 4})
+    status_sink = _ended(stand_in, "FAILURE", 1, timeout=(1.0, 1.0), close_grace_s=0.5, finished_grace_s=30)
     status_sink.close()
     # Refused twice, then taken: 1 s and 2 s pauses, more than the 0.5 s a signal would allow.
     assert stand_in.last_tree().get("rootStatus") == "FAILURE", stand_in.requests
@@ -211,11 +228,7 @@ def test_a_tree_that_ended_by_itself_waits_past_the_signal_grace_for_its_result_
 def test_a_tree_stopped_by_a_signal_gives_up_its_last_status_after_the_short_grace(
     stand_in: ApiServerStandIn, caplog: pytest.LogCaptureFixture
 ) -> None:
-    status_sink = sink.KubernetesStatusSink(
-        stand_in.patcher(timeout=(0.5, 0.3)), min_interval_s=0.05, close_grace_s=1.0, finished_grace_s=60
-    )
-    status_sink.emit(_status("RUNNING", 3))
-    status_sink.emit({"event": "finished", "root_status": "IDLE", "exit_code": 143, "tick_count": 3})
+    status_sink = _ended(stand_in, "IDLE", 143, timeout=(0.5, 0.3), close_grace_s=1.0, finished_grace_s=60)
     started = time.monotonic()
     with caplog.at_level(logging.WARNING):
         status_sink.close()
@@ -231,11 +244,7 @@ def test_a_last_status_whose_instance_is_gone_is_not_retried(
 ) -> None:
     """Deleting a system removes its instances as it stops their executors: waiting out a grace
     period against 404s would only hold each stopping pod."""
-    status_sink = sink.KubernetesStatusSink(
-        stand_in.patcher(timeout=(1.0, 1.0)), min_interval_s=0.05, close_grace_s=20, finished_grace_s=60
-    )
-    status_sink.emit(_status("SUCCESS", 7))
-    status_sink.emit({"event": "finished", "root_status": "SUCCESS", "exit_code": 0, "tick_count": 7})
+    status_sink = _ended(stand_in, "SUCCESS", 0, timeout=(1.0, 1.0), close_grace_s=20, finished_grace_s=60)
     started = time.monotonic()
     with caplog.at_level(logging.WARNING):
         status_sink.close()
