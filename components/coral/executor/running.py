@@ -9,19 +9,18 @@ behavior raised), 4 internal error, 5 node types still missing after `--wait-tim
 from __future__ import annotations
 
 import os
-import signal
 import socket
 import threading
 import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 from coral.executor import plugins_phase, records, sinks
 from coral.executor.ticking import TickLoop
 from coral.sdk.heap import freeze_startup_heap
+from coral.stop_signals import relay_stop_signals
 
 EXIT_SUCCESS = 0
 EXIT_FAILURE = 1
@@ -57,14 +56,13 @@ class _Stop:
         self.wake: Any = None
 
     def install(self) -> None:
-        def handle(signum: int, _frame: FrameType | None) -> None:
+        def stopped(signum: int) -> None:
             self.signum = signum
             self.event.set()
             if self.wake is not None:
                 self.wake()
 
-        signal.signal(signal.SIGINT, handle)
-        signal.signal(signal.SIGTERM, handle)
+        relay_stop_signals(stopped)
 
 
 def _emit(fanout: sinks.SinkFanout, event: str, **fields: Any) -> None:

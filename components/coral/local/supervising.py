@@ -23,6 +23,7 @@ from typing import IO, Any
 
 from coral.local import components, console, state
 from coral.local.compose import Project, Service
+from coral.stop_signals import relay_stop_signals
 
 EXIT_COMPONENT_FAILED = 3
 EXIT_NOT_READY = 4
@@ -70,13 +71,12 @@ class Supervisor:
 
     # Signals.
     def install_signal_handlers(self) -> None:
-        def handle(signum: int, _frame: Any) -> None:
+        def stopped(signum: int) -> None:
             if self.stop_signal is None:
                 self.stop_signal = signum
             self.stopping.set()
 
-        signal.signal(signal.SIGINT, handle)
-        signal.signal(signal.SIGTERM, handle)
+        relay_stop_signals(stopped)
 
     # Starting.
     def _environment(self, service: Service) -> dict[str, str]:
