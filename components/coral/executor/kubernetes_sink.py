@@ -168,7 +168,7 @@ class KubernetesStatusSink:
             # The tick thread never waits on the API server: the background thread sends.
             self._wake.set()
         else:
-            self.flush(force=False)
+            self.flush()
 
     @property
     def pending(self) -> bool:
@@ -176,17 +176,15 @@ class KubernetesStatusSink:
         with self._lock:
             return self._state != self._written
 
-    def flush(self, *, force: bool) -> bool:
-        """Patch if the summary changed and the rate limit (or a failure's pause) allows, or `force`;
-        True if it patched.
-
-        A forced flush waits for a patch in flight; otherwise a flush that finds one leaves the
-        change to the background loop."""
-        if not self._sending.acquire(blocking=force):
+    def flush(self) -> bool:
+        """Patch if the summary changed and the rate limit (or a failure's pause) allows; True if it
+        patched. A flush that finds a patch in flight leaves the change to the background loop
+        (closing, which must not leave it, waits for that patch instead)."""
+        if not self._sending.acquire(blocking=False):
             self._wake.set()
             return False
         try:
-            return self._send(force)
+            return self._send(force=False)
         finally:
             self._sending.release()
 
@@ -244,7 +242,7 @@ class KubernetesStatusSink:
             delay = self._not_before - self._clock()
             if delay > 0 and self._closing.wait(delay):
                 return
-            self.flush(force=False)
+            self.flush()
 
     def close(self) -> None:
         """Stops the background thread and patches the last summary, retrying for `finished_grace_s`
