@@ -58,6 +58,9 @@ class Component(Node):
         BEHAVIORS: behavior classes (`coral.bt.leaves` subclasses) this component exports.
         EXPORT_MODULES: extra modules (dotted names) the behavior modules import relatively.
         INTERFACE_PACKAGES: interface packages (import names or folders) for the executor's path.
+        LARGE_MESSAGES: the component publishes bursts of messages of hundreds of kilobytes
+            (scans, images), so its process gets DDS's large shared-memory segment
+            (`coral.sdk.dds`), 17 MB of `/dev/shm` from the start: set it where the data is.
     """
 
     KIND: ClassVar[str] = "skillset"
@@ -65,6 +68,7 @@ class Component(Node):
     BEHAVIORS: ClassVar[Sequence[type]] = ()
     EXPORT_MODULES: ClassVar[Sequence[str]] = ()
     INTERFACE_PACKAGES: ClassVar[Sequence[str]] = ()
+    LARGE_MESSAGES: ClassVar[bool] = False
 
     def __init__(
         self,

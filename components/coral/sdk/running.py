@@ -128,7 +128,7 @@ def run_component(
     stop = threading.Event()
     waiting = [False]
     _install_signal_handlers(stop, waiting)
-    dds.use_coral_profile()
+    dds.use_coral_profile(large_messages=bool(getattr(component_class, "LARGE_MESSAGES", False)))
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     component: Any = None
     plugin_dir: Path | None = None

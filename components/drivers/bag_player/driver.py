@@ -33,6 +33,9 @@ def message_class(msgtype: str) -> Any:
 
 class BagPlayer(Driver):
     NAME = "bag_player"
+    # A bag played faster than recorded is one burst of its largest messages (docs/architecture.md,
+    # "Where the SLAM mission's CPU goes").
+    LARGE_MESSAGES = True
 
     def on_start(self) -> None:
         bag = str(self.param("bag", "")) or os.environ.get("CORAL_BAG", "")
