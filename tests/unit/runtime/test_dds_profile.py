@@ -87,3 +87,22 @@ def test_writers_announce_unacknowledged_samples_well_within_a_second(profile: P
     assert period is not None
     seconds = int(period.findtext("dds:sec", "0", NS)) + int(period.findtext("dds:nanosec", "0", NS)) / 1e9
     assert 0 < seconds <= 0.2
+
+
+def test_the_large_data_profile_carries_the_default_profiles_writer_settings_unchanged() -> None:
+    """FastDDS reads one profile file, so the large-data profile repeats the default's writer
+    settings; this keeps the copy from drifting."""
+
+    def settings(element: ElementTree.Element) -> tuple[object, ...]:
+        # Comments and indentation aside: tags, attributes, values, in order.
+        children = tuple(settings(child) for child in element)
+        return element.tag, sorted(element.attrib.items()), (element.text or "").strip(), children
+
+    def writers(profile: Path) -> list[tuple[object, ...]]:
+        return [
+            settings(writer)
+            for writer in ElementTree.parse(profile).getroot().iter(f"{{{NS['dds']}}}data_writer")
+        ]
+
+    assert writers(dds.PROFILE)
+    assert writers(dds.LARGE_DATA_PROFILE) == writers(dds.PROFILE)
