@@ -20,16 +20,30 @@ from coral_operator.planning.observed import (
     RobotNode,
     SystemRecord,
 )
-from coral_operator.status import transitions
+from coral_operator.status import executor_report, transitions
 
 parse_time = transitions.parse_rfc3339
 
 
-def _condition(conditions: list[Mapping[str, Any]] | None, ctype: str) -> Mapping[str, Any] | None:
-    for condition in conditions or []:
-        if condition.get("type") == ctype:
+def _condition(conditions: Any, ctype: str) -> Mapping[str, Any] | None:
+    # Conditions of a CoralInstance may have been written by its executor: anything not shaped
+    # like a condition is not one.
+    if not isinstance(conditions, list):
+        return None
+    for condition in conditions:
+        if isinstance(condition, Mapping) and condition.get("type") == ctype:
             return condition
     return None
+
+
+def _mapping(value: Any) -> Mapping[str, Any]:
+    return value if isinstance(value, Mapping) else {}
+
+
+def _root_status(status: Mapping[str, Any]) -> str | None:
+    """The executor's `tree.rootStatus`, if it is one (it feeds the system's counts and rollout)."""
+    root = _mapping(status.get(keys.INSTANCE_STATUS.tree)).get(keys.TREE.root_status)
+    return root if isinstance(root, str) and root in executor_report.ROOT_STATUSES else None
 
 
 UNREACHABLE_TAINT = "node.kubernetes.io/unreachable"
@@ -202,13 +216,13 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
     """A CoralInstance record as its system sees it."""
     metadata = body.get("metadata", {})
     spec = dict(body.get("spec") or {})
-    status = body.get("status") or {}
+    status = _mapping(body.get("status"))
     instance = ObservedInstance(
         name=metadata.get("name", ""),
         robot=spec.get("robot", ""),
         spec=spec,
         revision=spec.get("revision", ""),
-        root_status=(status.get(keys.INSTANCE_STATUS.tree) or {}).get(keys.TREE.root_status),
+        root_status=_root_status(status),
         labels=dict(metadata.get("labels") or {}),
         uid=metadata.get("uid", ""),
         generation=metadata.get("generation"),
@@ -223,7 +237,8 @@ def with_operator_status(instance: ObservedInstance, status: Mapping[str, Any]) 
     conditions = status.get(keys.INSTANCE_STATUS.conditions)
     ready = _condition(conditions, "Ready")
     stalled = _condition(conditions, "Stalled")
-    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
+    robot = _mapping(status.get(keys.INSTANCE_STATUS.robot))
+    reachable, node_ready = robot.get(keys.ROBOT.reachable), robot.get(keys.ROBOT.node_ready)
     return dataclasses.replace(
         instance,
         ready=bool(
@@ -231,8 +246,8 @@ def with_operator_status(instance: ObservedInstance, status: Mapping[str, Any]) 
             and ready.get(keys.CONDITION.status) == "True"
             and ready.get(keys.CONDITION.observed_generation) == instance.generation
         ),
-        reachable=robot.get(keys.ROBOT.reachable),
-        node_ready=robot.get(keys.ROBOT.node_ready),
+        reachable=reachable if isinstance(reachable, bool) else None,
+        node_ready=node_ready if isinstance(node_ready, bool) else None,
         # An instance Stalled only because its robot is away is not a failed robot: `reachable`
         # tells that, and the verdict can lag the robot's return by a pass.
         stalled=bool(
@@ -253,7 +268,7 @@ def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
         uid=metadata.get("uid", ""),
         generation=metadata.get("generation"),
         spec=dict(body.get("spec") or {}),
-        status=dict(body.get("status") or {}),
+        status=dict(_mapping(body.get("status"))),
         resource_version=metadata.get("resourceVersion"),
     )
 

@@ -137,7 +137,9 @@ def pod_members(manifest: dict[str, Any]) -> list[tuple[str, str]]:
     members = (metadata.get("annotations") or {}).get(names.ANNOTATION_COMPONENTS)
     if members is None:
         return [(metadata["labels"][names.LABEL_COMPONENT], metadata["labels"][names.LABEL_ROLE])]
-    pairs = [member.split(":", 1) for member in members.split(",") if member]
+    # Written by the operator, but a pod's annotations are anyone's with `patch pods`: an entry
+    # that is not `role:name` is no component.
+    pairs = [member.split(":", 1) for member in str(members).split(",") if member.count(":") == 1]
     return [(name, role) for role, name in pairs]
 
 

@@ -8,8 +8,10 @@ changed (`status.instance_status.verdict_of`); progress alone waits (`progress_i
 so does "progressing" at a new generation while the status written for the old one already reads
 as in progress (`status.instance_status.stale_status_says_as_much`), and "starting" while a new
 instance still has the CRD's pending status (`status.instance_status.pending_status_says_as_much`).
-The executor's fields (`tree`, `plugins`) are read, never written; whatever else it writes there
-is overwritten (`status.ownership`). See docs/architecture.md.
+The executor's fields (`tree`, `plugins`) are read, never written, and read defensively
+(`status.executor_report`): a value the operator cannot read is named on the conditions, never a
+pass that fails before it writes. Whatever else the executor writes there is overwritten
+(`status.ownership`). See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotN
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.memory import Memory
-from coral_operator.status import instance_status, ownership, transitions
+from coral_operator.status import executor_report, instance_status, ownership, transitions
 
 Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
@@ -117,6 +119,7 @@ class InstanceReconciler:
         if plan.startup.wake_at is not None:
             # Pass again when the waiting stage's health timeout falls due, even if nothing changes.
             self.requeue(key, max((plan.startup.wake_at - now).total_seconds(), 0.0) + 0.5)
+        report = executor_report.read_executor_report(status)
         view = instance_status.InstanceView(
             spec=spec,
             node=node,
@@ -124,9 +127,11 @@ class InstanceReconciler:
             pods=observed,
             plan=plan.startup,
             transient=plan.transient,
-            tree=status.get("tree"),
-            plugins=status.get("plugins"),
+            tree=report.tree,
+            plugins=report.plugins,
             refused=refused,
+            ignored_tree=report.ignored_tree,
+            ignored_plugins=report.ignored_plugins,
         )
         new = instance_status.build_instance_status(
             view, old_conditions=transitions.written_conditions(status), generation=record.generation, now=now

@@ -15,6 +15,7 @@ from coral_operator.api import keys
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
+from coral_operator.status import executor_report, transitions
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
 from coral_operator.status.transitions import Verdict, find, merge_conditions, parse_rfc3339, rfc3339
@@ -34,6 +35,11 @@ class InstanceView:
     plugins: dict[str, Any] | None
     refused: Mapping[str, str] = field(default_factory=dict)
     """Components whose pod the API server refused in this pass, with the server's message."""
+    ignored_tree: list[str] = field(default_factory=list)
+    """Fields of the executor's `tree` left out as unreadable, one sentence each
+    (`status.executor_report`); `tree` holds the rest."""
+    ignored_plugins: list[str] = field(default_factory=list)
+    """The same for `plugins`."""
 
 
 def _robot_verdict(view: InstanceView) -> Verdict:
@@ -141,7 +147,20 @@ def _components_verdict(view: InstanceView) -> Verdict:
     )
 
 
+def _with_note(verdict: Verdict, ignored: list[str]) -> Verdict:
+    """`verdict` naming the executor's fields that were ignored, so a forged or broken report is
+    seen where it would have counted."""
+    note = executor_report.ignored_note(ignored)
+    return (
+        verdict if not note else Verdict(verdict.type, verdict.status, verdict.reason, verdict.message + note)
+    )
+
+
 def _plugins_verdict(view: InstanceView) -> Verdict:
+    return _with_note(_plugins_reported(view), view.ignored_plugins)
+
+
+def _plugins_reported(view: InstanceView) -> Verdict:
     if not view.plugins:
         return Verdict(C.PLUGINS_READY, None, R.NO_REPORT, "The executor has not reported plugins yet.")
     missing = view.plugins.get(keys.PLUGINS.missing) or []
@@ -179,6 +198,10 @@ def _tree_is_stale(view: InstanceView) -> bool:
 
 
 def _tree_verdict(view: InstanceView) -> Verdict:
+    return _with_note(_tree_reported(view), view.ignored_tree)
+
+
+def _tree_reported(view: InstanceView) -> Verdict:
     if not view.tree:
         return Verdict(C.TREE_HEALTHY, None, R.NO_REPORT, "The executor has not reported tree status yet.")
     if _tree_is_stale(view):
@@ -322,15 +345,22 @@ def build_instance_status(
 
 
 def build_invalid_status(
-    message: str, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
+    message: str,
+    *,
+    old_conditions: list[dict[str, Any]],
+    generation: int | None,
+    now: datetime,
+    reason: R = R.INVALID_SPEC,
 ) -> dict[str, Any]:
-    """The status of an instance whose spec fails validation: Stalled, with the fields named."""
+    """The status of an instance the operator builds nothing for: its spec fails validation, it is
+    not its system's (`ForeignInstance`) or asks for more than the policy allows (`PolicyDenied`).
+    Stalled, with the fields named."""
     conditions = merge_conditions(
         old_conditions,
         [
-            Verdict(C.READY, False, R.INVALID_SPEC, message),
-            Verdict(C.RECONCILING, False, R.INVALID_SPEC),
-            Verdict(C.STALLED, True, R.INVALID_SPEC, message),
+            Verdict(C.READY, False, reason, message),
+            Verdict(C.RECONCILING, False, reason),
+            Verdict(C.STALLED, True, reason, message),
         ],
         generation=generation,
         now=now,
@@ -345,10 +375,10 @@ def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
     A change here is written at once (the system's rollout reads it); anything else (a stage's
     message, a pod's phase or restarts) waits to ride along with the next write.
     """
-    conditions = status.get(keys.INSTANCE_STATUS.conditions) or []
+    conditions = _entries(status.get(keys.INSTANCE_STATUS.conditions))
     kind, state, why = keys.CONDITION.type, keys.CONDITION.status, keys.CONDITION.reason
     stalled = next((c for c in conditions if c.get(kind) == C.STALLED), {})
-    robot = status.get(keys.INSTANCE_STATUS.robot) or {}
+    robot = _mapping(status.get(keys.INSTANCE_STATUS.robot))
     return (
         status.get(keys.INSTANCE_STATUS.observed_generation),
         robot.get(keys.ROBOT.reachable),
@@ -369,11 +399,11 @@ def stale_status_says_as_much(
     reachability as it was. Such a write can wait like progress, so an update costs one status
     write, when the robot is Ready or Stalled at its new revision, instead of two.
     """
-    written = current.get(keys.INSTANCE_STATUS.observed_generation)
+    written = transitions.written_generation(current)
     if written is None or generation is None or written >= generation:
         return False
-    before = current.get(keys.INSTANCE_STATUS.robot) or {}
-    after = new.get(keys.INSTANCE_STATUS.robot) or {}
+    before = _mapping(current.get(keys.INSTANCE_STATUS.robot))
+    after = _mapping(new.get(keys.INSTANCE_STATUS.robot))
     return _only_progressing(new) and all(
         before.get(key) == after.get(key) for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready)
     )
@@ -390,7 +420,7 @@ def pending_status_says_as_much(current: Mapping[str, Any], new: Mapping[str, An
     """
     if current.get(keys.INSTANCE_STATUS.observed_generation) is not None:
         return False
-    reconciling = find(list(current.get(keys.INSTANCE_STATUS.conditions) or []), C.RECONCILING) or {}
+    reconciling = find(_entries(current.get(keys.INSTANCE_STATUS.conditions)), C.RECONCILING) or {}
     if reconciling.get(keys.CONDITION.status) != "True":
         return False
     robot = new.get(keys.INSTANCE_STATUS.robot) or {}
@@ -400,8 +430,17 @@ def pending_status_says_as_much(current: Mapping[str, Any], new: Mapping[str, An
 
 
 def _only_progressing(status: Mapping[str, Any]) -> bool:
-    conditions = list(status.get(keys.INSTANCE_STATUS.conditions) or [])
+    conditions = _entries(status.get(keys.INSTANCE_STATUS.conditions))
     return all(
         (find(conditions, ctype) or {}).get(keys.CONDITION.status) == "False"
         for ctype in (C.READY, C.STALLED)
     )
+
+
+# `current` may hold what an executor wrote over the operator's fields: read, never trusted.
+def _entries(value: Any) -> list[dict[str, Any]]:
+    return [entry for entry in value if isinstance(entry, dict)] if isinstance(value, list) else []
+
+
+def _mapping(value: Any) -> Mapping[str, Any]:
+    return value if isinstance(value, Mapping) else {}

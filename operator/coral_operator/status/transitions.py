@@ -6,7 +6,7 @@ Rules: `lastTransitionTime` moves only when `status` flips; `reason`, `message` 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -52,7 +52,7 @@ def rfc3339(moment: datetime) -> str:
     return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def written_conditions(status: dict[str, Any]) -> list[dict[str, Any]]:
+def written_conditions(status: Mapping[str, Any]) -> list[dict[str, Any]]:
     """The conditions the operator wrote into `status`, which new verdicts are merged with.
 
     None while `status` is still the CRD's default (`api.common.pending_status`, which has no
@@ -60,9 +60,26 @@ def written_conditions(status: dict[str, Any]) -> list[dict[str, Any]]:
     must not outlive it, so the first written conditions all start now. Both kinds call the field
     alike.
     """
-    if status.get(keys.INSTANCE_STATUS.observed_generation) is None:
+    if written_generation(status) is None:
         return []
-    return list(status.get(keys.INSTANCE_STATUS.conditions) or [])
+    conditions = status.get(keys.INSTANCE_STATUS.conditions)
+    if not isinstance(conditions, list):
+        return []
+    # An executor may write into the status subresource what the schema admits; an entry this
+    # module cannot merge with is dropped (and overwritten), never a reason for a pass to fail.
+    return [
+        c
+        for c in conditions
+        if isinstance(c, dict)
+        and isinstance(c.get(keys.CONDITION.type), str)
+        and isinstance(c.get(keys.CONDITION.last_transition_time), str)
+    ]
+
+
+def written_generation(status: Mapping[str, Any]) -> int | None:
+    """`status.observedGeneration` if it is a generation at all (others may write the field)."""
+    value = status.get(keys.INSTANCE_STATUS.observed_generation)
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 def merge_conditions(
@@ -83,7 +100,7 @@ def merge_conditions(
     Returns:
         Conditions in wire format (camelCase keys).
     """
-    previous = {c.get(keys.CONDITION.type): c for c in old}
+    previous = {c.get(keys.CONDITION.type): c for c in old if isinstance(c, Mapping)}
     result: list[dict[str, Any]] = []
     for verdict in verdicts:
         before = previous.get(verdict.type.value)
@@ -94,7 +111,7 @@ def merge_conditions(
             keys.CONDITION.reason: verdict.reason.value,
             keys.CONDITION.message: _bounded(verdict.message),
             keys.CONDITION.last_transition_time: rfc3339(now)
-            if flipped
+            if flipped or not isinstance(before.get(keys.CONDITION.last_transition_time), str)
             else before[keys.CONDITION.last_transition_time],
         }
         if generation is not None:
