@@ -297,11 +297,13 @@ def create_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def update_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
-    """Replace an instance's spec and labels (a JSON merge patch would keep removed list items);
-    returns it as updated, or None when it is gone."""
+    """Replace an instance's spec, labels and owner (a JSON merge patch would keep removed list
+    items); returns it as updated, or None when it is gone. The owner makes an instance written by
+    hand at the system's name the system's (`planning.provenance`)."""
     body = [
         {"op": "replace", "path": "/spec", "value": manifest["spec"]},
-        {"op": "replace", "path": "/metadata/labels", "value": manifest["metadata"]["labels"]},
+        {"op": "add", "path": "/metadata/labels", "value": manifest["metadata"]["labels"]},
+        {"op": "add", "path": "/metadata/ownerReferences", "value": manifest["metadata"]["ownerReferences"]},
     ]
     try:
         updated: dict[str, Any] = client.custom().patch_namespaced_custom_object(

@@ -12,7 +12,7 @@ from datetime import datetime
 from typing import Any
 
 from coral_operator.api import keys, names
-from coral_operator.planning import naming
+from coral_operator.planning import naming, provenance
 from coral_operator.planning.observed import (
     InstanceRecord,
     ObservedInstance,
@@ -227,6 +227,9 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
         uid=metadata.get("uid", ""),
         generation=metadata.get("generation"),
         resource_version=metadata.get("resourceVersion"),
+        controller_uid=str(
+            (provenance.controller_of(metadata.get("ownerReferences") or []) or {}).get("uid", "")
+        ),
     )
     return with_operator_status(instance, status)
 
@@ -270,6 +273,7 @@ def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
         spec=dict(body.get("spec") or {}),
         status=dict(_mapping(body.get("status"))),
         resource_version=metadata.get("resourceVersion"),
+        owners=tuple(dict(o) for o in metadata.get("ownerReferences") or [] if isinstance(o, Mapping)),
     )
 
 
@@ -289,6 +293,7 @@ def summary_of(instance: ObservedInstance) -> tuple[Any, ...]:
         instance.stalled,
         bool(instance.spec.get("retiring")),
         tuple(sorted(instance.labels.items())),
+        instance.controller_uid,
     )
 
 

@@ -141,11 +141,16 @@ def _same_spec(current: ObservedInstance, spec: dict[str, Any], shared_key: str 
     return current.spec == spec or _normalized(current.spec) == spec
 
 
+def _controller_uid(manifest: dict[str, Any]) -> str:
+    return str(manifest["metadata"]["ownerReferences"][0]["uid"])
+
+
 def plan_instances(
     desired: list[dict[str, Any]],
     existing: list[ObservedInstance],
     reachable_nodes: set[str] | None = None,
     shared_keys: dict[str, str] | None = None,
+    system_uid: str | None = None,
 ) -> InstanceChanges:
     """Create the missing, update the changed, retire or delete those whose robot left the selector.
 
@@ -157,6 +162,8 @@ def plan_instances(
         shared_keys: instance name -> `observed.shared_spec_key` of its desired spec
             (`InstanceBuilder.shared_keys`); where the observed one has the same, only the robot's
             own fields are compared. Without it, whole specs are.
+        system_uid: the system's uid; a leaving instance it does not control (written by hand
+            at one of its names) is deleted at once, as it would never stop in order.
     """
     shared_keys = shared_keys or {}
     plan = InstanceChanges()
@@ -168,13 +175,18 @@ def plan_instances(
         current = by_name.get(name)
         if current is None:
             plan.create.append(manifest)
-        elif current.labels != manifest["metadata"]["labels"] or not _same_spec(
-            current, manifest["spec"], shared_keys.get(name)
+        elif (
+            current.labels != manifest["metadata"]["labels"]
+            or current.controller_uid != _controller_uid(manifest)
+            or not _same_spec(current, manifest["spec"], shared_keys.get(name))
         ):
+            # Also one written by hand at a name of the system's: the system takes it over (spec,
+            # labels, owner), as the instance reconciler serves no instance its system does not own.
             plan.update.append(manifest)
     for name in sorted(set(by_name) - wanted):
         instance = by_name[name]
-        if instance.spec.get("nodeName") in (reachable_nodes or set()):
+        controlled = system_uid is None or instance.controller_uid == system_uid
+        if controlled and instance.spec.get("nodeName") in (reachable_nodes or set()):
             if not instance.spec.get("retiring"):
                 plan.retire.append(name)
         else:

@@ -81,6 +81,9 @@ class ObservedInstance:
     generation: int | None = None
     resource_version: str | None = None
     """The object's version as observed: a status this process wrote later is read instead."""
+    controller_uid: str = ""
+    """The uid of the instance's controller owner; a system takes over an instance at one of its
+    names that it does not control (`planning.instances.plan_instances`)."""
 
     @functools.cached_property
     def shared_spec_key(self) -> str:
@@ -119,6 +122,8 @@ class InstanceRecord:
     spec: dict[str, Any]
     status: dict[str, Any]
     resource_version: str | None = None
+    owners: tuple[dict[str, Any], ...] = ()
+    """`metadata.ownerReferences`: whether the instance is its system's (`planning.provenance`)."""
 
     @property
     def reference(self) -> dict[str, Any]:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import PurePosixPath
 
 from coral_operator.api.components import Component
+from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 
 ANY_NAMESPACE = "*"
@@ -103,8 +104,12 @@ def _component_problems(where: str, component: Component, namespace: str, policy
     return problems
 
 
-def evaluate_policy(namespace: str, spec: CoralSystemSpec, policy: Policy) -> list[str]:
-    """Every way the spec exceeds the policy, one sentence naming the field each; empty if allowed."""
+def evaluate_policy(namespace: str, spec: CoralSystemSpec | CoralInstanceSpec, policy: Policy) -> list[str]:
+    """Every way the spec exceeds the policy, one sentence naming the field each; empty if allowed.
+
+    Checked on a CoralSystem before anything is deployed, and again on each CoralInstance before
+    its pods are built (`planning.provenance`): the fields that reach a pod are the same in both.
+    """
     problems: list[str] = []
     if spec.ros.network == "Host" and not allows(policy.host_network_namespaces, namespace):
         problems.append(

@@ -190,9 +190,11 @@ def _plan_deployment(
     templates = {s.revision: s.template for s in stored}
     for instance in observed:
         # A robot kept on its revision must get back exactly the spec it has, or it would be
-        # rewritten (and counted unavailable) for nothing: its own spec is the surest template.
-        if instance.revision != revision:
-            templates[instance.revision] = revisions.template_of_instance(instance.spec)
+        # rewritten (and counted unavailable) for nothing; the stored template is that spec. Only
+        # where none is stored is the instance's own spec the template, and only an instance this
+        # system controls: one written or edited by hand must not become a revision of it.
+        if instance.revision != revision and instance.controller_uid == system.uid:
+            templates.setdefault(instance.revision, revisions.template_of_instance(instance.spec))
     decision = rollout.plan_rollout(
         rollout.RolloutRequest(
             desired=revision,
@@ -222,7 +224,7 @@ def _plan_deployment(
     for kept in [*templates.values(), *(i.spec for i in observed)]:
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
-    changes = instances.plan_instances(desired, observed, reachable, builder.shared_keys)
+    changes = instances.plan_instances(desired, observed, reachable, builder.shared_keys, system.uid)
     identity = (
         rbac.build_executor_rbac(system=system.name, namespace=system.namespace, system_uid=system.uid)
         if changes.create

@@ -62,6 +62,7 @@ class Controller:
             post=post,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
+            policy=policy,
         )
         self.systems = SystemReconciler(
             memory=self.memory,

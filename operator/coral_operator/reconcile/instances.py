@@ -11,7 +11,9 @@ instance still has the CRD's pending status (`status.instance_status.pending_sta
 The executor's fields (`tree`, `plugins`) are read, never written, and read defensively
 (`status.executor_report`): a value the operator cannot read is named on the conditions, never a
 pass that fails before it writes. Whatever else the executor writes there is overwritten
-(`status.ownership`). See docs/architecture.md.
+(`status.ownership`). Pods are built only for an instance its system made for its robot, at one of
+the system's stored revisions, within the operator's policy (`planning.provenance`); any other is
+left alone, Stalled with the reasons and an Event. See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -21,13 +23,18 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.kube import applying, leases, observing
-from coral_operator.planning import instance_pass
-from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
+from coral_operator.kube import revisions as stored_revisions
+from coral_operator.planning import instance_pass, provenance
+from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
+from coral_operator.planning.policy import Policy
+from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.memory import Memory
 from coral_operator.status import executor_report, instance_status, ownership, transitions
+from coral_operator.status.conditions import ConditionType, Reason
 
 Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
@@ -68,8 +75,10 @@ class InstanceReconciler:
         requeue: Callable[[Key, float], None],
         wake_system: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+        policy: Policy | None = None,
     ) -> None:
         self.memory = memory
+        self.policy = policy or Policy()
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
@@ -97,6 +106,10 @@ class InstanceReconciler:
             self._write_status(record, status, new)
             return
         node = self._robot(spec.node_name)
+        refusal = self._refusal(record, spec, node)
+        if refusal is not None:
+            self._refuse(record, status, *refusal, now=now)
+            return
         # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
         observed: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
         desired = (
@@ -113,6 +126,9 @@ class InstanceReconciler:
             self._retire(record, plan)
             return
         assert plan.startup is not None
+        if node is None:
+            # A pod pinned to a Node that is no robot's would run wherever that name leads.
+            plan.startup.create = []
         refused = self._apply(record, plan, observed)
         if refused:
             self.requeue(key, REFUSED_RETRY_S)
@@ -137,6 +153,56 @@ class InstanceReconciler:
             view, old_conditions=transitions.written_conditions(status), generation=record.generation, now=now
         )
         self._write_status(record, status, new)
+
+    def _refusal(
+        self, record: InstanceRecord, spec: CoralInstanceSpec, node: RobotNode | None
+    ) -> tuple[Reason, str] | None:
+        """(reason, message) when the instance is not one this operator may build pods for
+        (`planning.provenance`); None when it is."""
+        system: SystemRecord | None = next(
+            iter(self.indexes.read("coral_systems", (record.namespace, spec.system))), None
+        )
+        problems = provenance.evaluate_ownership(
+            name=record.name, owners=record.owners, spec=spec, system=system, node=node
+        )
+        if problems:
+            return Reason.FOREIGN_INSTANCE, _not_served(problems)
+        assert system is not None
+        if spec.retiring or self.memory.spec_vetted(record.uid, record.generation, system.uid):
+            return None  # stopping builds nothing; a vetted generation's spec cannot have changed
+        problem = provenance.evaluate_revision(spec, self._history(system, spec.revision))
+        if problem is not None:
+            return Reason.FOREIGN_INSTANCE, _not_served([problem])
+        denied = provenance.evaluate_instance_policy(record.namespace, spec, self.policy)
+        if denied:
+            refusals = "; ".join(denied)
+            return Reason.POLICY_DENIED, f"Not served, the operator's policy refuses: {refusals}."
+        self.memory.vet_spec(record.uid, record.generation, system.uid)
+        return None
+
+    def _history(self, system: SystemRecord, revision: str) -> list[StoredRevision]:
+        """The system's revisions, read from the API only when this process does not hold one
+        with `revision` (a system pass may store it any moment, and a restarted operator holds none)."""
+        key = (system.namespace, system.name, system.uid)
+        known = self.memory.known_revisions(key)
+        if known is not None and any(stored.revision == revision for stored in known):
+            return known
+        read = stored_revisions.read_revisions(*key)
+        self.memory.offer_revisions(key, read)
+        return read
+
+    def _refuse(
+        self, record: InstanceRecord, status: dict[str, Any], reason: Reason, message: str, *, now: datetime
+    ) -> None:
+        """Build nothing, delete nothing, and say why: on the status and in one Event per new reason."""
+        old = transitions.written_conditions(status)
+        before = transitions.find(old, ConditionType.STALLED) or {}
+        new = instance_status.build_invalid_status(
+            message, old_conditions=old, generation=record.generation, now=now, reason=reason
+        )
+        self._write_status(record, status, new, post_events=False)
+        if (before.get("reason"), before.get("message")) != (reason.value, message):
+            self.post(record.reference, "Warning", reason.value, message)
 
     def _robot(self, node_name: str) -> RobotNode | None:
         node: RobotNode | None = next(iter(self.indexes.read("robot_nodes", ("node", node_name))), None)
@@ -190,7 +256,14 @@ class InstanceReconciler:
         for pod_name in plan.stop:
             applying.delete_pod(record.namespace, pod_name)
 
-    def _write_status(self, record: InstanceRecord, current: dict[str, Any], new: dict[str, Any]) -> None:
+    def _write_status(
+        self,
+        record: InstanceRecord,
+        current: dict[str, Any],
+        new: dict[str, Any],
+        *,
+        post_events: bool = True,
+    ) -> None:
         changed = {key: value for key, value in new.items() if current.get(key) != value}
         if not changed:
             return
@@ -224,12 +297,18 @@ class InstanceReconciler:
             # At once, not when the watch brings this write back: the system pass reads it from
             # memory meanwhile, and a rollout's next robots wait on it.
             self.wake_system((record.namespace, system))
+        if not post_events:
+            return
         # After the write, so a deferred or failed one cannot post the same transition twice. Only
         # warnings: the good news of a fleet is counted on its system, not told per robot.
         for kind, reason, message in events.condition_events(
             transitions.written_conditions(current), list(new.get("conditions") or []), warnings_only=True
         ):
             self.post(record.reference, kind, reason, message)
+
+
+def _not_served(problems: list[str]) -> str:
+    return "Not served, this CoralInstance is not one its CoralSystem made: " + "; ".join(problems) + "."
 
 
 def _patch_value(old: Any, new: Any) -> Any:

@@ -52,6 +52,8 @@ class Memory:
     _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
     _records_written: dict[tuple[str, str], tuple[InstanceRecord, float]] = field(default_factory=dict)
     """(namespace, name) -> (the instance as a system pass moved it, when)."""
+    _spec_vetted: dict[str, tuple[int | None, str]] = field(default_factory=dict)
+    """Instance uid -> (generation, system uid) whose spec matched a stored revision and the policy."""
 
     # --- instances ---------------------------------------------------------------------------
 
@@ -120,6 +122,17 @@ class Memory:
         with self._lock:
             self._desired_pods[uid] = (generation, desired)
         return desired
+
+    def spec_vetted(self, uid: str, generation: int | None, system_uid: str) -> bool:
+        """Whether the instance's spec at `generation` was found to be its system's (`vet_spec`):
+        a spec changes only with its generation, and comparing it with the stored revision costs
+        a validation."""
+        with self._lock:
+            return self._spec_vetted.get(uid) == (generation, system_uid)
+
+    def vet_spec(self, uid: str, generation: int | None, system_uid: str) -> None:
+        with self._lock:
+            self._spec_vetted[uid] = (generation, system_uid)
 
     def pods_in_flight(self, uid: str, observed: list[ObservedPod]) -> tuple[set[str], set[str]]:
         """(created, deleted): pods of an instance this process created or deleted that `observed`
@@ -197,6 +210,7 @@ class Memory:
             self._desired_pods.pop(uid, None)
             self._writes.pop(uid, None)
             self._generation_seen.pop(uid, None)
+            self._spec_vetted.pop(uid, None)
 
     # --- systems -----------------------------------------------------------------------------
 
@@ -215,6 +229,18 @@ class Memory:
     def remember_revisions(self, key: tuple[str, str, str], stored: list[StoredRevision]) -> None:
         with self._lock:
             self._history[key] = list(stored)
+
+    def known_revisions(self, key: tuple[str, str, str]) -> list[StoredRevision] | None:
+        """A system's revision history if this process holds it, without reading the API."""
+        with self._lock:
+            cached = self._history.get(key)
+        return None if cached is None else list(cached)
+
+    def offer_revisions(self, key: tuple[str, str, str], stored: list[StoredRevision]) -> None:
+        """Keep a history an instance pass read, unless a system pass stored one meanwhile (which
+        may hold a revision written after that read)."""
+        with self._lock:
+            self._history.setdefault(key, list(stored))
 
     def expected_moves(self, uid: str, namespace: str, observed: dict[str, str]) -> dict[str, str]:
         """Robot -> revision of rollout moves not yet seen in `observed` (robot -> revision), as

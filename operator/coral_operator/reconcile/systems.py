@@ -23,7 +23,7 @@ from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import configmaps, instances, naming, system_pass
+from coral_operator.planning import configmaps, instances, naming, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
@@ -69,9 +69,11 @@ class SystemReconciler:
         system: SystemRecord = records[0]
         now = self.clock()
         status = self.memory.observed_status(system.uid, system.resource_version, system.status)
+        # An instance written by hand that names this system is not one of its robots.
         observed = [
             self._with_own_writes(instance)
             for instance in self.indexes.read("coral_instances", instances_of_system(*key))
+            if provenance.is_claimed_by(instance, system.name, system.uid)
         ]
         # Every pass, so that an instance seen once and then gone is no longer counted on its way.
         creating = self.memory.instances_in_flight(system.uid, {instance.name for instance in observed})

@@ -59,6 +59,9 @@ class Reason(StrEnum):
     """The robot cannot run a component pod (resources, node rules)."""
     POLICY_DENIED = "PolicyDenied"
     """The spec asks for more privilege than the operator's policy allows."""
+    FOREIGN_INSTANCE = "ForeignInstance"
+    """The CoralInstance is not one its CoralSystem made for its robot (owner, name, Node or spec
+    differ); the operator builds no pod for it."""
     NO_MATCHING_ROBOTS = "NoMatchingRobots"
     """No robot Node matches the selector."""
     INSTANCES_NOT_READY = "InstancesNotReady"

@@ -18,7 +18,7 @@ from coral_operator.api import common, names
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import instances, naming
+from coral_operator.planning import instances, naming, revisions
 from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
@@ -173,11 +173,12 @@ class Harness:
             "clock": lambda: NOW,
         }
         self.woken: list[tuple[str, str]] = []
-        self.instances = InstanceReconciler(**common, wake_system=self.woken.append)
+        policy = Policy(host_network_namespaces=frozenset({NS}))
+        self.instances = InstanceReconciler(**common, wake_system=self.woken.append, policy=policy)
         self.handed_over: list[tuple[str, str]] = []
         self.systems = SystemReconciler(
             **common,
-            policy=Policy(host_network_namespaces=frozenset({NS})),
+            policy=policy,
             pool=_Inline(),
             wake_instance=self.handed_over.append,
         )
@@ -188,8 +189,29 @@ class Harness:
 
     # --- instances ---------------------------------------------------------------------------
 
-    def instance(self, spec: dict[str, Any], name: str = "sys-r1", generation: int = 1) -> None:
+    def instance(
+        self,
+        spec: dict[str, Any],
+        name: str = "sys-r1",
+        generation: int = 1,
+        *,
+        by_hand: tuple[dict[str, Any], ...] | None = None,
+    ) -> None:
+        """The instance as its system made it: owned by the system, at a revision it stored; or,
+        with `by_hand` (its owner references), as someone wrote it, its spec stored nowhere."""
         status = self.kube.status.get(name, {})
+        system = spec.get("system", "sys")
+        if (NS, system) not in self.tables["coral_systems"] and by_hand is None:
+            self.system(BASE_SPEC, system)
+        if by_hand is None and spec.get("revision") not in {
+            stored.revision for stored in self.kube.revisions
+        }:
+            template = revisions.template_of_instance(spec)
+            number = len(self.kube.revisions) + 1
+            self.kube.revisions.append(
+                StoredRevision(f"{system}-{spec.get('revision')}", spec.get("revision", ""), number, template)
+            )
+        owner = naming.owner_reference(names.API_VERSION, names.SYSTEM_KIND, system, "uid-" + system)
         self.tables["coral_instances"][instance_named(NS, name)] = [
             InstanceRecord(
                 name=name,
@@ -199,6 +221,7 @@ class Harness:
                 spec=spec,
                 status=copy.deepcopy(status),
                 resource_version=str(self.kube._version),
+                owners=(owner,) if by_hand is None else by_hand,
             )
         ]
 
@@ -510,6 +533,88 @@ def test_instance_of_a_robot_that_left_stops_executors_first_then_goes(harness: 
     harness.tables["coral_pods"][(NS, "sys-r1")] = []
     harness.pass_instance(retiring)
     assert harness.kube.of("delete instance") == ["sys-r1"]
+
+
+def _stalled(status: dict[str, Any]) -> dict[str, Any]:
+    return next(c for c in status["conditions"] if c["type"] == "Stalled")
+
+
+def test_an_instance_written_by_hand_with_a_privileged_spec_gets_no_pod(harness: Harness) -> None:
+    """Issue 47, item 6: a user without rights on pods wrote a CoralInstance whose driver is
+    privileged, on the host network, with the robot's `/` mounted read-write."""
+    harness.system(BASE_SPEC)
+    spec = _instance_spec()
+    spec["ros"]["network"] = "Host"
+    spec["drivers"][0] |= {"privileged": True, "hostPaths": [{"hostPath": "/", "mountPath": "/host"}]}
+    harness.instance(spec, by_hand=())
+    harness.instances.reconcile((NS, "sys-r1"))
+    harness.instances.reconcile((NS, "sys-r1"))
+    assert harness.kube.of("create pod") == [] and harness.kube.of("delete pod") == []
+    stalled = _stalled(harness.kube.status["sys-r1"])
+    assert (stalled["status"], stalled["reason"]) == ("True", "ForeignInstance")
+    assert "metadata.ownerReferences: no controller" in stalled["message"]
+    assert [e[1:3] for e in harness.events] == [("Warning", "ForeignInstance")], "one Event, not one per pass"
+
+
+def test_a_hand_edited_spec_under_its_systems_owner_and_name_gets_no_new_pod(harness: Harness) -> None:
+    spec = _instance_spec()
+    harness.pass_instance(spec)  # as the system made it: its drivers start
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"]
+    edited = copy.deepcopy(spec)
+    edited["drivers"][0]["image"] = "someone/else:1"
+    owner = naming.owner_reference(names.API_VERSION, names.SYSTEM_KIND, "sys", "uid-sys")
+    harness.instance(edited, generation=2, by_hand=(owner,))
+    harness.instances.reconcile((NS, "sys-r1"))
+    assert harness.kube.of("create pod") == ["sys-r1-lidar"], "the pod it had is kept, none is built"
+    stalled = _stalled(harness.kube.status["sys-r1"])
+    assert "spec: differs from revision" in stalled["message"]
+
+
+def test_an_instance_naming_another_system_gets_no_pod(harness: Harness) -> None:
+    harness.system(BASE_SPEC, "other")
+    spec = {**_instance_spec(), "system": "other"}
+    owner = naming.owner_reference(names.API_VERSION, names.SYSTEM_KIND, "sys", "uid-sys")
+    harness.instance(spec, name="other-r1", by_hand=(owner,))
+    harness.instances.reconcile((NS, "other-r1"))
+    assert harness.kube.of("create pod") == []
+    assert "not CoralSystem other" in _stalled(harness.kube.status["other-r1"])["message"]
+
+
+def test_an_instance_beyond_the_policy_gets_no_pod_even_at_its_systems_revision(harness: Harness) -> None:
+    spec = _instance_spec()
+    spec["drivers"][0]["privileged"] = True
+    harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == []
+    stalled = _stalled(harness.kube.status["sys-r1"])
+    assert stalled["reason"] == "PolicyDenied" and "privileged is not allowed" in stalled["message"]
+
+
+def test_an_instance_pinned_to_a_node_that_is_no_robot_gets_no_pod(harness: Harness) -> None:
+    spec = {**_instance_spec(), "nodeName": "control-plane"}
+    status = harness.pass_instance(spec)
+    assert harness.kube.of("create pod") == []
+    assert _conditions(status)["RobotReachable"] == ("False", "NodeMissing")
+
+
+def test_a_system_ignores_an_instance_written_by_hand_at_another_name(harness: Harness) -> None:
+    harness.pass_system(_spec())
+    forged = {
+        "metadata": {"name": "evil", "namespace": NS, "uid": "uid-evil", "generation": 1},
+        "spec": {**_instance_spec(), "robot": "r1"},
+        "status": {"conditions": [{"type": "Stalled", "status": "True", "observedGeneration": 1}]},
+    }
+    harness.instances_are(ready=True)
+    harness.tables["coral_instances"][instances_of_system(NS, "sys")].append(
+        observing.observed_instance(forged)
+    )
+    before = list(harness.kube.writes)
+    status = harness.pass_system(_spec())
+    assert [
+        w for w in harness.kube.writes[len(before) :] if "instance" in w[0] and w[0] != "patch status"
+    ] == []
+    assert _conditions(status)["Ready"] == ("True", "Ready"), (
+        "a forged instance does not count for the system"
+    )
 
 
 # --- CoralSystem verdicts --------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -22,12 +23,14 @@ def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
 
 
 def _existing(manifest: dict[str, Any]) -> ObservedInstance:
+    """The instance as the system created it from `manifest` (owned by the system)."""
     return ObservedInstance(
         name=manifest["metadata"]["name"],
         robot=manifest["spec"]["robot"],
         spec=copy.deepcopy(manifest["spec"]),
         revision=manifest["spec"]["revision"],
         labels=manifest["metadata"]["labels"],
+        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
     )
 
 
@@ -119,7 +122,12 @@ def test_the_api_servers_rendering_of_the_spec_is_not_a_change(
     desired = _desired(spec_dict(), [robot("r1")])
     stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
     observed = ObservedInstance(
-        name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
+        name="sys-r1",
+        robot="r1",
+        spec=stored,
+        revision="x",
+        labels=desired[0]["metadata"]["labels"],
+        controller_uid="uid",
     )
     assert instances.plan_instances(desired, [observed]).empty
 
@@ -164,7 +172,12 @@ def test_with_shared_keys_the_api_servers_rendering_is_not_a_change(
     desired, keys = _built(spec_dict(), [robot("r1")])
     stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
     observed = ObservedInstance(
-        name="sys-r1", robot="r1", spec=stored, revision="x", labels=desired[0]["metadata"]["labels"]
+        name="sys-r1",
+        robot="r1",
+        spec=stored,
+        revision="x",
+        labels=desired[0]["metadata"]["labels"],
+        controller_uid="uid",
     )
     assert instances.plan_instances(desired, [observed], None, keys).empty
 
@@ -177,3 +190,23 @@ def test_a_whole_number_stored_without_its_fraction_gives_the_same_shared_key(
     stored = _existing(desired[0])
     stored.spec["tree"]["tickRateHz"] = int(stored.spec["tree"]["tickRateHz"])
     assert stored.shared_spec_key == keys["sys-r1"]
+
+
+def test_an_instance_written_by_hand_at_a_name_of_the_system_is_taken_over(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Issue 47, item 6: a CoralInstance created by hand before its robot joined had the system's
+    spec but no owner; the system now writes its owner (and spec) over it."""
+    desired, keys = _built(spec_dict(), [robot("r1")])
+    forged = dataclasses.replace(_existing(desired[0]), controller_uid="")
+    plan = instances.plan_instances(desired, [forged], None, keys, "uid")
+    assert [m["metadata"]["ownerReferences"][0]["uid"] for m in plan.update] == ["uid"]
+
+
+def test_a_leaving_instance_the_system_does_not_control_is_deleted_not_asked_to_stop(
+    spec_dict: Callable[..., dict[str, Any]],
+) -> None:
+    desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
+    stray = dataclasses.replace(_existing(desired[1]), controller_uid="")
+    plan = instances.plan_instances(desired[:1], [_existing(desired[0]), stray], {"r2"}, keys, "uid")
+    assert (plan.retire, plan.delete) == ([], ["sys-r2"])
