@@ -113,7 +113,13 @@ def parse_xml(text: str, filename: str) -> XmlElement:
     """Parses (after sanitising) into XmlElement nodes; errors read "file:line: ..."."""
     clean = sanitize(text)
     parser = expat.ParserCreate()
+    # expat hands text over a line at a time; merged, a run of newlines is one call, not one each.
+    parser.buffer_text = True
     stack: list[XmlElement] = []
+    # Text is gathered in pieces and joined once at the end tag: `text += data` copied the text so
+    # far on every piece, quadratic in a run of newlines (11-15 s of CPU per pass on a tree inside
+    # every limit; issue 47, item 9).
+    pieces: list[list[str]] = []
     result: list[XmlElement] = []
 
     def start(tag: str, attrs: dict[str, str]) -> None:
@@ -123,13 +129,14 @@ def parse_xml(text: str, filename: str) -> XmlElement:
         else:
             result.append(el)
         stack.append(el)
+        pieces.append([])
 
     def end(tag: str) -> None:
-        stack.pop()
+        stack.pop().text = "".join(pieces.pop())
 
     def chars(data: str) -> None:
-        if stack:
-            stack[-1].text += data
+        if pieces:
+            pieces[-1].append(data)
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end

@@ -17,12 +17,15 @@ from coral import parsing
 from coral.local import checking
 
 _ROLES = ("drivers", "skillsets")
+SOURCE_LABEL = "coral.dev/source"
+"""The label (value "true") by which a ConfigMap's owners let CoralSystems name it in configMapRef."""
 
 
 @dataclass
 class _Inputs:
     systems: list[dict[str, Any]] = field(default_factory=list)
     config_maps: dict[tuple[str, str], dict[str, str]] = field(default_factory=dict)
+    config_map_labels: dict[tuple[str, str], dict[str, str]] = field(default_factory=dict)
 
 
 def looks_like_manifests(text: str) -> bool:
@@ -50,6 +53,7 @@ def _collect(text: str, source: str, problems: list[str]) -> _Inputs:
             inputs.systems.append(document)
         elif document.get("kind") == "ConfigMap":
             inputs.config_maps[key] = dict(document.get("data") or {})
+            inputs.config_map_labels[key] = dict(metadata.get("labels") or {})
     return inputs
 
 
@@ -67,6 +71,13 @@ def _file_text(
     if data is None:
         problems.append(
             f"{where}: spec.{part}.configMapRef: ConfigMap {reference.get('name')} is not in the input"
+        )
+        return None
+    if inputs.config_map_labels.get((namespace, reference.get("name", "")), {}).get(SOURCE_LABEL) != "true":
+        # The operator reads only ConfigMaps their owners marked for Coral (docs/architecture.md).
+        problems.append(
+            f"{where}: spec.{part}.configMapRef: ConfigMap {reference.get('name')} lacks the label "
+            f'{SOURCE_LABEL}: "true"; the operator would refuse it'
         )
         return None
     if reference.get("key") not in data:

@@ -101,12 +101,20 @@ class LabelSelector(CamelModel):
     """Set-based requirements a robot Node must meet."""
 
 
-class ConfigMapKeyRef(CamelModel):
-    """A key of a ConfigMap in the system's namespace."""
+DNS_SUBDOMAIN = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?(\.[a-z0-9]([-a-z0-9]*[a-z0-9])?)*$"
+"""An object name as the API server admits one (RFC 1123 subdomain)."""
+CONFIG_MAP_KEY = r"^[-._a-zA-Z0-9]+$"
+"""A ConfigMap key as the API server admits one."""
 
-    name: str = Field(min_length=1, max_length=253)
-    """ConfigMap name."""
-    key: str = Field(min_length=1, max_length=253)
+
+class ConfigMapKeyRef(CamelModel):
+    """A key of a ConfigMap in the system's namespace. The operator reads only a ConfigMap labelled
+    `coral.dev/source: "true"`: that label is its owners' consent to have it copied into the
+    system's pods, which whoever may write CoralSystems there could not otherwise read."""
+
+    name: str = Field(min_length=1, max_length=253, pattern=DNS_SUBDOMAIN)
+    """ConfigMap name; the ConfigMap must carry the label `coral.dev/source: "true"`."""
+    key: str = Field(min_length=1, max_length=253, pattern=CONFIG_MAP_KEY)
     """Key holding the file's content."""
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from kubernetes.client.exceptions import ApiException
@@ -137,6 +138,37 @@ def _patch_status(plural: str, namespace: str, name: str, changes: dict[str, Any
     return str(version)
 
 
+class NameTaken(Exception):
+    """An object a system needs exists under its name but is another owner's: not taken over, not
+    deleted, reported (issue 47, item 9: a second system was silently never served, and deleting
+    one deleted the other's ServiceAccount)."""
+
+    def __init__(self, kind: str, namespace: str, name: str, owners: str) -> None:
+        super().__init__(f"{kind} {name} already exists in namespace {namespace} and belongs to {owners}")
+
+
+def _owners(references: Iterable[Any]) -> list[tuple[str, str, str]]:
+    """(kind, name, uid) of owner references, read by the client as objects or as dicts."""
+    found = []
+    for reference in references:
+        if isinstance(reference, dict):
+            found.append((reference.get("kind", ""), reference.get("name", ""), reference.get("uid", "")))
+        else:
+            found.append((reference.kind, reference.name, reference.uid))
+    return found
+
+
+def _describe(owners: list[tuple[str, str, str]]) -> str:
+    return ", ".join(f"{kind} {name}" for kind, name, _ in owners) or "no owner (made by hand)"
+
+
+def _left_by_predecessor(owners: list[tuple[str, str, str]], manifest: dict[str, Any]) -> bool:
+    """Whether every owner is an earlier CoralSystem of the same name (deleted, or deleted with
+    orphaning): the only objects a system may take over."""
+    mine = manifest["metadata"]["ownerReferences"][0]
+    return all(kind == mine["kind"] and name == mine["name"] for kind, name, _ in owners)
+
+
 def owned_by(owner_references: Iterable[Any] | None, uid: str) -> bool:
     """Whether one of `owner_references` (as the client reads them) names the owner `uid`."""
     return any(reference.uid == uid for reference in owner_references or [])
@@ -163,9 +195,13 @@ def create_owned(
     recreating it) finds the first one's objects still there until the garbage collector reaches
     them: the same names, owned by the old uid. Taking the 409 as done would leave the new system
     relying on objects the collector is about to delete, and its later pods refused for want of
-    their ServiceAccount. So an object with our labels but another owner is handed to the new
-    owner (the collector leaves an object alone once its owner exists), and one deleted between
-    the 409 and the read is created again. An object without our labels is not ours to take.
+    their ServiceAccount. So an object with our labels whose owners are all earlier systems of the
+    same name is handed to the new owner (the collector leaves an object alone once its owner
+    exists), and one deleted between the 409 and the read is created again.
+
+    Raises:
+        NameTaken: the object belongs to anything else (another system, or no Coral system): it
+            is not ours to take, and a system relying on it would run as someone else.
     """
     namespace, name = manifest["metadata"]["namespace"], manifest["metadata"]["name"]
     uid = _owner_uid(manifest)
@@ -180,8 +216,11 @@ def create_owned(
         except ApiException as error:
             _ignore(error, 404)
             continue
-        if owned_by(current.metadata.owner_references, uid) or not _labels_match(current, manifest):
+        if owned_by(current.metadata.owner_references, uid):
             return
+        owners = _owners(current.metadata.owner_references or [])
+        if not _labels_match(current, manifest) or not _left_by_predecessor(owners, manifest):
+            raise NameTaken(manifest["kind"], namespace, name, _describe(owners))
         try:
             take_over(current, manifest)
             return
@@ -285,15 +324,31 @@ def ensure_admission_policy(objects: list[dict[str, Any]], hash_annotation: str)
 
 
 def create_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
-    """Create an instance; returns it as created, or None when it already existed."""
+    """Create an instance; returns it as created, or None when it already existed for this system
+    (or an earlier one of its name, whose instances the collector is removing).
+
+    Raises:
+        NameTaken: an instance of that name belongs to anything else.
+    """
+    namespace, name = manifest["metadata"]["namespace"], manifest["metadata"]["name"]
+    custom = client.custom()
     try:
-        created: dict[str, Any] = client.custom().create_namespaced_custom_object(
-            GROUP, VERSION, manifest["metadata"]["namespace"], "coralinstances", manifest
+        created: dict[str, Any] = custom.create_namespaced_custom_object(
+            GROUP, VERSION, namespace, "coralinstances", manifest
         )
     except ApiException as error:
         _ignore(error, 409)
-        return None
-    return created
+    else:
+        return created
+    try:
+        current = custom.get_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances", name)
+    except ApiException as error:
+        _ignore(error, 404)
+        return None  # gone since: the next pass creates it
+    owners = _owners(current.get("metadata", {}).get("ownerReferences") or [])
+    if not _left_by_predecessor(owners, manifest) or not owners:
+        raise NameTaken(manifest["kind"], namespace, name, _describe(owners))
+    return None
 
 
 def update_instance(manifest: dict[str, Any]) -> dict[str, Any] | None:
@@ -364,11 +419,21 @@ def coral_api_served(namespaces: list[str]) -> str | None:
     return None
 
 
-def read_config_map_key(namespace: str, name: str, key: str) -> str | None:
-    """The text under `key`, or None when the ConfigMap or the key is missing."""
+@dataclass(frozen=True)
+class SourceKey:
+    """One key of a ConfigMap a system names, with the labels its owners gave the ConfigMap."""
+
+    text: str | None
+    """None when the key is missing."""
+    labels: dict[str, str]
+
+
+def read_config_map_key(namespace: str, name: str, key: str) -> SourceKey | None:
+    """The text under `key` and the ConfigMap's labels; None when the ConfigMap is missing. Another
+    4xx raises, for `refusal` to turn into a status."""
     try:
         config_map = client.core().read_namespaced_config_map(name, namespace)
     except ApiException as error:
         _ignore(error, 404)
         return None
-    return (config_map.data or {}).get(key)
+    return SourceKey(text=(config_map.data or {}).get(key), labels=dict(config_map.metadata.labels or {}))

@@ -52,3 +52,19 @@ def build_config_map(
 def plan_config_map_cleanup(existing: list[str], in_use: set[str]) -> list[str]:
     """ConfigMaps no instance and no current revision uses any more, to delete."""
     return sorted(name for name in existing if name not in in_use)
+
+
+def source_refusal(field: str, name: str, labels: Mapping[str, str] | None) -> str | None:
+    """Why a system may not read the ConfigMap `name` it names at `field`; None when it may (or when
+    the ConfigMap is missing, which the caller reports).
+
+    The operator can read every ConfigMap and copies what it reads into the system's pods, so
+    reading one for anyone who may write a CoralSystem would hand them ConfigMaps they may not
+    read (a confused deputy; issue 47, item 9). Its owners' label is the consent.
+    """
+    if labels is None or labels.get(names.LABEL_SOURCE) == "true":
+        return None
+    return (
+        f"{field}: ConfigMap {name} is not marked as a Coral source; the operator reads only "
+        f'ConfigMaps labelled {names.LABEL_SOURCE}: "true" by those who may write them.'
+    )

@@ -28,25 +28,56 @@ def content_hash(value: Any, length: int = 10) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
+HASH_LENGTH = 16
+"""Hex digits of the hash that ends every shortened or rewritten name: 64 bits, so that no tenant
+can search for a name of theirs that shortens like another's (8 digits took minutes of CPU)."""
+
+_HASHED = re.compile(rf"-[0-9a-f]{{{HASH_LENGTH}}}$")
+
+
+def _verbatim(text: str, valid: bool, max_length: int) -> bool:
+    """Whether `text` may stand for itself: valid, short enough, and not in the shape of a shortened
+    name. Every shortened name ends in `-<HASH_LENGTH hex>` and no verbatim one does, so a name
+    chosen to look like another's shortened form is shortened itself (issue 47, item 9)."""
+    return valid and len(text) <= max_length and not _HASHED.search(text)
+
+
+def _shortened(readable: str, whole: Any, max_length: int, strip: str = "-") -> str:
+    """A prefix of `readable`, then `-` and a hash of `whole` (the entire input, not the prefix)."""
+    prefix = readable[: max_length - HASH_LENGTH - 1].rstrip(strip) or "x"
+    return f"{prefix}-{content_hash(whole, HASH_LENGTH)}"
+
+
 def dns_label(text: str, max_length: int = _MAX_LABEL) -> str:
-    """`text` as a DNS-1123 label; too long or rewritten names get a hash suffix so they stay unique."""
+    """`text` as a DNS-1123 label, injective: kept when it is one already (and does not end like a
+    shortened name), else a cleaned prefix and a hash of the whole of `text`."""
     cleaned = re.sub(r"[^a-z0-9-]+", "-", text.lower()).strip("-") or "x"
-    if cleaned == text and len(cleaned) <= max_length:
+    if _verbatim(text, cleaned == text, max_length):
         return cleaned
-    suffix = content_hash(text, 8)
-    return f"{cleaned[: max_length - 9].rstrip('-')}-{suffix}"
+    return _shortened(cleaned, text, max_length)
 
 
 def label_value(text: str) -> str:
-    """`text` usable as a label value (at most 63 characters)."""
-    if len(text) <= _MAX_LABEL:
+    """`text` usable as a label value (at most 63 characters), injective like `dns_label`."""
+    if _verbatim(text, True, _MAX_LABEL):
         return text
-    return f"{text[:54].rstrip('-._')}-{content_hash(text, 8)}"
+    return _shortened(text, text, _MAX_LABEL, "-._")
 
 
 def instance_name(system: str, robot: str) -> str:
-    """CoralInstance of `robot` for `system`; short enough to be a label value."""
-    return dns_label(f"{system}-{robot}")
+    """CoralInstance of `robot` for `system`; short enough to be a label value.
+
+    `<system>-<robot>` when that reads back uniquely: the system's name has no `-` (so the first
+    `-` splits it), and the whole is a valid label not shaped like a shortened name. Otherwise a
+    prefix and a hash of the pair: joined by `-` alone, "a-b" + "c" and "a" + "b-c" were one
+    instance, and the second system was never served (issue 47, item 9).
+    """
+    joined = f"{system}-{robot}"
+    readable = re.fullmatch(r"[a-z0-9]([a-z0-9-]*[a-z0-9])?", joined) is not None
+    if "-" not in system and _verbatim(joined, readable, _MAX_LABEL):
+        return joined
+    cleaned = re.sub(r"[^a-z0-9-]+", "-", joined.lower()).strip("-") or "x"
+    return _shortened(cleaned, [system, robot], _MAX_LABEL)
 
 
 def pod_name(instance: str, component: str, pod_hash: str) -> str:

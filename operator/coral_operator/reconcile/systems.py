@@ -105,6 +105,8 @@ class SystemReconciler:
             self.memory.expect_moves(system.uid, system.namespace, plan.rollout.moves)
             try:
                 self._apply_changes(system, plan, creating)
+            except applying.NameTaken as error:
+                problem = system_status.Problem(Reason.NAME_TAKEN, f"{error}.")
             except Exception as error:
                 refused = applying.refusal(error)
                 if refused is None:
@@ -158,13 +160,29 @@ class SystemReconciler:
             return source.inline, f"coralsystem/{system.name} spec.{field}.inline"
         ref = source.config_map_ref
         assert ref is not None  # the model guarantees exactly one of the two
-        text = applying.read_config_map_key(system.namespace, ref.name, ref.key)
-        if text is None:
+        where = f"spec.{field}.configMapRef"
+        try:
+            found = applying.read_config_map_key(system.namespace, ref.name, ref.key)
+        except Exception as error:
+            # A name the API server cannot take (one written before the schema had a pattern) or a
+            # read it refuses: the same answer next time, so a status, not a retried traceback.
+            refused = applying.refusal(error)
+            if refused is None:
+                raise
+            return system_status.Problem(
+                Reason.CONFIG_MAP_UNREADABLE, f"{where}: ConfigMap {ref.name!r} could not be read: {refused}"
+            )
+        refusal = configmaps.source_refusal(
+            where, ref.name, None if found is None else found.labels
+        )
+        if refusal is not None:
+            return system_status.Problem(Reason.CONFIG_MAP_NOT_A_SOURCE, refusal)
+        if found is None or found.text is None:
             return system_status.Problem(
                 Reason.CONFIG_MAP_NOT_FOUND,
-                f"spec.{field}.configMapRef: ConfigMap {ref.name} has no key {ref.key}.",
+                f"{where}: ConfigMap {ref.name} has no key {ref.key}.",
             )
-        return text, f"configmap/{ref.name}/{ref.key}"
+        return found.text, f"configmap/{ref.name}/{ref.key}"
 
     def _apply_history(self, system: SystemRecord, plan: system_pass.SystemPlan) -> None:
         history = plan.history

@@ -69,6 +69,15 @@ class Layout:
     def kwok_config(self) -> Path:
         return self.state_dir / "kwok.yaml"
 
+    @property
+    def audit_policy(self) -> Path:
+        return self.state_dir / "audit-policy.yaml"
+
+    @property
+    def audit_log(self) -> Path:
+        """Every request a ServiceAccount made (`AUDIT_POLICY`), one JSON event per line."""
+        return self.logs_dir / "audit.log"
+
     def to_json(self) -> dict[str, Any]:
         return {"state_dir": str(self.state_dir), "bin_dir": str(self.bin_dir), "ports": asdict(self.ports)}
 
@@ -122,8 +131,29 @@ def build_apiserver(layout: Layout) -> list[str]:
         # Endpoints may not hold a loopback address, so the `kubernetes` Service gets none.
         "--endpoint-reconciler-type=none",
         "--profiling=false",
+        f"--audit-policy-file={layout.audit_policy}",
+        f"--audit-log-path={layout.audit_log}",
+        "--audit-log-format=json",
+        "--audit-log-maxsize=200",
+        "--audit-log-maxbackup=1",
         "--v=1",
     ]
+
+
+AUDIT_POLICY = """\
+# Requests of ServiceAccounts only (an operator installed by its chart, executors, tenants' pods):
+# what they asked and what they were answered, without bodies. The control plane's own components
+# authenticate by certificate and are not recorded.
+apiVersion: audit.k8s.io/v1
+kind: Policy
+omitStages: [RequestReceived, ResponseStarted]
+rules:
+  - level: Metadata
+    userGroups: ["system:serviceaccounts"]
+  - level: None
+"""
+"""Audit policy of the local kube-apiserver: tests read what an identity really did (and was refused)
+from `Layout.audit_log` instead of inferring it from its logs."""
 
 
 def build_controller_manager(layout: Layout) -> list[str]:

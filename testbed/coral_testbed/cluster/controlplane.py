@@ -125,6 +125,7 @@ def _prepare(state_dir: Path, bin_dir: Path) -> components.Layout:
             ),
         )
     layout.kwok_config.write_text(robots.kwok_stages())
+    layout.audit_policy.write_text(components.AUDIT_POLICY)
     return layout
 
 

@@ -8,6 +8,7 @@ import signal
 
 import pytest
 from coral_api import condition, is_current_and_true
+from coral_operator.api import names
 from coral_operator.planning import naming
 from coral_testbed.cluster import controlplane
 from coral_testbed.waiting import holds_for
@@ -38,7 +39,8 @@ def test_a_tree_from_a_config_map_is_followed_and_a_broken_edit_is_refused(scena
     mission = scenario.mission()
     tree = mission["spec"]["tree"].pop("inline")
     coral.core.create_namespaced_config_map(
-        namespace, {"metadata": {"name": "mission"}, "data": {"tree.xml": tree}}
+        namespace,
+        {"metadata": {"name": "mission", "labels": {names.LABEL_SOURCE: "true"}}, "data": {"tree.xml": tree}},
     )
     mission["spec"]["tree"]["configMapRef"] = {"name": "mission", "key": "tree.xml"}
     first = scenario.deploy(mission)["status"]["revision"]

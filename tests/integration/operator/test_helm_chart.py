@@ -16,9 +16,11 @@ from typing import Any
 import pytest
 import yaml
 from coral_api import Coral, fleet_mission, is_current_and_true
-from coral_testbed.cluster import binaries, processes
+from coral_operator.planning import naming
+from coral_testbed.cluster import audit, binaries, processes
 from fixtures.operator import opened_policy
 from fixtures.processes import stop_process_group
+from kubernetes import client as k8s
 
 ROOT = Path(__file__).resolve().parents[3]
 CHART = ROOT / "charts" / "coral-operator"
@@ -214,3 +216,167 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
         )
     # The CRDs stay when the release goes (they live in the chart's crds/ folder).
     assert "coralsystems.coral.dev" in cluster.kubectl("get", "crd", "-o", "name").stdout
+
+
+Permission = tuple[str, str, str]
+"""(API group, resource[/subresource], verb)."""
+
+NOT_EXERCISED: dict[Permission, str] = {
+    ("coordination.k8s.io", "leases", "get"): "read only while a robot is unreachable (its last-seen time)",
+    ("coral.dev", "coralinstances", "get"): "an instance name that answers 409 is read to tell whose it is",
+    ("", "configmaps", "delete"): "a revision's files go when it leaves the history (after 10 changes)",
+    ("apps", "controllerrevisions", "delete"): "a revision leaves the history after 10 changes",
+}
+"""Grants of the chart that the scenario below does not reach, each with the only case that needs it."""
+
+
+def _granted(rendered: str, account: str) -> set[Permission]:
+    """Every (group, resource, verb) the rendered chart grants the ServiceAccount `account`."""
+    documents = [d for d in yaml.safe_load_all(rendered) if d]
+    roles = {(d["kind"], d["metadata"]["name"]): d for d in documents if d["kind"] in ("Role", "ClusterRole")}
+    granted = set()
+    for binding in (d for d in documents if d["kind"] in ("RoleBinding", "ClusterRoleBinding")):
+        if not any(s["kind"] == "ServiceAccount" and s["name"] == account for s in binding["subjects"]):
+            continue
+        role = roles[(binding["roleRef"]["kind"], binding["roleRef"]["name"])]
+        for rule in role["rules"]:
+            granted |= {
+                (group, resource, verb)
+                for group in rule["apiGroups"]
+                for resource in rule["resources"]
+                for verb in rule["verbs"]
+            }
+    return granted
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_every_request_of_the_operator_is_granted_by_the_chart_and_every_grant_is_used(
+    cluster: Any,
+    namespace: str,
+    coral_crds: None,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+    tmp_path: Path,
+) -> None:
+    """Issue 47, item 8: the shipped ClusterRole lacked `get` on ServiceAccounts, so a second robot
+    joining a system left it Stalled (ApplyRefused), which no test saw: they all ran the operator as
+    an administrator, or only created a system. Here the operator runs with the chart's
+    ServiceAccount through a system's whole life (create, grow from one robot to three, a change
+    and its undoing, a robot leaving, objects that lost their owner adopted again as a robot joins,
+    a delete), and the API server's audit log says what it really asked: nothing refused, nothing
+    asked that the chart does not grant, and nothing granted that it never asks but
+    `NOT_EXERCISED` (so removing a verb from the chart, or granting one too many, fails here)."""
+    if cluster.state_dir is None:
+        pytest.skip("needs the local control plane's audit log")
+    release = f"c{uuid.uuid4().hex[:6]}"
+    env = cluster.env()
+    values = [
+        "--set",
+        f"watchNamespaces={{{namespace}}}",
+        "--set",
+        f"policy.hostNetworkNamespaces={{{namespace}}}",
+        # Keep the chart's own operator pod off the simulated robots; this test runs it as a process.
+        "--set",
+        "nodeSelector.coral-test=no-such-node",
+    ]
+    subprocess.run(
+        [_helm(), "install", release, str(CHART), "-n", namespace, "--wait=false", *values],
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    rendered = subprocess.run(
+        [_helm(), "template", release, str(CHART), "-n", namespace, *values],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    process = None
+    try:
+        kubeconfig = _token_kubeconfig(cluster, namespace, release, tmp_path / "operator.kubeconfig")
+        log = (tmp_path / "operator.log").open("w")
+        process = subprocess.Popen(
+            [sys.executable, "-m", "coral_operator", "-n", namespace],
+            env={**env, **opened_policy(namespace), "KUBECONFIG": str(kubeconfig), "PYTHONUNBUFFERED": "1"},
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            preexec_fn=processes.die_with_parent,
+        )
+        coral = Coral(cluster.api_client, namespace)
+
+        def ready_on(count: int) -> bool:
+            system = coral.system("fleet")
+            current = [i for i in coral.instances().values() if is_current_and_true(i, "Ready")]
+            return is_current_and_true(system, "Ready") and len(current) == count
+
+        def operator_log() -> str:
+            return (tmp_path / "operator.log").read_text()[-3000:]
+
+        first = robots(1, {"fleet": fleet_label})
+        coral.create_system(fleet_mission("fleet", fleet_label))
+        wait(lambda: ready_on(1), lambda: f"one Ready robot; operator log:\n{operator_log()}", timeout=120)
+        # The second and third robots join a system that exists: its account is applied again.
+        robots(2, {"fleet": fleet_label}, start=2)
+        wait(lambda: ready_on(3), lambda: f"three Ready robots; operator log:\n{operator_log()}", timeout=120)
+        # A change of the executors only (their pods replaced one by one, the others relabelled), one
+        # every pod carries (all of an instance's pods replaced in one request), then that one
+        # undone: the second revision becomes the newest again (renumbered in place).
+        changes = [{"tree": {"tickRateHz": 5.0}}, {"ros": {"domainId": 7}}, {"ros": {"domainId": 0}}]
+        for generation, change in enumerate(changes, start=2):
+            coral.patch_system("fleet", {"spec": change})
+            wait(
+                lambda generation=generation: ready_on(3)
+                and len({i["spec"]["revision"] for i in coral.instances().values()}) == 1
+                and (coral.system("fleet") or {}).get("status", {}).get("observedGeneration") == generation,
+                lambda: f"the change rolled out; operator log:\n{operator_log()}",
+                timeout=180,
+            )
+        cluster.remove_robots(first)
+        wait(lambda: ready_on(2) and len(coral.instances()) == 2, "the robot that left to lose its instance")
+        # Objects that lost their owner reference (as an orphaning delete of the system leaves them)
+        # are adopted again by the system of their name (kube.applying.create_owned) when a robot
+        # joins, which applies them anew.
+        core, rbac = k8s.CoreV1Api(cluster.api_client), k8s.RbacAuthorizationV1Api(cluster.api_client)
+        account = naming.executor_account_name("fleet")
+        strip = {"metadata": {"ownerReferences": None}}
+        core.patch_namespaced_service_account(account, namespace, strip)
+        rbac.patch_namespaced_role(account, namespace, strip)
+        rbac.patch_namespaced_role_binding(account, namespace, strip)
+        for name in coral.config_maps():
+            core.patch_namespaced_config_map(name, namespace, strip)
+        robots(1, {"fleet": fleet_label}, start=4)
+
+        def adopted() -> bool:
+            owners = [
+                core.read_namespaced_service_account(account, namespace).metadata.owner_references,
+                rbac.read_namespaced_role(account, namespace).metadata.owner_references,
+                rbac.read_namespaced_role_binding(account, namespace).metadata.owner_references,
+            ]
+            return all(owners) and ready_on(3)
+
+        wait(adopted, lambda: f"the system to adopt its objects again; log:\n{operator_log()}", timeout=120)
+        coral.delete_system("fleet")
+        wait(lambda: not coral.instances(), "the instances to go with their system", timeout=120)
+    finally:
+        if process is not None:
+            stop_process_group(process, timeout=15)
+        subprocess.run(
+            [_helm(), "uninstall", release, "-n", namespace], env=env, check=True, capture_output=True
+        )
+    layout_log = Path(cluster.state_dir) / "logs" / "audit.log"
+    requests = audit.requests_of(layout_log, f"system:serviceaccount:{namespace}:{release}")
+    assert requests, f"no request of the operator in {layout_log}"
+    refused = sorted({(r.permission, r.namespace) for r in requests if r.code == 403})
+    assert not refused, f"the API server refused the operator: {refused}"
+    used = {r.permission for r in requests}
+    granted = _granted(rendered, release)
+    assert used - granted == set(), "asked without a grant (answered otherwise than 403?)"
+    unused = granted - used
+    assert unused == set(NOT_EXERCISED), (
+        f"granted but never asked: {sorted(unused - set(NOT_EXERCISED))}; "
+        f"expected to be asked: {sorted(set(NOT_EXERCISED) - unused)}"
+    )

@@ -5,6 +5,7 @@ Property: they never raise; every refusal names the field (or the file and line)
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from coral_operator.api.instance import CoralInstanceSpec
@@ -168,3 +169,27 @@ def test_generated_systems_are_refused_by_field_or_planned_never_crash(raw: dict
     instance = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
     built = pods.build_pods(spec=instance, instance="sys-r1", namespace="ns", instance_uid="u")
     assert len(built) == len(spec.drivers) + len(spec.skillsets) + len(spec.executors)
+
+
+SUBDOMAIN = re.compile(r"[a-z0-9]([-a-z0-9]*[a-z0-9])?(\.[a-z0-9]([-a-z0-9]*[a-z0-9])?)*")
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    part=st.sampled_from(["tree", "parameters"]),
+    name=st.text(alphabet="ab0-.%/ A_", min_size=1, max_size=12),
+    key=st.text(alphabet="ab0-._/%", min_size=1, max_size=8),
+)
+def test_generated_config_map_references_are_admitted_only_as_the_api_server_names_them(
+    spec_dict: Any, part: str, name: str, key: str
+) -> None:
+    """Issue 47, item 9: a name with `%` passed admission and then got a 400 on every read."""
+    raw = spec_dict(**{part: {"configMapRef": {"name": name, "key": key}}})
+    try:
+        CoralSystemSpec.model_validate(raw)
+    except ValidationError as error:
+        locations = {".".join(str(p) for p in item["loc"]) for item in error.errors()}
+        assert locations <= {f"{part}.configMapRef.name", f"{part}.configMapRef.key"}, locations
+        assert not (SUBDOMAIN.fullmatch(name) and re.fullmatch(r"[-._a-zA-Z0-9]+", key))
+        return
+    assert SUBDOMAIN.fullmatch(name) and re.fullmatch(r"[-._a-zA-Z0-9]+", key)

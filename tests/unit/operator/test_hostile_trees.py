@@ -7,6 +7,7 @@ grow it past its memory limit, crash it with a RecursionError or read its files.
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 import pytest
@@ -116,3 +117,32 @@ def test_the_robot_still_reads_includes_from_its_folder(tmp_path: Path) -> None:
     (tmp_path / "nav.xml").write_text(NAV)
     (tmp_path / "tree.xml").write_text(_including("nav.xml"))
     assert bt.load_tree_file(tmp_path / "tree.xml").main_tree == "Main"
+
+
+@pytest.mark.parametrize(
+    "where",
+    [
+        "<Sequence>{run}<AlwaysSuccess/></Sequence>",
+        "<Sequence><![CDATA[{run}]]><AlwaysSuccess/></Sequence>",
+        '<Script code="{run}x:=1"/>',
+        "<AlwaysSuccess{run}/>",
+    ],
+)
+def test_a_run_of_newlines_costs_time_in_proportion_to_its_length(where: str) -> None:
+    """Issue 47, item 9: a tree inside every limit whose text was one long run of newlines cost
+    11-15 s of CPU per pass, the element's text grown a line at a time by copying it (quadratic).
+    Eight times the run must cost about eight times as much, not sixty-four (the figure is the best
+    of a few runs, so that another process on the machine does not decide it)."""
+
+    def cost(newlines: int) -> float:
+        body = where.format(run="\n" * newlines)
+        tree = f'{HEAD}  <BehaviorTree ID="Main">{body}</BehaviorTree>\n</root>\n'
+        best = float("inf")
+        for _ in range(3):
+            began = time.process_time()
+            assert validation.validate_tree(tree, "tree.xml") == []
+            best = min(best, time.process_time() - began)
+        return best
+
+    small, large = cost(80_000), cost(640_000)
+    assert large < 24 * max(small, 0.002), (small, large)

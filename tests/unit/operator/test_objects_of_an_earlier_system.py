@@ -1,8 +1,8 @@
 """An object a system needs, found under its name but owned by an earlier system of the same name,
-is handed to the new system; one that is not the operator's is left alone; one deleted between the
-409 and the read is created again. The API calls are in-memory stand-ins holding one object, so each
-of those orders can be chosen; the real sequence runs in the integration test of a system created
-again under its name."""
+is handed to the new system; one that is another owner's is left alone and reported
+(`NameTaken`); one deleted between the 409 and the read is created again. The API calls are
+in-memory stand-ins holding one object, so each of those orders can be chosen; the real sequence
+runs in the integration test of a system created again under its name."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
-from coral_operator.kube.applying import create_owned
+from coral_operator.kube.applying import NameTaken, create_owned
 from kubernetes.client.exceptions import ApiException
 
 LABELS = {"coral.dev/system": "fleet", "app.kubernetes.io/managed-by": "coral-operator"}
@@ -31,9 +31,12 @@ def _manifest(uid: str) -> dict[str, Any]:
 class OneObjectStore:
     """The one object under a name, with the reads and writes `create_owned` makes."""
 
-    def __init__(self, labels: dict[str, str], owner: str | None, vanish_on_read: int = 0) -> None:
+    def __init__(
+        self, labels: dict[str, str], owner: str | None, vanish_on_read: int = 0, owner_name: str = "fleet"
+    ) -> None:
+        reference = {"kind": "CoralSystem", "name": owner_name, "uid": owner}
         self.object: dict[str, Any] | None = (
-            {"labels": labels, "owners": [{"uid": owner}]} if owner is not None else None
+            {"labels": labels, "owners": [reference]} if owner is not None else None
         )
         self.vanish_on_read = vanish_on_read
         self.calls: list[str] = []
@@ -53,7 +56,7 @@ class OneObjectStore:
             self.object = None
         if self.object is None:
             raise ApiException(status=404, reason="NotFound")
-        owners = [SimpleNamespace(uid=o["uid"]) for o in self.object["owners"]]
+        owners = [SimpleNamespace(**o) for o in self.object["owners"]]
         metadata = SimpleNamespace(labels=self.object["labels"], owner_references=owners)
         return SimpleNamespace(metadata=metadata)
 
@@ -83,11 +86,30 @@ def test_an_object_the_system_already_owns_is_not_written_again() -> None:
     assert store.calls == ["create", "read"]
 
 
-def test_an_object_without_the_operators_labels_is_not_taken() -> None:
+def test_an_object_without_the_operators_labels_is_not_taken_and_is_reported() -> None:
     store = OneObjectStore({"app": "someone-else"}, owner="theirs")
-    _create(store, "new")
+    with pytest.raises(NameTaken, match="ServiceAccount coral-executor-fleet .* CoralSystem fleet"):
+        _create(store, "new")
     assert store.owner() == "theirs"
     assert "take over" not in store.calls
+
+
+def test_an_object_with_the_systems_labels_but_another_systems_ownership_is_not_taken() -> None:
+    """Issue 47, item 9: a second system whose names shortened like the first's took over the
+    first's ServiceAccount (same labels, another owner), and deleting it deleted the first's."""
+    store = OneObjectStore(LABELS, owner="victim-uid", owner_name="victim")
+    with pytest.raises(NameTaken, match="belongs to CoralSystem victim"):
+        _create(store, "new")
+    assert store.owner() == "victim-uid"
+    assert "take over" not in store.calls
+
+
+def test_an_object_orphaned_by_the_systems_predecessor_is_taken() -> None:
+    store = OneObjectStore(LABELS, owner="old")
+    assert store.object is not None
+    store.object["owners"] = []
+    _create(store, "new")
+    assert store.owner() == "new"
 
 
 def test_an_object_deleted_after_the_conflict_is_created_again() -> None:

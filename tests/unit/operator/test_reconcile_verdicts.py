@@ -49,9 +49,14 @@ class FakeKube:
         self.instances: dict[str, dict[str, Any]] = {}
         self.status: dict[str, dict[str, Any]] = {}
         self.config_maps: dict[str, dict[str, str]] = {}
+        self.config_map_labels: dict[str, dict[str, str]] = {}
+        """Labels of `config_maps` by name; unset, a ConfigMap is marked as a Coral source."""
+        self.refuse_config_maps: tuple[int, str] | None = None
         self.revisions: list[StoredRevision] = []
         self.refuse_pods = ""
         self.refuse_instances = ""
+        self.taken_by = ""
+        """Set: every instance name is another owner's (`applying.NameTaken` naming it)."""
         self.renewed = NOW - timedelta(minutes=3)
         self._version = 100
 
@@ -102,7 +107,23 @@ class FakeKube:
         def create_instance(manifest: dict[str, Any]) -> dict[str, Any]:
             if self.refuse_instances:
                 raise self._refused(self.refuse_instances)
+            if self.taken_by:
+                metadata = manifest["metadata"]
+                raise applying.NameTaken(
+                    "CoralInstance", metadata["namespace"], metadata["name"], self.taken_by
+                )
             return write_instance("create instance", manifest, 1)
+
+        def read_config_map_key(namespace: str, name: str, key: str) -> applying.SourceKey | None:
+            if self.refuse_config_maps is not None:
+                code, message = self.refuse_config_maps
+                error = ApiException(status=code, reason="Refused")
+                error.body = json.dumps({"message": message})
+                raise error
+            if name not in self.config_maps:
+                return None
+            labels = self.config_map_labels.get(name, {names.LABEL_SOURCE: "true"})
+            return applying.SourceKey(text=self.config_maps[name].get(key), labels=labels)
 
         def record(verb: str) -> Callable[..., None]:
             return lambda *args: self.writes.append((verb, str(args[-1] if verb != "apply rbac" else "")))
@@ -124,7 +145,7 @@ class FakeKube:
                 ("create configmap", manifest["metadata"]["name"])
             ),
             "delete_config_map": lambda ns, name: self.writes.append(("delete configmap", name)),
-            "read_config_map_key": lambda ns, name, key: self.config_maps.get(name, {}).get(key),
+            "read_config_map_key": read_config_map_key,
         }
         for name, fake in patches.items():
             monkeypatch.setattr(applying, name, fake)
@@ -748,6 +769,28 @@ def test_system_stalled_when_a_source_config_map_is_missing(harness: Harness) ->
     assert _conditions(status)["Stalled"] == ("True", "ConfigMapNotFound")
 
 
+def test_a_config_map_its_owners_did_not_mark_as_a_source_is_not_read(harness: Harness) -> None:
+    """Issue 47, item 9: the operator reads every ConfigMap, so reading any one a system names
+    handed its author ConfigMaps they may not read (a confused deputy), copied into their pods."""
+    tree = '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></root>'
+    harness.kube.config_maps["secrets"] = {"main.xml": tree}
+    harness.kube.config_map_labels["secrets"] = {"app": "billing"}
+    status = harness.pass_system(_spec(tree={"configMapRef": {"name": "secrets", "key": "main.xml"}}))
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "ConfigMapNotASource")
+    assert "spec.tree.configMapRef" in stalled["message"] and names.LABEL_SOURCE in stalled["message"]
+    assert harness.kube.of("create configmap") == [] and harness.kube.of("create instance") == []
+
+
+def test_a_refused_read_of_a_source_is_a_status_not_a_retried_error(harness: Harness) -> None:
+    # A name the schema admits now; one written before it had a pattern got a 400 retried forever.
+    harness.kube.refuse_config_maps = (400, 'invalid resource name "params": may not contain \'%\'')
+    status = harness.pass_system(_spec(parameters={"configMapRef": {"name": "params", "key": "p.yaml"}}))
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "ConfigMapUnreadable")
+    assert "spec.parameters.configMapRef" in stalled["message"] and "may not contain" in stalled["message"]
+
+
 def test_system_stalled_when_the_policy_refuses_it(harness: Harness) -> None:
     privileged = [{"name": "lidar", "image": "example/lidar:1", "privileged": True}]
     status = harness.pass_system(_spec(drivers=privileged))
@@ -767,3 +810,12 @@ def test_system_stalled_with_the_servers_message_when_a_write_is_refused(harness
     stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
     assert (stalled["status"], stalled["reason"]) == ("True", "ApplyRefused")
     assert "exceeded quota" in stalled["message"]
+
+
+def test_system_stalled_naming_the_owner_of_an_instance_name_it_needs(harness: Harness) -> None:
+    """Issue 47, item 9: a system whose instance name was another's was silently never served."""
+    harness.kube.taken_by = "CoralSystem other"
+    status = harness.pass_system(_spec())
+    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    assert (stalled["status"], stalled["reason"]) == ("True", "NameTaken")
+    assert "belongs to CoralSystem other" in stalled["message"]

@@ -31,6 +31,16 @@ CASES = [
     ("refuse parameters given neither way", {"parameters": {}}, system.SOURCE_EXACTLY_ONE),
     ("refuse an unknown field", {"robotz": {}}, "Extra inputs are not permitted"),
     (
+        "refuse a ConfigMap name the API server cannot take",
+        {"parameters": {"configMapRef": {"name": "params%2f", "key": "p.yaml"}}},
+        r"parameters\.configMapRef\.name\n  String should match pattern",
+    ),
+    (
+        "refuse a ConfigMap key the API server cannot take",
+        {"tree": {"configMapRef": {"name": "trees", "key": "../tree.xml/"}}},
+        r"tree\.configMapRef\.key\n  String should match pattern",
+    ),
+    (
         "refuse a component name that is not a DNS label",
         {"drivers": [{"name": "Lidar_1", "image": "l"}]},
         "String should match pattern",
