@@ -20,10 +20,10 @@ from pydantic import ValidationError
 
 from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
-from coral_operator.api.system import CoralSystemSpec, SourceSpec
+from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import configmaps, instances, naming, system_pass
+from coral_operator.planning import budgets, configmaps, instances, naming, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
@@ -94,6 +94,8 @@ class SystemReconciler:
             previous_rollout=self.memory.rollout_written(system.uid) or _rollout_of(status),
             policy=self.policy,
             now=now,
+            neighbours=self._neighbours(system) if parsed else [],
+            verdicts=self.memory.verdicts,
         )
         plan = system_pass.plan_system(observation)
         problem = plan.problem
@@ -123,6 +125,20 @@ class SystemReconciler:
                 )
         self._write_status(system, status, observed, plan, problem, now)
 
+    def _neighbours(self, system: SystemRecord) -> list[budgets.Footprint]:
+        """The footprints of the namespace's other systems, from the index (their robots: the
+        instances they have)."""
+        found = []
+        for namespace, name in self.indexes.keys("coral_systems"):
+            if namespace != system.namespace or name == system.name:
+                continue
+            for other in self.indexes.read("coral_systems", (namespace, name)):
+                robots = self.indexes.count("coral_instances", instances_of_system(namespace, name))
+                found.append(
+                    budgets.Footprint(other.name, other.created, other.spec_bytes, other.share_bytes, robots)
+                )
+        return found
+
     def _move(self, manifest: dict[str, Any]) -> dict[str, Any] | None:
         """Move one instance to a new revision and start its pass at once, from the API server's
         answer: through the watch, each waited seconds at 1000 robots, behind every other event of
@@ -136,7 +152,7 @@ class SystemReconciler:
         between passes")."""
         body = applying.update_instance(manifest)
         if body is not None:
-            record = observing.instance_record(body)
+            record = observing.instance_record(body, self.memory.specs.share(body))
             self.memory.remember_record(record)
             self.wake_instance((record.namespace, record.name))
         return body
@@ -161,6 +177,14 @@ class SystemReconciler:
             return system_status.Problem(
                 Reason.CONFIG_MAP_NOT_FOUND,
                 f"spec.{field}.configMapRef: ConfigMap {ref.name} has no key {ref.key}.",
+            )
+        size = len(text.encode("utf-8", "surrogatepass"))
+        if size > MAX_INLINE_BYTES:
+            # The bound of the inline field, so that where a file comes from changes nothing.
+            return system_status.Problem(
+                Reason.TOO_LARGE,
+                f"spec.{field}.configMapRef: configmap/{ref.name}/{ref.key} is {size:,} bytes; "
+                f"the limit is {MAX_INLINE_BYTES:,}",
             )
         return text, f"configmap/{ref.name}/{ref.key}"
 

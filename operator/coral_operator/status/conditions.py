@@ -59,6 +59,8 @@ class Reason(StrEnum):
     """The robot cannot run a component pod (resources, node rules)."""
     POLICY_DENIED = "PolicyDenied"
     """The spec asks for more privilege than the operator's policy allows."""
+    TOO_LARGE = "TooLarge"
+    """The system's copies across its robots, or its namespace's systems together, pass a bound."""
     NO_MATCHING_ROBOTS = "NoMatchingRobots"
     """No robot Node matches the selector."""
     INSTANCES_NOT_READY = "InstancesNotReady"
