@@ -159,7 +159,9 @@ def check_yaml(text: str, limits: YamlLimits = PARAMETER_LIMITS) -> str | None:
                 tally.count("entries", anchors[event.anchor], mark)
             elif any(frame[0] == event.anchor for frame in stack):
                 raise OverLimit(f"the alias *{event.anchor} refers to a node that contains it", mark)
-            # Else undefined: the composer says so.
+            else:
+                # As PyYAML's composer words it.
+                raise yaml.composer.ComposerError(None, None, f"found undefined alias {event.anchor!r}", mark)
         elif isinstance(event, yaml.ScalarEvent):
             tally.count("entries", 1, mark)
             if event.anchor is not None:

@@ -147,3 +147,8 @@ def test_other_limits_can_be_chosen() -> None:
     with pytest.raises(parsing.OverLimit) as refused:
         parsing.check_yaml("[1, 2, 3, 4, 5, 6]\n", small)
     assert refused.value.problem == "expands to 7 entries; the limit is 5"
+
+
+def test_an_undefined_alias_is_named_with_its_line() -> None:
+    (problem,) = validation.validate_parameters("a: 1\nb: *nowhere\n", FILE)
+    assert problem == f"{FILE}:2: invalid YAML: found undefined alias 'nowhere'"
