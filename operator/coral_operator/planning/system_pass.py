@@ -116,7 +116,7 @@ def parse_spec(spec: Mapping[str, Any]) -> CoralSystemSpec | Problem:
         return Problem(Reason.INVALID_SPEC, format_validation(error))
 
 
-def listed(problems: list[str], shown: int = 20) -> str:
+def listed(problems: list[str], shown: int = validation.PROBLEMS_SHOWN) -> str:
     """The first problems, then how many more: a tree can have thousands."""
     more = len(problems) - shown
     return "; ".join(problems[:shown]) + (f"; and {more} more problems" if more > 0 else "")

@@ -26,17 +26,27 @@ from coral.bt.limits import IncludeBudget, TreeLimits, check_document
 from coral.bt.loader import IncludeResolver
 
 LIMITS = TreeLimits()
-VERDICTS_KEPT = 512
-"""Validation verdicts remembered (each a short list of messages, keyed by a hash): more than the
-systems a pass loop revisits while their files stay the same."""
+VERDICTS_KEPT = 2048
+"""Validation verdicts remembered (each at most `PROBLEMS_SHOWN` messages, keyed by a hash): more
+than the systems a pass loop revisits while their files stay the same."""
+PROBLEMS_SHOWN = 20
+"""Problems a status message shows; the rest are counted (`planning.system_pass.listed`)."""
+VALIDATIONS_AT_ONCE = 2
 
 
 class Verdicts:
     """Problems by content hash, least recently used dropped first; thread safe. One per process
-    (`reconcile.memory.Memory.verdicts`)."""
+    (`reconcile.memory.Memory.verdicts`).
+
+    At most `VALIDATIONS_AT_ONCE` validations run at a time: each holds a document model of up to
+    tens of MB while it runs (a 256 KiB tree of 16,000 elements: 8 MB), and validation is CPU
+    work under one interpreter lock, so the queue's 32 workers would gain no time by running
+    more, only hold more memory at once.
+    """
 
     def __init__(self, size: int = VERDICTS_KEPT) -> None:
         self._size = size
+        self._running = threading.BoundedSemaphore(VALIDATIONS_AT_ONCE)
         self._lock = threading.Lock()
         self._kept: OrderedDict[str, list[str]] = OrderedDict()
 
@@ -46,9 +56,11 @@ class Verdicts:
             if key in self._kept:
                 self._kept.move_to_end(key)
                 return list(self._kept[key])
-        problems = compute()
+        with self._running:
+            problems = compute()
         with self._lock:
-            self._kept[key] = list(problems)
+            # Only what a message shows, and how many more: a tree can have thousands of problems.
+            self._kept[key] = problems[:PROBLEMS_SHOWN] + [""] * (len(problems) - PROBLEMS_SHOWN)
             while len(self._kept) > self._size:
                 self._kept.popitem(last=False)
         return problems
