@@ -332,10 +332,42 @@ def summary_of(instance: ObservedInstance) -> tuple[Any, ...]:
     )
 
 
-def system_record(body: Mapping[str, Any]) -> SystemRecord:
-    """A CoralSystem as its reconciler reads it."""
+FILES_KEPT_BYTES = 16 * 1024
+"""Inline files (parameters, tree, tree files) up to this size together stay in a system's record."""
+
+
+def _without_files(spec: dict[str, Any]) -> tuple[dict[str, Any], bool]:
+    """`spec` with its inline files emptied when they are large, and whether they were.
+
+    A system's files may be a megabyte, and kept in the index they were most of the operator's
+    memory (200 such systems: 470 of its 512 MiB). A pass that needs them reads the system from
+    the API (`reconcile.systems`); what the index keeps is everything else, file names included.
+    """
+    parameters = spec.get("parameters") or {}
+    tree = spec.get("tree") or {}
+    files = tree.get("files") or {}
+    size = len(parameters.get("inline") or "") + len(tree.get("inline") or "")
+    size += sum(len(text or "") for text in files.values())
+    if size <= FILES_KEPT_BYTES:
+        return spec, False
+    stripped = dict(spec)
+    if parameters.get("inline") is not None:
+        stripped["parameters"] = {**parameters, "inline": ""}
+    if tree:
+        stripped["tree"] = {
+            **tree,
+            **({"inline": ""} if tree.get("inline") is not None else {}),
+            **({"files": dict.fromkeys(files, "")} if files else {}),
+        }
+    return stripped, True
+
+
+def system_record(body: Mapping[str, Any], keep_files: bool = False) -> SystemRecord:
+    """A CoralSystem as its reconciler reads it; large inline files are left out of the spec
+    (`files_left_out`) unless `keep_files`."""
     metadata = body.get("metadata", {})
-    spec = dict(body.get("spec") or {})
+    full = dict(body.get("spec") or {})
+    spec, left_out = (full, False) if keep_files else _without_files(full)
     return SystemRecord(
         name=metadata.get("name", ""),
         namespace=metadata.get("namespace", ""),
@@ -346,6 +378,7 @@ def system_record(body: Mapping[str, Any]) -> SystemRecord:
         annotations=dict(metadata.get("annotations") or {}),
         resource_version=metadata.get("resourceVersion"),
         created=str(metadata.get("creationTimestamp") or ""),
-        spec_bytes=budgets.json_bytes(spec),
-        share_bytes=budgets.robot_share_bytes(spec),
+        spec_bytes=budgets.json_bytes(full),
+        share_bytes=budgets.robot_share_bytes(full),
+        files_left_out=left_out,
     )

@@ -73,6 +73,7 @@ class Controller:
             policy=policy,
             pool=self._pool,
             wake_instance=lambda key: self.queue.add((INSTANCE, *key)),
+            trim=self.trimmer.soon,
         )
 
     def _process(self, key: Key) -> None:

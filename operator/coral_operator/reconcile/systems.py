@@ -10,6 +10,7 @@ docs/architecture.md.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
 from datetime import UTC, datetime
@@ -34,6 +35,8 @@ from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
 Key = tuple[str, str]
+FILES_AT_ONCE = 4
+"""System passes that may hold their large files (read from the API) at the same time."""
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
 _OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
@@ -52,8 +55,12 @@ class SystemReconciler:
         pool: Executor,
         wake_instance: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+        trim: Callable[[], None] = lambda: None,
     ) -> None:
         self.memory = memory
+        self.trim = trim
+        """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
+        self._files_at_once = threading.BoundedSemaphore(FILES_AT_ONCE)
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
@@ -67,6 +74,20 @@ class SystemReconciler:
         if not records:
             return
         system: SystemRecord = records[0]
+        if not system.files_left_out:
+            self._reconcile(key, system)
+            return
+        # The index keeps no large file (docs/architecture.md, "The operator's memory"): this pass
+        # reads them and lets go of them when it ends, and only FILES_AT_ONCE passes hold them at
+        # once (a megabyte each, twice over while decoded). A newer version read here is only
+        # what the watch is about to bring.
+        with self._files_at_once:
+            body = applying.read_system(*key)
+            if body is not None:
+                self._reconcile(key, observing.system_record(body, keep_files=True))
+        self.trim()
+
+    def _reconcile(self, key: Key, system: SystemRecord) -> None:
         now = self.clock()
         status = self.memory.observed_status(system.uid, system.resource_version, system.status)
         observed = [

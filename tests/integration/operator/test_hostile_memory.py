@@ -139,7 +139,7 @@ def test_a_merge_key_bomb_is_refused_with_its_expansion_without_costing_the_oper
     stalled = _stalled(stage, "bomb")
     assert stalled["reason"] == "InvalidParameters"
     assert (
-        "coralsystem/bomb spec.parameters.inline:10: expands to 57,581,082,611 entries; the limit is 100,000"
+        "coralsystem/bomb spec.parameters.inline:5: expands to 57,581,082,611 entries; the limit is 100,000"
         in stalled["message"]
     )
     assert stage.operator.cgroup.peak_bytes() - before < 16 * MiB
