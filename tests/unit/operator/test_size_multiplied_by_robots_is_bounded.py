@@ -150,3 +150,18 @@ def test_instances_of_one_revision_share_one_copy_of_their_spec() -> None:
     assert forged["drivers"] is not specs[0]["drivers"] and len(table) == 2
     del specs, forged
     assert len(table) == 0
+
+
+def test_large_inline_files_stay_out_of_the_index_but_count_in_the_spec_size() -> None:
+    spec = _spec()
+    spec["parameters"] = {"inline": "a:\n  ros__parameters: {x: 1}\n" + "#" * 200_000 + "\n"}
+    spec["tree"]["files"] = {"nav.xml": "<root/>" + " " * 30_000}
+    record = _record("files", spec)
+    assert record.files_left_out
+    assert record.spec["parameters"]["inline"] == "" and record.spec["tree"]["files"] == {"nav.xml": ""}
+    assert record.spec["drivers"] == spec["drivers"]
+    assert record.spec_bytes > 230_000
+    kept = observing.system_record({"metadata": {"name": "files"}, "spec": spec}, keep_files=True)
+    assert not kept.files_left_out and kept.spec["parameters"] == spec["parameters"]
+    small = _record("small", _spec())
+    assert not small.files_left_out and small.spec["tree"] == _spec()["tree"]
