@@ -23,9 +23,10 @@ app.kubernetes.io/instance: {{ .Release.Name }}
      created, grows, changes, rolls back and goes (tests/integration/operator/test_helm_chart.py
      compares the two both ways). */}}
 {{- define "coral-operator.namespacedRules" -}}
+{{- /* get: a system whose files are too large to keep in memory is read again by each pass. */}}
 - apiGroups: [coral.dev]
   resources: [coralsystems]
-  verbs: [list, watch]
+  verbs: [get, list, watch]
 {{- /* get: an instance name that answers 409 is read to tell whose it is. */}}
 - apiGroups: [coral.dev]
   resources: [coralinstances]

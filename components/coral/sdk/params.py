@@ -64,7 +64,20 @@ def _check_node_entry(path: str, key: str, node: yaml.Node) -> None:
 
 
 def validate_text(text: str, path: str = "<params>") -> dict[str, Any]:
-    """Checks a parameters document and returns it parsed; raises `ParamsError` naming file and line."""
+    """Checks a parameters document and returns it parsed; raises `ParamsError` naming file and line.
+
+    The document is measured first (`parsing.check_yaml` with the operator's bounds on aliases,
+    merge keys, expanded size and nesting), so nothing is built from one that expands past them.
+    """
+    try:
+        parsing.check_yaml(text, parsing.PARAMETER_LIMITS)
+    except parsing.OverLimit as err:
+        line = f":{err.problem_mark.line + 1}" if err.problem_mark is not None else ""
+        raise ParamsError(f"{path}{line}: {err.problem}") from err
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        raise ParamsError(f"{path}{line}: invalid YAML: {getattr(err, 'problem', err)}") from err
     try:
         root = parsing.compose_yaml(text)
     except yaml.YAMLError as err:

@@ -17,6 +17,12 @@ DNS_LABEL = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"
 Role = Literal["driver", "skillset", "executor"]
 ROLES: tuple[Role, ...] = ("driver", "skillset", "executor")
 Quantity = int | Annotated[str, Field(max_length=64)]
+# Everything in a component is copied into every robot's CoralInstance and pods, so each string is
+# bounded at admission; what the strings add up to across robots is the operator's to bound
+# (`planning.budgets`, issue 47).
+MAX_ENV_VALUE_LENGTH = 4096
+MAX_ARGUMENT_LENGTH = 4096
+Argument = Annotated[str, Field(max_length=MAX_ARGUMENT_LENGTH)]
 
 
 class EnvVar(CamelModel):
@@ -24,8 +30,9 @@ class EnvVar(CamelModel):
 
     name: str = Field(min_length=1, max_length=253)
     """Variable name."""
-    value: str = ""
-    """Variable value (literal; parameters belong in the system's parameters file)."""
+    value: str = Field(default="", max_length=MAX_ENV_VALUE_LENGTH)
+    """Variable value (literal; parameters belong in the system's parameters file). At most 4096
+    characters: it is copied to every robot."""
 
 
 # A Kubernetes quantity as a string (`250m`, `1Gi`, `1e3`); whole numbers may be given as integers.
@@ -83,7 +90,7 @@ class HostPathMount(CamelModel):
 class Readiness(CamelModel):
     """When the component counts as ready, which gates the next startup stage."""
 
-    exec: list[str] = Field(default_factory=list, max_length=32)
+    exec: list[Argument] = Field(default_factory=list, max_length=32)
     """Command run in the container; ready when it exits 0. Empty: see `pluginMarker`."""
     plugin_marker: bool | None = None
     """Ready when the component's `ready` marker exists in the plugin folder (default for skillsets)."""
@@ -104,9 +111,9 @@ class Component(CamelModel):
     """Container image."""
     image_pull_policy: Literal["Always", "IfNotPresent", "Never"] | None = None
     """Image pull policy; the cluster default when omitted."""
-    command: list[str] = Field(default_factory=list, max_length=64)
+    command: list[Argument] = Field(default_factory=list, max_length=64)
     """Entrypoint override; the image's entrypoint when empty (executors: `python -m coral.executor`)."""
-    args: list[str] = Field(default_factory=list, max_length=256)
+    args: list[Argument] = Field(default_factory=list, max_length=256)
     """Arguments to the entrypoint."""
     env: list[EnvVar] = Field(default_factory=list, max_length=128)
     """Extra environment variables; the ROS and Coral variables are set by the operator."""

@@ -45,11 +45,12 @@ async def coral_pods(namespace: str, labels: kopf.Labels, body: kopf.Body, **_: 
 
 @kopf.index(names.GROUP, names.VERSION, names.INSTANCE_PLURAL)
 async def coral_instances(
-    namespace: str, name: str, spec: kopf.Spec, body: kopf.Body, **_: Any
+    namespace: str, name: str, spec: kopf.Spec, body: kopf.Body, memo: kopf.Memo, **_: Any
 ) -> dict[Any, Any]:
+    shared = memo["controller"].memory.specs.share(body)
     return {
-        instances_of_system(namespace, spec.get("system", "")): observing.observed_instance(body),
-        instance_named(namespace, name): observing.instance_record(body),
+        instances_of_system(namespace, spec.get("system", "")): observing.observed_instance(body, shared),
+        instance_named(namespace, name): observing.instance_record(body, shared),
         instances_on_node(spec.get("nodeName", "")): (namespace, name),
     }
 

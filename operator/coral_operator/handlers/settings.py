@@ -19,6 +19,9 @@ from coral_operator.kube import applying, client
 from coral_operator.planning import rbac
 from coral_operator.reconcile.controller import Controller
 
+LIST_CHUNK_SIZE = 50
+"""Objects per page of kopf's initial listings."""
+
 
 class EssenceFreeDiffBase(kopf.AnnotationsDiffBaseStorage):
     """A diff-base that never builds an object's essence.
@@ -49,6 +52,10 @@ def configure_operator(settings: kopf.OperatorSettings, **_: Any) -> None:
     settings.posting.level = logging.WARNING
     settings.execution.max_workers = 16
     settings.watching.server_timeout = 300
+    # A listing comes in pages: a namespace's CoralSystems may each be a megabyte, and one
+    # response with all of them (its text and its decoded objects at once) would be the operator's
+    # largest moment (docs/architecture.md, "The operator's memory").
+    settings.watching.chunk_size = LIST_CHUNK_SIZE
     for resource, selector in watch_selectors().items():
         settings.watching.label_selectors[resource] = selector
     settings.networking.request_timeout = 60

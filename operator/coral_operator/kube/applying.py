@@ -437,3 +437,15 @@ def read_config_map_key(namespace: str, name: str, key: str) -> SourceKey | None
         _ignore(error, 404)
         return None
     return SourceKey(text=(config_map.data or {}).get(key), labels=dict(config_map.metadata.labels or {}))
+
+
+def read_system(namespace: str, name: str) -> dict[str, Any] | None:
+    """The CoralSystem as the API server holds it now, or None when it is gone."""
+    try:
+        body: dict[str, Any] = client.custom().get_namespaced_custom_object(
+            GROUP, VERSION, namespace, names.SYSTEM_PLURAL, name
+        )
+    except ApiException as error:
+        _ignore(error, 404)
+        return None
+    return body

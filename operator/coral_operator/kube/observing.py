@@ -7,18 +7,22 @@ but it knows API shapes, so it lives beside the client.
 from __future__ import annotations
 
 import dataclasses
+import threading
+import weakref
 from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
 
 from coral_operator.api import keys, names
-from coral_operator.planning import naming, provenance
+from coral_operator.planning import budgets, naming, provenance
 from coral_operator.planning.observed import (
+    ROBOT_SPEC_FIELDS,
     InstanceRecord,
     ObservedInstance,
     ObservedPod,
     RobotNode,
     SystemRecord,
+    shared_spec_key,
 )
 from coral_operator.status import executor_report, transitions
 
@@ -212,10 +216,57 @@ def _unschedulable(status: Mapping[str, Any]) -> str | None:
     return None
 
 
-def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
-    """A CoralInstance record as its system sees it."""
+class InstanceSpec(dict[str, Any]):
+    """A CoralInstance spec whose values but the robot's own are those of every other instance
+    with the same content (`shared`, kept alive by each spec that uses it)."""
+
+    __slots__ = ("shared", "shared_key")
+
+    shared: dict[str, Any]
+    shared_key: str
+
+
+class _Shared(dict[str, Any]):
+    """The part of a spec every robot of one revision has; weakly referenced by `SpecTable`."""
+
+    __slots__ = ("__weakref__",)
+
+
+class SpecTable:
+    """The shared parts of the CoralInstance specs in memory, by content; one per process, held by
+    `reconcile.memory.Memory`. A fleet's instances at one revision carry the same components; the
+    watch decodes each copy on its own, and keeping each was most of the operator's memory per
+    robot (issue 47). Keyed by content (never by the revision a spec claims), so a hand-written
+    instance shares nothing it does not hold itself; an entry goes with the last spec using it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._shared: weakref.WeakValueDictionary[str, _Shared] = weakref.WeakValueDictionary()
+
+    def __len__(self) -> int:
+        return len(self._shared)
+
+    def share(self, body: Mapping[str, Any]) -> InstanceSpec:
+        """The CoralInstance's spec, its shared part deduplicated (see `InstanceSpec`)."""
+        spec = body.get("spec") or {}
+        key = shared_spec_key(dict(spec))
+        with self._lock:
+            shared = self._shared.get(key)
+            if shared is None:
+                shared = _Shared((k, v) for k, v in spec.items() if k not in ROBOT_SPEC_FIELDS)
+                self._shared[key] = shared
+        # The spec's own key order, so that it reads (and dumps) as the API server sent it.
+        result = InstanceSpec((k, spec[k] if k in ROBOT_SPEC_FIELDS else shared[k]) for k in spec)
+        result.shared = shared
+        result.shared_key = key
+        return result
+
+
+def observed_instance(body: Mapping[str, Any], spec: dict[str, Any] | None = None) -> ObservedInstance:
+    """A CoralInstance record as its system sees it; `spec`: `SpecTable.share(body)` to keep it
+    shared, else a copy of the body's."""
     metadata = body.get("metadata", {})
-    spec = dict(body.get("spec") or {})
+    spec = spec if spec is not None else dict(body.get("spec") or {})
     status = _mapping(body.get("status"))
     instance = ObservedInstance(
         name=metadata.get("name", ""),
@@ -231,6 +282,9 @@ def observed_instance(body: Mapping[str, Any]) -> ObservedInstance:
             (provenance.controller_of(metadata.get("ownerReferences") or []) or {}).get("uid", "")
         ),
     )
+    if isinstance(spec, InstanceSpec):
+        # The hash was made to share the spec; the system pass compares it for every robot.
+        instance.__dict__["shared_spec_key"] = spec.shared_key
     return with_operator_status(instance, status)
 
 
@@ -262,15 +316,16 @@ def with_operator_status(instance: ObservedInstance, status: Mapping[str, Any]) 
     )
 
 
-def instance_record(body: Mapping[str, Any]) -> InstanceRecord:
-    """A CoralInstance as its own reconciler reads it."""
+def instance_record(body: Mapping[str, Any], spec: dict[str, Any] | None = None) -> InstanceRecord:
+    """A CoralInstance as its own reconciler reads it; `spec`: `SpecTable.share(body)` to keep it
+    shared, else a copy of the body's."""
     metadata = body.get("metadata", {})
     return InstanceRecord(
         name=metadata.get("name", ""),
         namespace=metadata.get("namespace", ""),
         uid=metadata.get("uid", ""),
         generation=metadata.get("generation"),
-        spec=dict(body.get("spec") or {}),
+        spec=spec if spec is not None else dict(body.get("spec") or {}),
         status=dict(_mapping(body.get("status"))),
         resource_version=metadata.get("resourceVersion"),
         owners=tuple(dict(o) for o in metadata.get("ownerReferences") or [] if isinstance(o, Mapping)),
@@ -297,16 +352,53 @@ def summary_of(instance: ObservedInstance) -> tuple[Any, ...]:
     )
 
 
-def system_record(body: Mapping[str, Any]) -> SystemRecord:
-    """A CoralSystem as its reconciler reads it."""
+FILES_KEPT_BYTES = 16 * 1024
+"""Inline files (parameters, tree, tree files) up to this size together stay in a system's record."""
+
+
+def _without_files(spec: dict[str, Any]) -> tuple[dict[str, Any], bool]:
+    """`spec` with its inline files emptied when they are large, and whether they were.
+
+    A system's files may be a megabyte, and kept in the index they were most of the operator's
+    memory (200 such systems: 470 of its 512 MiB). A pass that needs them reads the system from
+    the API (`reconcile.systems`); what the index keeps is everything else, file names included.
+    """
+    parameters = spec.get("parameters") or {}
+    tree = spec.get("tree") or {}
+    files = tree.get("files") or {}
+    size = len(parameters.get("inline") or "") + len(tree.get("inline") or "")
+    size += sum(len(text or "") for text in files.values())
+    if size <= FILES_KEPT_BYTES:
+        return spec, False
+    stripped = dict(spec)
+    if parameters.get("inline") is not None:
+        stripped["parameters"] = {**parameters, "inline": ""}
+    if tree:
+        stripped["tree"] = {
+            **tree,
+            **({"inline": ""} if tree.get("inline") is not None else {}),
+            **({"files": dict.fromkeys(files, "")} if files else {}),
+        }
+    return stripped, True
+
+
+def system_record(body: Mapping[str, Any], keep_files: bool = False) -> SystemRecord:
+    """A CoralSystem as its reconciler reads it; large inline files are left out of the spec
+    (`files_left_out`) unless `keep_files`."""
     metadata = body.get("metadata", {})
+    full = dict(body.get("spec") or {})
+    spec, left_out = (full, False) if keep_files else _without_files(full)
     return SystemRecord(
         name=metadata.get("name", ""),
         namespace=metadata.get("namespace", ""),
         uid=metadata.get("uid", ""),
         generation=metadata.get("generation"),
-        spec=dict(body.get("spec") or {}),
+        spec=spec,
         status=dict(body.get("status") or {}),
         annotations=dict(metadata.get("annotations") or {}),
         resource_version=metadata.get("resourceVersion"),
+        created=str(metadata.get("creationTimestamp") or ""),
+        spec_bytes=budgets.json_bytes(full),
+        share_bytes=budgets.robot_share_bytes(full),
+        files_left_out=left_out,
     )

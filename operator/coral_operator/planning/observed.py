@@ -143,6 +143,15 @@ class SystemRecord:
     status: dict[str, Any]
     annotations: dict[str, str] = field(default_factory=dict)
     resource_version: str | None = None
+    created: str = ""
+    """The creation timestamp (RFC 3339), which orders a namespace's systems for its budget."""
+    spec_bytes: int = 0
+    """The spec's size as JSON (`planning.budgets`), measured once per watch event."""
+    share_bytes: int = 0
+    """What one robot's copy of the spec takes (`planning.budgets.robot_share_bytes`)."""
+    files_left_out: bool = False
+    """The spec's inline files were left out of this record (`kube.observing.system_record`): a
+    pass reads the system from the API for them."""
 
     @property
     def reference(self) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from coral_operator.api import names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import (
+    budgets,
     configmaps,
     instances,
     policy,
@@ -57,6 +58,10 @@ class SystemObservation:
     """`status.rollout` as last written."""
     policy: policy.Policy
     now: datetime
+    neighbours: list[budgets.Footprint] = field(default_factory=list)
+    """The other CoralSystems of the namespace, for its budget (`planning.budgets`)."""
+    verdicts: validation.Verdicts | None = None
+    """Validation results already known, by content hash."""
 
 
 @dataclass
@@ -111,7 +116,7 @@ def parse_spec(spec: Mapping[str, Any]) -> CoralSystemSpec | Problem:
         return Problem(Reason.INVALID_SPEC, format_validation(error))
 
 
-def listed(problems: list[str], shown: int = 20) -> str:
+def listed(problems: list[str], shown: int = validation.PROBLEMS_SHOWN) -> str:
     """The first problems, then how many more: a tree can have thousands."""
     more = len(problems) - shown
     return "; ".join(problems[:shown]) + (f"; and {more} more problems" if more > 0 else "")
@@ -132,10 +137,11 @@ def validate_files(observation: SystemObservation, spec: CoralSystemSpec) -> tup
         spec.tree.main_tree_id,
         spec.tree.files,
         files_label=f"coralsystem/{name} spec.tree.files",
+        verdicts=observation.verdicts,
     )
     if problems:
         return Problem(Reason.INVALID_TREE, listed(problems))
-    problems = validation.validate_parameters(params[0], params[1])
+    problems = validation.validate_parameters(params[0], params[1], observation.verdicts)
     if problems:
         return Problem(Reason.INVALID_PARAMETERS, listed(problems))
     denied = policy.evaluate_policy(namespace, spec, observation.policy)
@@ -177,6 +183,9 @@ def _plan_deployment(
     template = instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"])
     revision = instances.revision_of(template)
     robots = selection.select_robots(spec.robots, observation.robots)
+    too_large = _check_budgets(observation, len(robots))
+    if too_large is not None:
+        return SystemPlan(problem=too_large, matched=len(robots))
     observed = observation.instances
     by_robot = {i.robot: i for i in observed if not i.spec.get("retiring")}
     history = revisions.plan_history(
@@ -246,6 +255,17 @@ def _plan_deployment(
         ),
         stored_after=stored,
     )
+
+
+def _check_budgets(observation: SystemObservation, robots: int) -> Problem | None:
+    """Why the system's copies on its robots, or its namespace's total, are refused; checked
+    before any instance is built, so a refused system costs no more than its own record."""
+    system = observation.system
+    refused = budgets.check_expansion(system.share_bytes, robots)
+    if refused is None:
+        own = budgets.Footprint(system.name, system.created, system.spec_bytes, system.share_bytes, robots)
+        refused = budgets.check_namespace(system.namespace, own, observation.neighbours)
+    return None if refused is None else Problem(Reason.TOO_LARGE, refused)
 
 
 def stored_after(

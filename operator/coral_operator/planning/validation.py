@@ -5,15 +5,20 @@ loader the executors use, with two differences that keep one namespace's bad inp
 the operator anything: the text is first checked against `TreeLimits` (size, element count, depth,
 entity declarations) by a scan that holds only counters, and `<include>`s resolve only among the
 files the CoralSystem carries (`spec.tree.files`), never from the operator's filesystem. Any other
-exception is turned into a problem, never raised. Called by the system handler and `coral
-convert`; pure.
+exception is turned into a problem, never raised. The parameters are measured on the parser's
+event stream (`coral.parsing.check_yaml`) and never built: the operator only copies them into a
+ConfigMap. Given a `Verdicts` table, results are remembered by content hash, since every system
+pass validates again what rarely changes. Called by the system handler and `coral convert`; pure.
 """
 
 from __future__ import annotations
 
+import hashlib
 import posixpath
 import re
-from collections.abc import Mapping
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
 
 import yaml
 from coral import bt, parsing
@@ -21,6 +26,48 @@ from coral.bt.limits import IncludeBudget, TreeLimits, check_document
 from coral.bt.loader import IncludeResolver
 
 LIMITS = TreeLimits()
+VERDICTS_KEPT = 2048
+"""Validation verdicts remembered (each at most `PROBLEMS_SHOWN` messages, keyed by a hash): more
+than the systems a pass loop revisits while their files stay the same."""
+PROBLEMS_SHOWN = 20
+"""Problems a status message shows; the rest are counted (`planning.system_pass.listed`)."""
+VALIDATIONS_AT_ONCE = 2
+
+
+class Verdicts:
+    """Problems by content hash, least recently used dropped first; thread safe. One per process
+    (`reconcile.memory.Memory.verdicts`).
+
+    At most `VALIDATIONS_AT_ONCE` validations run at a time: each holds a document model of up to
+    tens of MB while it runs (a 256 KiB tree of 16,000 elements: 8 MB), and validation is CPU
+    work under one interpreter lock, so the queue's 32 workers would gain no time by running
+    more, only hold more memory at once.
+    """
+
+    def __init__(self, size: int = VERDICTS_KEPT) -> None:
+        self._size = size
+        self._running = threading.BoundedSemaphore(VALIDATIONS_AT_ONCE)
+        self._lock = threading.Lock()
+        self._kept: OrderedDict[str, list[str]] = OrderedDict()
+
+    def get(self, parts: tuple[object, ...], compute: Callable[[], list[str]]) -> list[str]:
+        key = hashlib.sha256(repr(parts).encode("utf-8", "surrogatepass")).hexdigest()
+        with self._lock:
+            if key in self._kept:
+                self._kept.move_to_end(key)
+                return list(self._kept[key])
+        with self._running:
+            problems = compute()
+        with self._lock:
+            # Only what a message shows, and how many more: a tree can have thousands of problems.
+            self._kept[key] = problems[:PROBLEMS_SHOWN] + [""] * (len(problems) - PROBLEMS_SHOWN)
+            while len(self._kept) > self._size:
+                self._kept.popitem(last=False)
+        return problems
+
+
+def _computed(parts: tuple[object, ...], compute: Callable[[], list[str]]) -> list[str]:
+    return compute()
 
 
 def include_resolver(files: Mapping[str, str], budget: IncludeBudget, label: str) -> IncludeResolver:
@@ -54,6 +101,7 @@ def validate_tree(
     files: Mapping[str, str] | None = None,
     limits: TreeLimits = LIMITS,
     files_label: str = "spec.tree.files",
+    verdicts: Verdicts | None = None,
 ) -> list[str]:
     """Problems of a BT.CPP XML document, each `file:line: message`; empty when it is valid.
 
@@ -61,6 +109,20 @@ def validate_tree(
     valid there), so a tree the robots would run is never refused here. Node types are not
     checked against plugins: only the robot knows which skillsets run.
     """
+    parts = ("tree", text, filename, main_tree_id, sorted((files or {}).items()), limits, files_label)
+    return (verdicts.get if verdicts is not None else _computed)(
+        parts, lambda: _validate_tree(text, filename, main_tree_id, files or {}, limits, files_label)
+    )
+
+
+def _validate_tree(
+    text: str,
+    filename: str,
+    main_tree_id: str | None,
+    files: Mapping[str, str],
+    limits: TreeLimits,
+    files_label: str,
+) -> list[str]:
     budget = IncludeBudget(limits)
     try:
         check_document(text, filename, budget)
@@ -96,10 +158,25 @@ def _static_problems(document: bt.TreeDocument, filename: str) -> list[str]:
     ]
 
 
-def validate_parameters(text: str, filename: str) -> list[str]:
-    """Problems of a ROS parameters YAML, each `file:line: message`; empty when it is valid."""
+def validate_parameters(text: str, filename: str, verdicts: Verdicts | None = None) -> list[str]:
+    """Problems of a ROS parameters YAML, each `file:line: message`; empty when it is valid.
+
+    Aliases, merge keys, the expanded size and the nesting are bounded (`parsing.PARAMETER_LIMITS`,
+    the same bounds the robot's `coral.sdk.params` applies), so a few hundred bytes cannot stand
+    for millions of entries; a refusal names the figure and the limit.
+    """
+    parts = ("parameters", text, filename)
+    return (verdicts.get if verdicts is not None else _computed)(
+        parts, lambda: _validate_parameters(text, filename)
+    )
+
+
+def _validate_parameters(text: str, filename: str) -> list[str]:
     try:
-        document = parsing.load_yaml(text)
+        root = parsing.check_yaml(text, parsing.PARAMETER_LIMITS)
+    except parsing.OverLimit as error:
+        line = error.problem_mark.line + 1 if error.problem_mark else 1
+        return [f"{filename}:{line}: {error.problem}"]
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         line = mark.line + 1 if mark else 1
@@ -108,6 +185,13 @@ def validate_parameters(text: str, filename: str) -> list[str]:
         return [f"{filename}:1: invalid YAML: {error}"]
     except Exception as error:  # noqa: BLE001 - one bad document must never stop the operator
         return [f"{filename}:1: the parameters could not be read ({type(error).__name__})"]
-    if document is not None and not isinstance(document, dict):
-        return [f"{filename}:1: parameters must be a mapping of node names, got {type(document).__name__}"]
+    if root == "sequence":
+        return [f"{filename}:1: parameters must be a mapping of node names, got list"]
+    if root == "scalar":
+        # One scalar, whatever its size, is cheap to build; a null one means no parameters.
+        document = parsing.load_yaml(text)
+        if document is not None:
+            return [
+                f"{filename}:1: parameters must be a mapping of node names, got {type(document).__name__}"
+            ]
     return []

@@ -23,6 +23,7 @@ from coral_operator.reconcile.indexes import Indexes, instances_on_node
 from coral_operator.reconcile.instances import InstanceReconciler
 from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
+from coral_operator.reconcile.trimming import Trimmer
 
 SYSTEM = "CoralSystem"
 INSTANCE = "CoralInstance"
@@ -52,6 +53,7 @@ class Controller:
     ) -> None:
         self.memory = memory or Memory()
         self.indexes = Indexes()
+        self.trimmer = Trimmer()
         self._pool = ThreadPoolExecutor(max_workers=API_WRITERS, thread_name_prefix="coral-api")
         self.queue: WorkQueue[Key] = WorkQueue(
             self._process, workers=workers, min_interval_s=_interval, name="coral"
@@ -72,6 +74,7 @@ class Controller:
             policy=policy,
             pool=self._pool,
             wake_instance=lambda key: self.queue.add((INSTANCE, *key)),
+            trim=self.trimmer.soon,
         )
 
     def _process(self, key: Key) -> None:
@@ -86,6 +89,7 @@ class Controller:
         self.queue.ensure_started()
 
     def stop(self) -> None:
+        self.trimmer.stop()
         self.queue.stop()
         self._pool.shutdown(wait=False, cancel_futures=True)
 
@@ -101,6 +105,7 @@ class Controller:
             self.memory.forget_system(uid, namespace, name)
             self.memory.forget_seen(key)
             self.queue.forget(key)
+            self.trimmer.soon()
             return
         metadata = body.get("metadata") or {}
         annotations = metadata.get("annotations") or {}
@@ -126,6 +131,7 @@ class Controller:
             self.memory.forget_record((namespace, name))
             self.memory.forget_seen(key)
             self.queue.forget(key)
+            self.trimmer.soon()
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return

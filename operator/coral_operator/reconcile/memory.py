@@ -8,7 +8,12 @@ operator keeps state between passes. Each entry says why it cannot be read from 
   the revision history, which is read from the API once per system);
 - summaries of the last watch event per object, so that an event that changes nothing a pass
   reads (a Node heartbeat, the echo of the operator's own write) costs no pass. kopf's `on.event`
-  does not hand over the previous object, as controller-runtime's update predicates get it.
+  does not hand over the previous object, as controller-runtime's update predicates get it;
+- tables that keep one copy of what many objects hold (`specs`: the part of CoralInstance specs
+  every robot of a revision shares) or what many passes compute (`verdicts`: validation results
+  by content hash), each bounded (docs/architecture.md, "The operator's memory").
+
+Everything kept per object is forgotten when the watch reports the object deleted.
 
 Thread safe: the queue's workers and kopf's event loop use it at once.
 """
@@ -22,8 +27,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from coral_operator.api.rollout import RolloutStatus
+from coral_operator.kube.observing import SpecTable
 from coral_operator.planning.observed import InstanceRecord, ObservedPod
 from coral_operator.planning.revisions import StoredRevision
+from coral_operator.planning.validation import Verdicts
 from coral_operator.status import ownership
 
 # A rollout move not seen in the index after this long is forgotten (the write failed or was replaced).
@@ -39,6 +46,8 @@ class Memory:
     """The operator's only state between passes (see the module docstring)."""
 
     clock: Callable[[], float] = time.monotonic
+    specs: SpecTable = field(default_factory=SpecTable)
+    verdicts: Verdicts = field(default_factory=Verdicts)
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _status_written: dict[str, tuple[str, dict[str, Any], float]] = field(default_factory=dict)
     _deferred_writes: dict[str, int] = field(default_factory=dict)
@@ -283,6 +292,8 @@ class Memory:
 
     def forget_system(self, uid: str, namespace: str, name: str) -> None:
         with self._lock:
+            self._status_written.pop(uid, None)
+            self._deferred_writes.pop(uid, None)
             self._history.pop((namespace, name, uid), None)
             self._expected.pop((namespace, uid), None)
             self._rollout_written.pop(uid, None)

@@ -10,6 +10,7 @@ docs/architecture.md.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
 from datetime import UTC, datetime
@@ -20,10 +21,10 @@ from pydantic import ValidationError
 
 from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
-from coral_operator.api.system import CoralSystemSpec, SourceSpec
+from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
 from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import configmaps, instances, naming, provenance, system_pass
+from coral_operator.planning import budgets, configmaps, instances, naming, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
@@ -34,6 +35,8 @@ from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
 Key = tuple[str, str]
+FILES_AT_ONCE = 4
+"""System passes that may hold their large files (read from the API) at the same time."""
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
 _OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
@@ -52,8 +55,12 @@ class SystemReconciler:
         pool: Executor,
         wake_instance: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+        trim: Callable[[], None] = lambda: None,
     ) -> None:
         self.memory = memory
+        self.trim = trim
+        """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
+        self._files_at_once = threading.BoundedSemaphore(FILES_AT_ONCE)
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
@@ -67,6 +74,20 @@ class SystemReconciler:
         if not records:
             return
         system: SystemRecord = records[0]
+        if not system.files_left_out:
+            self._reconcile(key, system)
+            return
+        # The index keeps no large file (docs/architecture.md, "The operator's memory"): this pass
+        # reads them and lets go of them when it ends, and only FILES_AT_ONCE passes hold them at
+        # once (a megabyte each, twice over while decoded). A newer version read here is only
+        # what the watch is about to bring.
+        with self._files_at_once:
+            body = applying.read_system(*key)
+            if body is not None:
+                self._reconcile(key, observing.system_record(body, keep_files=True))
+        self.trim()
+
+    def _reconcile(self, key: Key, system: SystemRecord) -> None:
         now = self.clock()
         status = self.memory.observed_status(system.uid, system.resource_version, system.status)
         # An instance written by hand that names this system is not one of its robots.
@@ -96,6 +117,8 @@ class SystemReconciler:
             previous_rollout=self.memory.rollout_written(system.uid) or _rollout_of(status),
             policy=self.policy,
             now=now,
+            neighbours=self._neighbours(system) if parsed else [],
+            verdicts=self.memory.verdicts,
         )
         plan = system_pass.plan_system(observation)
         problem = plan.problem
@@ -127,6 +150,20 @@ class SystemReconciler:
                 )
         self._write_status(system, status, observed, plan, problem, now)
 
+    def _neighbours(self, system: SystemRecord) -> list[budgets.Footprint]:
+        """The footprints of the namespace's other systems, from the index (their robots: the
+        instances they have)."""
+        found = []
+        for namespace, name in self.indexes.keys("coral_systems"):
+            if namespace != system.namespace or name == system.name:
+                continue
+            for other in self.indexes.read("coral_systems", (namespace, name)):
+                robots = self.indexes.count("coral_instances", instances_of_system(namespace, name))
+                found.append(
+                    budgets.Footprint(other.name, other.created, other.spec_bytes, other.share_bytes, robots)
+                )
+        return found
+
     def _move(self, manifest: dict[str, Any]) -> dict[str, Any] | None:
         """Move one instance to a new revision and start its pass at once, from the API server's
         answer: through the watch, each waited seconds at 1000 robots, behind every other event of
@@ -140,7 +177,7 @@ class SystemReconciler:
         between passes")."""
         body = applying.update_instance(manifest)
         if body is not None:
-            record = observing.instance_record(body)
+            record = observing.instance_record(body, self.memory.specs.share(body))
             self.memory.remember_record(record)
             self.wake_instance((record.namespace, record.name))
         return body
@@ -181,6 +218,14 @@ class SystemReconciler:
             return system_status.Problem(
                 Reason.CONFIG_MAP_NOT_FOUND,
                 f"{where}: ConfigMap {ref.name} has no key {ref.key}.",
+            )
+        size = len(found.text.encode("utf-8", "surrogatepass"))
+        if size > MAX_INLINE_BYTES:
+            # The bound of the inline field, so that where a file comes from changes nothing.
+            return system_status.Problem(
+                Reason.TOO_LARGE,
+                f"spec.{field}.configMapRef: configmap/{ref.name}/{ref.key} is {size:,} bytes; "
+                f"the limit is {MAX_INLINE_BYTES:,}",
             )
         return found.text, f"configmap/{ref.name}/{ref.key}"
 

@@ -68,6 +68,8 @@ class Reason(StrEnum):
     FOREIGN_INSTANCE = "ForeignInstance"
     """The CoralInstance is not one its CoralSystem made for its robot (owner, name, Node or spec
     differ); the operator builds no pod for it."""
+    TOO_LARGE = "TooLarge"
+    """The system's copies across its robots, or its namespace's systems together, pass a bound."""
     NO_MATCHING_ROBOTS = "NoMatchingRobots"
     """No robot Node matches the selector."""
     INSTANCES_NOT_READY = "InstancesNotReady"

@@ -223,6 +223,7 @@ Permission = tuple[str, str, str]
 
 NOT_EXERCISED: dict[Permission, str] = {
     ("coordination.k8s.io", "leases", "get"): "read only while a robot is unreachable (its last-seen time)",
+    ("coral.dev", "coralsystems", "get"): "a system whose files pass 16 KiB is read again by each pass",
     ("coral.dev", "coralinstances", "get"): "an instance name that answers 409 is read to tell whose it is",
     ("", "configmaps", "delete"): "a revision's files go when it leaves the history (after 10 changes)",
     ("apps", "controllerrevisions", "delete"): "a revision leaves the history after 10 changes",

@@ -1,6 +1,6 @@
 """CoralSystems written to hurt: each ends in a clear status or an admission refusal within a minute,
-while the operator (under a memory cap) stays up, logs no traceback, and keeps serving a healthy
-system in another namespace.
+while the operator (in a memory cgroup of the chart's limit, as in its pod) stays up, is never
+OOM-killed, logs no traceback, and keeps serving a healthy system in another namespace.
 
 One operator serves three namespaces for the whole module: `hostile` (the attacks), `healthy` (a
 system that must stay Ready with the same pods throughout) and `baseline` (labelled for Pod
@@ -12,40 +12,30 @@ from __future__ import annotations
 
 import copy
 import json
-import resource
 import socket
-import subprocess
-import sys
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pytest
 from coral_api import Coral, condition, executor_client, fleet_mission, is_current_and_true
-from coral_testbed.cluster import processes
+from coral_testbed.cluster import memorycgroup
 from coral_testbed.waiting import holds_for, wait_for, wait_until_steady
 from fixtures.cluster import create_test_namespace
-from fixtures.processes import stop_process_group
+from fixtures.confined import ConfinedOperator
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
-pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+pytestmark = [
+    pytest.mark.cluster,
+    pytest.mark.slow,
+    pytest.mark.skipif(memorycgroup.available() is not None, reason=str(memorycgroup.available())),
+]
 
-# Address space, not RSS: what RLIMIT_AS can cap without cgroups. Python, kopf's threads and the
-# kubernetes client need about 0.5 GiB of it; an include of /dev/zero used to take more than 4 GiB.
-MEMORY_CAP_BYTES = 1536 * 1024 * 1024
 CLEAR_WITHIN_S = 60
-# The chart's memory limit for the operator container.
-CHART_MEMORY_LIMIT_KIB = 512 * 1024
 HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
 SUBTREE_MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n'
-
-
-def _cap_memory() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
-    processes.die_with_parent()
 
 
 @dataclass
@@ -55,27 +45,19 @@ class Stage:
     healthy: str
     baseline: str
     fleet: str
-    operator: subprocess.Popen[Any]
-    log: Path
+    operator: ConfinedOperator
     healthy_pods: dict[str, str]
 
     def coral(self, namespace: str) -> Coral:
         return Coral(self.cluster.api_client, namespace)
 
     def logs(self) -> str:
-        return self.log.read_text()
-
-    def peak_rss_kib(self) -> int:
-        # VmHWM, the peak resident size, is what a memory limit would have caught; psutil only has
-        # the current one.
-        status = Path(f"/proc/{self.operator.pid}/status").read_text()
-        return int(next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:")))
+        return self.operator.logs()
 
     def assert_still_serving(self) -> None:
-        """The operator is the same process, logged no traceback, and the healthy system is untouched."""
-        assert self.operator.poll() is None, f"the operator exited:\n{self.logs()[-3000:]}"
-        assert "Traceback" not in self.logs(), self.logs()[-5000:]
-        assert self.peak_rss_kib() < CHART_MEMORY_LIMIT_KIB
+        """The operator is the same process, was never OOM-killed, logged no traceback, and the
+        healthy system is untouched."""
+        self.operator.assert_serving()
         healthy = self.coral(self.healthy)
         assert is_current_and_true(healthy.system("healthy"), "Ready")
         assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
@@ -94,36 +76,24 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
     fleet = f"f{uuid.uuid4().hex[:8]}"
     robot = f"r{uuid.uuid4().hex[:5]}-1"
     cluster.add_robots([robot], {"fleet": fleet})
-    log = tmp_path_factory.mktemp("hostile") / "operator.log"
-    args = [sys.executable, "-m", "coral_operator"] + [f"--namespace={n}" for n in namespaces]
-    env = {
-        **cluster.env(),
-        "PYTHONUNBUFFERED": "1",
-        # glibc reserves 64 MiB of address space per thread arena; a capped process wants few.
-        "MALLOC_ARENA_MAX": "2",
-        "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces),
-    }
-    with log.open("w") as out:
-        operator = subprocess.Popen(
-            args,
-            env=env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            preexec_fn=_cap_memory,
-        )
+    operator = ConfinedOperator.start(
+        cluster,
+        namespaces,
+        tmp_path_factory.mktemp("hostile") / "operator.log",
+        {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces)},
+    )
     try:
         coral = Coral(cluster.api_client, healthy)
         coral.create_system(fleet_mission("healthy", fleet))
         wait_for(
             lambda: is_current_and_true(coral.system("healthy"), "Ready"),
             timeout=90,
-            message=lambda: f"the healthy system to become Ready; operator log:\n{log.read_text()[-3000:]}",
+            message=lambda: f"the healthy system to become Ready; operator log:\n{operator.logs()[-3000:]}",
         )
         pods = {n: p.metadata.uid for n, p in coral.pods().items()}
-        yield Stage(cluster, hostile, healthy, baseline, fleet, operator, log, pods)
+        yield Stage(cluster, hostile, healthy, baseline, fleet, operator, pods)
     finally:
-        stop_process_group(operator, timeout=15)
+        operator.stop()
         for name in namespaces:
             core.delete_namespace(name)
         cluster.remove_robots([robot])
