@@ -188,8 +188,12 @@ def _validate_parameters(text: str, filename: str) -> list[str]:
     if root == "sequence":
         return [f"{filename}:1: parameters must be a mapping of node names, got list"]
     if root == "scalar":
-        # One scalar, whatever its size, is cheap to build; a null one means no parameters.
-        document = parsing.load_yaml(text)
+        # One scalar, whatever its size, is cheap to build; a null one means no parameters. The
+        # loader's scanner can still refuse what the event parser let through (a trailing tab).
+        try:
+            document = parsing.load_yaml(text)
+        except yaml.YAMLError as error:
+            return [f"{filename}:1: invalid YAML: {getattr(error, 'problem', None) or error}"]
         if document is not None:
             return [
                 f"{filename}:1: parameters must be a mapping of node names, got {type(document).__name__}"
