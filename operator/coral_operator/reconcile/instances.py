@@ -22,6 +22,7 @@ from typing import Any
 from coral_operator.kube import applying, leases, observing
 from coral_operator.planning import instance_pass
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode
+from coral_operator.planning.pods import HostPathRefused, PodSettings
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.memory import Memory
@@ -66,6 +67,7 @@ class InstanceReconciler:
         requeue: Callable[[Key, float], None],
         wake_system: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
+        pod_settings: PodSettings | None = None,
     ) -> None:
         self.memory = memory
         self.indexes = indexes
@@ -73,6 +75,7 @@ class InstanceReconciler:
         self.requeue = requeue
         self.wake_system = wake_system
         self.clock = clock
+        self.pod_settings = pod_settings or PodSettings()
 
     def reconcile(self, key: Key) -> None:
         indexed: InstanceRecord | None = next(
@@ -85,6 +88,18 @@ class InstanceReconciler:
         now = self.clock()
         status = self.memory.observed_status(record.uid, record.resource_version, record.status)
         spec = instance_pass.parse_instance_spec(record)
+        desired: list[dict[str, Any]] = []
+        if not isinstance(spec, str) and not spec.retiring:
+            parsed = spec
+            try:
+                desired = self.memory.desired_pods(
+                    record.uid,
+                    record.generation,
+                    lambda: instance_pass.build_desired_pods(record, parsed, self.pod_settings),
+                )
+            except HostPathRefused as refused:
+                # Only an instance written by hand gets here: its system's policy check refuses the path.
+                spec = f"Refused by the operator's policy: {refused}"
         if isinstance(spec, str):
             new = instance_status.build_invalid_status(
                 spec,
@@ -97,13 +112,6 @@ class InstanceReconciler:
         node = self._robot(spec.node_name)
         # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
         observed: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
-        desired = (
-            []
-            if spec.retiring
-            else self.memory.desired_pods(
-                record.uid, record.generation, lambda: instance_pass.build_desired_pods(record, spec)
-            )
-        )
         plan = instance_pass.plan_instance(
             record=record, spec=spec, desired=desired, node=node, observed=observed, now=now
         )
