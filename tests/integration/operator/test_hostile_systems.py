@@ -102,6 +102,8 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
         # glibc reserves 64 MiB of address space per thread arena; a capped process wants few.
         "MALLOC_ARENA_MAX": "2",
         "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces),
+        # The fleet example's bag player reads the robot's bags, which the administrator opens.
+        "CORAL_POLICY_HOST_PATHS": ",".join(f"{n}=/var/lib/coral/bags" for n in namespaces),
     }
     with log.open("w") as out:
         operator = subprocess.Popen(
@@ -247,7 +249,7 @@ def test_a_host_path_of_the_root_folder_is_refused(stage: Stage) -> None:
     )
     assert (
         f"hostPaths[0].hostPath: host path / is outside the folders namespace {stage.hostile} may mount "
-        f"(/var/lib/coral/data/{stage.hostile})" in (stalled["message"])
+        f"(/var/lib/coral/data/{stage.hostile}, /var/lib/coral/bags)" in (stalled["message"])
     )
     stage.assert_still_serving()
 
