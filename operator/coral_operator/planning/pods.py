@@ -292,8 +292,10 @@ def _pod(
     annotations: dict[str, str] | None = None,
 ) -> dict[str, Any]:
     unhashed = {k: v for k, v in labels.items() if k != names.LABEL_REVISION}
-    # The name is derived from the hash, so the hash must not cover the name.
-    pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
+    # The name is derived from the hash, so the hash must not cover the name. Nor the helper's image:
+    # the step has run once a pod started, and an operator upgrade bringing a new one must not
+    # restart every robot's components.
+    pod_hash = naming.content_hash({"labels": unhashed, "spec": _without_helper_image(pod_spec)})
     return {
         "apiVersion": "v1",
         "kind": "Pod",
@@ -473,6 +475,16 @@ def build_robot_pod(
         instance_uid=instance_uid,
         annotations={names.ANNOTATION_COMPONENTS: ",".join(members), names.ANNOTATION_SHAPE_HASH: shape},
     )
+
+
+def _without_helper_image(pod_spec: dict[str, Any]) -> dict[str, Any]:
+    inits = pod_spec.get("initContainers")
+    if not inits:
+        return pod_spec
+    return {
+        **pod_spec,
+        "initContainers": [{**c, "image": ""} if c["name"] == FOLDERS_OWNER else c for c in inits],
+    }
 
 
 def _without_images(pod_spec: dict[str, Any]) -> dict[str, Any]:

@@ -294,3 +294,18 @@ def test_a_refused_ownership_step_of_a_robot_pod_holds_every_component() -> None
     )
     assert conditions["ComponentsReady"]["reason"] == "ContainerRefused"
     assert SUBPATH_REFUSED in conditions["Ready"]["message"]
+
+
+def test_a_new_helper_image_restarts_no_component(spec_dict: Callable[..., dict[str, Any]]) -> None:
+    spec = spec_dict(skillsets=[{"name": "slam", "image": "example/slam:1", "hostPaths": MAPS}])
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
+
+    def names_with(image: str) -> list[str]:
+        settings = pods.PodSettings(policy=OPENED, helper_image=image)
+        built = pods.build_pods(
+            spec=parsed, instance="i", namespace="robots", instance_uid="u", settings=settings
+        )
+        return [p["metadata"]["name"] for p in built]
+
+    assert names_with("helper:1") == names_with("helper:2")
