@@ -187,7 +187,9 @@ _IMAGE_PROBLEMS = frozenset(
         "ErrImageNeverPull",
     }
 )
-_CONTAINER_REFUSALS = frozenset({"CreateContainerConfigError", "CreateContainerError", "RunContainerError"})
+# The kubelet cannot even create the container from its spec: a subPath leading out of its volume, a
+# ConfigMap key missing. It retries, but nothing changes until someone acts.
+_CONTAINER_REFUSALS = frozenset({"CreateContainerConfigError"})
 
 
 def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
