@@ -39,7 +39,7 @@ MEMORY_CAP_BYTES = 1536 * 1024 * 1024
 DATA_ROOT = "/var/lib/coral/data"
 COMPONENT_UID = 10001
 TREE = '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></root>'
-SECRET = "b's own data"
+SECRET = "data of namespace b"
 
 
 def _cap_memory() -> None:
@@ -65,6 +65,20 @@ class Stage:
 
     def on_robot(self, path: str) -> Path:
         return self.robots.host_path(self.robot, path)
+
+    def describe(self, namespace: str) -> str:
+        """The namespace's instances' conditions and pods' container states, for failure messages."""
+        coral = self.coral(namespace)
+        lines = []
+        for name, instance in coral.instances().items():
+            conditions = (instance.get("status") or {}).get("conditions") or []
+            lines.append(
+                f"instance {name}: {[(c['type'], c['status'], c['message'][:300]) for c in conditions]}"
+            )
+        for name, pod in coral.pods().items():
+            statuses = [*(pod.status.init_container_statuses or []), *(pod.status.container_statuses or [])]
+            lines.append(f"pod {name}: {pod.status.phase} {[(s.name, s.state.to_dict()) for s in statuses]}")
+        return "\n".join(lines) + f"\noperator log:\n{self.logs()[-2000:]}"
 
     def assert_still_serving(self) -> None:
         """Same operator process, no traceback, B's healthy system Ready and still writing."""
@@ -128,13 +142,14 @@ def stage(
             "healthy",
             robot,
             f"echo '{SECRET}' > /data/secret && while true; do date > /data/alive; sleep 1; done",
-            [{"hostPath": f"{DATA_ROOT}/{b}/mine", "mountPath": "/data"}],
+            [{"hostPath": f"{DATA_ROOT}/{b}/mine", "mountPath": "/data", "readOnly": False}],
         )
         stage.coral(b).create_system(healthy)
         wait_for(
             lambda: is_current_and_true(stage.coral(b).system("healthy"), "Ready"),
-            timeout=240,
-            message=lambda: f"B's healthy system to become Ready; operator log:\n{stage.logs()[-3000:]}",
+            timeout=420,
+            interval=1,
+            message=lambda: f"B's healthy system to become Ready:\n{stage.describe(b)}",
         )
         yield stage
     finally:
@@ -166,9 +181,7 @@ def _refused(stage: Stage, namespace: str, system: str) -> dict[str, Any]:
         seen,
         timeout=180,
         interval=1,
-        message=lambda: (
-            f"{system} refused by the kubelet: {_instance(stage, namespace, system)}\n{stage.logs()[-2000:]}"
-        ),
+        message=lambda: f"{system} refused by the kubelet:\n{stage.describe(namespace)}",
     )
 
 
@@ -181,15 +194,15 @@ def test_links_planted_by_a_tenant_lead_nowhere_outside_its_folder(stage: Stage)
             "planter",
             stage.robot,
             f"ln -sfn /etc /plant/etc && ln -sfn {DATA_ROOT}/{b}/mine /plant/b && sleep infinity",
-            [{"hostPath": f"{DATA_ROOT}/{a}/plant", "mountPath": "/plant"}],
+            [{"hostPath": f"{DATA_ROOT}/{a}/plant", "mountPath": "/plant", "readOnly": False}],
         )
     )
     planted = stage.on_robot(f"{DATA_ROOT}/{a}/plant")
     wait_for(
         lambda: (planted / "etc").is_symlink() and (planted / "b").is_symlink(),
-        timeout=180,
+        timeout=300,
         interval=1,
-        message=lambda: f"the links planted: {_instance(stage, a, 'planter')}",
+        message=lambda: f"the links planted:\n{stage.describe(a)}",
     )
     # The planter's folder was handed over as a folder of A's user, not followed anywhere.
     assert planted.stat().st_uid == COMPONENT_UID
@@ -202,7 +215,7 @@ def test_links_planted_by_a_tenant_lead_nowhere_outside_its_folder(stage: Stage)
                 name,
                 stage.robot,
                 script,
-                [{"hostPath": f"{DATA_ROOT}/{a}/plant/{link}", "mountPath": target}],
+                [{"hostPath": f"{DATA_ROOT}/{a}/plant/{link}", "mountPath": target, "readOnly": False}],
             )
         )
     # ...where the kubelet refuses the containers, and the instance says so in its words.
