@@ -16,7 +16,7 @@ from coral_operator import config
 from coral_operator.api import names
 from coral_operator.handlers.filters import watch_selectors
 from coral_operator.kube import applying, client
-from coral_operator.planning import rbac
+from coral_operator.planning import pods, rbac
 from coral_operator.reconcile.controller import Controller
 
 LIST_CHUNK_SIZE = 50
@@ -80,7 +80,12 @@ def create_controller(memo: kopf.Memo, **_: Any) -> None:
     # Its workers start with the first watch event (`handlers.watching`), in a handler's context,
     # where kopf's Event poster lives.
     client.load_api_classes()
-    memo["controller"] = Controller(policy=config.from_environment().policy, post=_post)
+    settings = config.from_environment()
+    memo["controller"] = Controller(
+        policy=settings.policy,
+        post=_post,
+        pod_settings=pods.PodSettings(policy=settings.policy, helper_image=settings.helper_image),
+    )
 
 
 @kopf.on.cleanup()

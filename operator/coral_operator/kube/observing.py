@@ -86,7 +86,10 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     status = body.get("status") or {}
     statuses = status.get("containerStatuses") or []
     ready = _condition(status.get("conditions"), "Ready")
-    waiting = [((s.get("state") or {}).get("waiting") or {}) for s in statuses]
+    # The ownership step is an init container: while the kubelet refuses it, the component's own
+    # container only waits (PodInitializing) and would tell nothing.
+    every = [*(status.get("initContainerStatuses") or []), *statuses]
+    waiting = [((s.get("state") or {}).get("waiting") or {}) for s in every]
     waiting_reasons = {w.get("reason") for w in waiting}
     return ObservedPod(
         name=metadata.get("name", ""),
@@ -103,6 +106,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
         image_problem=next(
             (_reason_and_message(w) for w in waiting if w.get("reason") in _IMAGE_PROBLEMS), None
         ),
+        container_refused=_container_refused(every),
         unschedulable=_unschedulable(status),
     )
 
@@ -144,6 +148,9 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
     )
     created = parse_time(metadata.get("creationTimestamp"))
     unschedulable = _unschedulable(status)
+    members = {component for component, _ in naming.pod_members({"metadata": metadata})}
+    # A container that is no component's (the ownership step) holds every component back.
+    shared_refusal = _container_refused([s for name, s in by_name.items() if name not in members])
     records = []
     for component, role in naming.pod_members({"metadata": metadata}):
         container = by_name.get(component) or {}
@@ -170,6 +177,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 image_problem=_reason_and_message(waiting)
                 if waiting.get("reason") in _IMAGE_PROBLEMS
                 else None,
+                container_refused=_container_refused([container]) or shared_refusal,
                 unschedulable=unschedulable,
                 shape_hash=annotations.get(names.ANNOTATION_SHAPE_HASH, ""),
                 images=images,
@@ -195,9 +203,19 @@ _IMAGE_PROBLEMS = frozenset(
         "ImagePullBackOff",
         "InvalidImageName",
         "ErrImageNeverPull",
-        "CreateContainerConfigError",
     }
 )
+# The kubelet cannot even create the container from its spec: a subPath leading out of its volume, a
+# ConfigMap key missing. It retries, but nothing changes until someone acts.
+_CONTAINER_REFUSALS = frozenset({"CreateContainerConfigError"})
+
+
+def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
+    for container in statuses:
+        waiting = (container.get("state") or {}).get("waiting") or {}
+        if waiting.get("reason") in _CONTAINER_REFUSALS:
+            return _reason_and_message(waiting)
+    return None
 
 
 def _reason_and_message(state: Mapping[str, Any]) -> str:

@@ -45,10 +45,20 @@ def parse_instance_spec(record: InstanceRecord) -> CoralInstanceSpec | str:
         return "; ".join(f"spec.{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors())
 
 
-def build_desired_pods(record: InstanceRecord, spec: CoralInstanceSpec) -> list[dict[str, Any]]:
-    """The pods the instance's spec asks for, in startup order."""
+def build_desired_pods(
+    record: InstanceRecord, spec: CoralInstanceSpec, settings: pods.PodSettings | None = None
+) -> list[dict[str, Any]]:
+    """The pods the instance's spec asks for, in startup order.
+
+    Raises:
+        pods.HostPathRefused: a host path lies outside every folder the namespace may mount.
+    """
     return pods.build_pods(
-        spec=spec, instance=record.name, namespace=record.namespace, instance_uid=record.uid
+        spec=spec,
+        instance=record.name,
+        namespace=record.namespace,
+        instance_uid=record.uid,
+        settings=settings,
     )
 
 

@@ -53,6 +53,10 @@ class ObservedPod:
     crash_looping: bool = False
     image_problem: str | None = None
     """Why the kubelet cannot pull or start an image, with its message (`ErrImagePull: ...`)."""
+    container_refused: str | None = None
+    """Why the kubelet refuses to create one of the pod's containers, init containers included, with
+    its message (`CreateContainerConfigError: failed to prepare subPath ...`): a host path's subPath
+    that leads out of its folder, a missing ConfigMap."""
     unschedulable: str | None = None
     """Why the robot cannot run the pod (the scheduler's or the kubelet's admission message)."""
     shape_hash: str = ""

@@ -4,11 +4,19 @@ The pod is pinned to the robot's Node, tolerates the robot dropping off the netw
 no rescheduling), shares the host network and IPC for DDS by default, gets the ROS and Coral
 environment, the validated parameters (and, for executors, the tree) from immutable ConfigMaps,
 and the per-robot plugin folder. Pure; called by `planning.startup` via the instance handler.
+
+Host paths are mounted as the allowed folder they lie in (`planning.policy.host_path_volume`) with
+the rest of the path as a `subPath`: the kubelet opens each name of a subPath without following a
+link out of the volume and refuses the container otherwise (CreateContainerConfigError), so a
+link a tenant planted in its folder cannot lead to the robot's `/etc` or another namespace's
+data. The step that hands folders to the components' user runs the operator's helper image,
+never a tenant's (issue 47).
 """
 
 from __future__ import annotations
 
 import posixpath
+from dataclasses import dataclass, field
 from typing import Any
 
 from coral_operator.api import names
@@ -17,13 +25,18 @@ from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.names import API_VERSION
 from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
+from coral_operator.planning.policy import Policy, data_subtree, host_path_volume, is_under
 
 CONFIG_DIR = "/etc/coral"
 SERVICE_ACCOUNT_DIR = "/var/run/secrets/kubernetes.io/serviceaccount"
 READY_MARKER = "ready"
 COMPONENT_UID = 10001
 """The user Coral's component images run as (`coral`, USER 10001:10001 in their Dockerfiles)."""
-PLUGINS_OWNER = "plugins-owner"
+FOLDERS_OWNER = "folders-owner"
+OWNED_DIR = "/coral-owned"
+"""Where the ownership step sees the folders it hands over (its own paths, whatever the component's)."""
+DEFAULT_HELPER_IMAGE = "coral-on-kubernetes/coral-operator:0.1.0"
+"""The operator's own image as the chart and deploy/coral-operator.yaml name it (Debian, has `chown`)."""
 # The executor loads this with `--sink`; it writes the tree status to the robot's CoralInstance.
 STATUS_SINK = "coral.executor.kubernetes_sink:create_sink"
 
@@ -33,6 +46,21 @@ TOLERATIONS = [
     {"key": "node.kubernetes.io/not-ready", "operator": "Exists", "effect": "NoExecute"},
     {"key": "node.kubernetes.io/unschedulable", "operator": "Exists", "effect": "NoSchedule"},
 ]
+
+
+@dataclass(frozen=True)
+class PodSettings:
+    """What of the operator's configuration shapes the pods it builds."""
+
+    policy: Policy = field(default_factory=Policy)
+    """Where each namespace's host paths may lie, so each is mounted from its allowed folder."""
+    helper_image: str = DEFAULT_HELPER_IMAGE
+    """The image of the ownership step, which runs as root with CAP_CHOWN alone."""
+
+
+class HostPathRefused(ValueError):
+    """A host path lies outside every folder its namespace may mount (a CoralInstance written by hand:
+    a CoralSystem asking for it is refused by the policy before any instance exists)."""
 
 
 def plugin_host_path(spec: CoralInstanceSpec, namespace: str) -> str:
@@ -127,24 +155,50 @@ def _security(component: Component) -> dict[str, Any]:
     return {"runAsNonRoot": True, "allowPrivilegeEscalation": False, "capabilities": {"drop": ["ALL"]}}
 
 
-def _host_volumes(component: Component, prefix: str = "") -> tuple[list, list]:
-    """The component's device and host-path mounts; `prefix` keeps names unique in a shared pod."""
+def _host_volumes(
+    component: Component, namespace: str, settings: PodSettings, prefix: str = ""
+) -> tuple[list, list, list]:
+    """The component's device and host-path mounts, and the mounts of its folders in the namespace's
+    data subtree as the ownership step sees them; `prefix` keeps names unique in a shared pod.
+
+    Raises:
+        HostPathRefused: a host path lies outside every folder the namespace may mount.
+    """
     volumes: list[dict[str, Any]] = []
     mounts: list[dict[str, Any]] = []
+    owned: list[dict[str, Any]] = []
     for index, device in enumerate(component.devices):
         volumes.append({"name": f"{prefix}device-{index}", "hostPath": {"path": device.host_path}})
         mounts.append(
             {"name": f"{prefix}device-{index}", "mountPath": device.container_path or device.host_path}
         )
+    subtree = data_subtree(settings.policy, namespace)
     for index, host in enumerate(component.host_paths):
-        volumes.append({"name": f"{prefix}host-{index}", "hostPath": {"path": host.host_path}})
-        mounts.append(
-            {"name": f"{prefix}host-{index}", "mountPath": host.mount_path, "readOnly": host.read_only}
-        )
-    return volumes, mounts
+        name = f"{prefix}host-{index}"
+        placed = host_path_volume(settings.policy, namespace, host.host_path)
+        if placed is None:
+            raise HostPathRefused(
+                f"hostPaths[{index}].hostPath of {component.name}: {host.host_path} is outside the "
+                f"folders namespace {namespace} may mount"
+            )
+        folder, sub_path = placed
+        source: dict[str, Any] = {"path": folder}
+        if folder == subtree:
+            # The operator's own folder: the kubelet creates it (root, 0755) where it is missing.
+            source["type"] = "DirectoryOrCreate"
+        volumes.append({"name": name, "hostPath": source})
+        mount: dict[str, Any] = {"name": name, "mountPath": host.mount_path, "readOnly": host.read_only}
+        if sub_path:
+            mount["subPath"] = sub_path
+        mounts.append(mount)
+        if is_under(folder, subtree):
+            owned.append({**mount, "mountPath": posixpath.join(OWNED_DIR, name), "readOnly": False})
+    return volumes, mounts, owned
 
 
-def _volumes(spec: CoralInstanceSpec, namespace: str, component: Component, role: Role) -> tuple[list, list]:
+def _volumes(
+    spec: CoralInstanceSpec, namespace: str, component: Component, role: Role, settings: PodSettings
+) -> tuple[list, list, list]:
     sources = [{"configMap": {"name": spec.parameters.config_map}}]
     if role == "executor":
         sources.append({"configMap": {"name": spec.tree.config_map}})
@@ -159,31 +213,37 @@ def _volumes(spec: CoralInstanceSpec, namespace: str, component: Component, role
         {"name": "plugins", "mountPath": spec.plugins.mount_path},
         {"name": "config", "mountPath": CONFIG_DIR, "readOnly": True},
     ]
-    host_volumes, host_mounts = _host_volumes(component)
-    return volumes + host_volumes, mounts + host_mounts
+    host_volumes, host_mounts, owned = _host_volumes(component, namespace, settings)
+    plugins_owned = {"name": "plugins", "mountPath": posixpath.join(OWNED_DIR, "plugins")}
+    return volumes + host_volumes, mounts + host_mounts, [plugins_owned, *owned]
 
 
-def _plugins_owner(spec: CoralInstanceSpec, component: Component) -> dict[str, Any]:
-    """An init step giving the plugin folder to the components' user.
+def _folders_owner(owned: list[dict[str, Any]], settings: PodSettings) -> dict[str, Any]:
+    """An init step giving the plugin folder and the namespace's data folders to the components' user.
 
-    The kubelet creates a `DirectoryOrCreate` host path owned by root with mode 0755, and fsGroup
-    does not apply to host paths, so non-root skillsets could not write their plugins there. This
-    step is root with no capability but CAP_CHOWN, runs `chown` on that one folder and exits; the
-    component itself still runs as its non-root user. It uses the component's own image (the
-    images contract: FROM the Debian runtime, which has `chown`), so nothing more is pulled.
+    The kubelet creates `DirectoryOrCreate` host paths and missing subPaths owned by root with mode
+    0755, and fsGroup does not apply to host paths, so non-root components could not write there.
+    This step is root with no capability but CAP_CHOWN, runs `chown` on each mount point alone (not
+    recursively, so a link a tenant planted inside is never followed) and exits. It runs the
+    operator's helper image: a component's image may ship its own `chown`, and would then run as
+    root on the robot (issue 47).
     """
     return {
-        "name": PLUGINS_OWNER,
-        "image": component.image,
-        "command": ["chown", f"{COMPONENT_UID}:{COMPONENT_UID}", spec.plugins.mount_path],
-        "volumeMounts": [{"name": "plugins", "mountPath": spec.plugins.mount_path}],
+        "name": FOLDERS_OWNER,
+        "image": settings.helper_image,
+        "command": [
+            "chown",
+            "--no-dereference",
+            f"{COMPONENT_UID}:{COMPONENT_UID}",
+            *(m["mountPath"] for m in owned),
+        ],
+        "volumeMounts": owned,
         "securityContext": {
             "runAsUser": 0,
             "runAsNonRoot": False,
             "allowPrivilegeEscalation": False,
             "capabilities": {"drop": ["ALL"], "add": ["CHOWN"]},
         },
-        **({"imagePullPolicy": component.image_pull_policy} if component.image_pull_policy else {}),
     }
 
 
@@ -232,8 +292,10 @@ def _pod(
     annotations: dict[str, str] | None = None,
 ) -> dict[str, Any]:
     unhashed = {k: v for k, v in labels.items() if k != names.LABEL_REVISION}
-    # The name is derived from the hash, so the hash must not cover the name.
-    pod_hash = naming.content_hash({"labels": unhashed, "spec": pod_spec})
+    # The name is derived from the hash, so the hash must not cover the name. Nor the helper's image:
+    # the step has run once a pod started, and an operator upgrade bringing a new one must not
+    # restart every robot's components.
+    pod_hash = naming.content_hash({"labels": unhashed, "spec": _without_helper_image(pod_spec)})
     return {
         "apiVersion": "v1",
         "kind": "Pod",
@@ -258,6 +320,7 @@ def build_pod(
     instance_uid: str,
     component: Component,
     role: Role,
+    settings: PodSettings,
 ) -> dict[str, Any]:
     """The pod manifest of one component (`PodPerComponent`), with its content hash in an annotation.
 
@@ -265,7 +328,7 @@ def build_pod(
     component unchanged relabels the pod instead of restarting it; the name ends in a digest of the
     hash, so a changed pod comes back under a new name.
     """
-    volumes, mounts = _volumes(spec, namespace, component, role)
+    volumes, mounts, owned = _volumes(spec, namespace, component, role, settings)
     container = _container(spec, instance, component, role, mounts)
     probe = _probe(spec, component, role)
     if probe:
@@ -283,7 +346,7 @@ def build_pod(
         "volumes": volumes,
     }
     if not (component.run_as_root or component.privileged):
-        pod_spec["initContainers"] = [_plugins_owner(spec, component)]
+        pod_spec["initContainers"] = [_folders_owner(owned, settings)]
     if role == "executor":
         pod_spec["serviceAccountName"] = naming.executor_account_name(spec.system)
     return _pod(
@@ -324,7 +387,7 @@ def _executor_token_volume() -> dict[str, Any]:
 
 
 def build_robot_pod(
-    *, spec: CoralInstanceSpec, instance: str, namespace: str, instance_uid: str
+    *, spec: CoralInstanceSpec, instance: str, namespace: str, instance_uid: str, settings: PodSettings
 ) -> dict[str, Any]:
     """The one pod of a robot (`PodPerRobot`): drivers, then skillsets, as native sidecars, executors
     as the main containers, the plugin location an `emptyDir` they all share.
@@ -358,11 +421,16 @@ def build_robot_pod(
         ("executor", spec.executors),
     ]
     index = 0
+    owned: list[dict[str, Any]] = []
     for role, components in roles:
         for component in components:
-            host_volumes, host_mounts = _host_volumes(component, prefix=f"c{index}-")
+            host_volumes, host_mounts, component_owned = _host_volumes(
+                component, namespace, settings, prefix=f"c{index}-"
+            )
             index += 1
             volumes += host_volumes
+            if not (component.run_as_root or component.privileged):
+                owned += component_owned
             mounts = [dict(m) for m in shared] + host_mounts
             if role == "executor":
                 mounts.append({"name": "executor-token", "mountPath": SERVICE_ACCOUNT_DIR, "readOnly": True})
@@ -390,7 +458,9 @@ def build_robot_pod(
         "enableServiceLinks": False,
         "automountServiceAccountToken": False,
         "serviceAccountName": naming.executor_account_name(spec.system),
-        "initContainers": sidecars,
+        # The plugin folder is an emptyDir the kubelet makes writable to all; only the namespace's
+        # data folders need handing over, before the first sidecar starts.
+        "initContainers": ([_folders_owner(owned, settings)] if owned else []) + sidecars,
         "containers": mains,
         "volumes": volumes,
     }
@@ -405,6 +475,16 @@ def build_robot_pod(
         instance_uid=instance_uid,
         annotations={names.ANNOTATION_COMPONENTS: ",".join(members), names.ANNOTATION_SHAPE_HASH: shape},
     )
+
+
+def _without_helper_image(pod_spec: dict[str, Any]) -> dict[str, Any]:
+    inits = pod_spec.get("initContainers")
+    if not inits:
+        return pod_spec
+    return {
+        **pod_spec,
+        "initContainers": [{**c, "image": ""} if c["name"] == FOLDERS_OWNER else c for c in inits],
+    }
 
 
 def _without_images(pod_spec: dict[str, Any]) -> dict[str, Any]:
@@ -422,11 +502,24 @@ def container_images(manifest: dict[str, Any]) -> dict[str, str]:
 
 
 def build_pods(
-    *, spec: CoralInstanceSpec, instance: str, namespace: str, instance_uid: str
+    *,
+    spec: CoralInstanceSpec,
+    instance: str,
+    namespace: str,
+    instance_uid: str,
+    settings: PodSettings | None = None,
 ) -> list[dict[str, Any]]:
-    """The robot's pods: with `PodPerRobot` its one pod, else every component's, in startup order."""
+    """The robot's pods: with `PodPerRobot` its one pod, else every component's, in startup order.
+
+    Raises:
+        HostPathRefused: a host path lies outside every folder the namespace may mount.
+    """
+    settings = settings or PodSettings()
     if spec.layout == "PodPerRobot":
-        return [build_robot_pod(spec=spec, instance=instance, namespace=namespace, instance_uid=instance_uid)]
+        robot_pod = build_robot_pod(
+            spec=spec, instance=instance, namespace=namespace, instance_uid=instance_uid, settings=settings
+        )
+        return [robot_pod]
     groups: tuple[tuple[Role, list[Component]], ...] = (
         ("driver", spec.drivers),
         ("skillset", spec.skillsets),
@@ -440,6 +533,7 @@ def build_pods(
             instance_uid=instance_uid,
             component=c,
             role=role,
+            settings=settings,
         )
         for role, components in groups
         for c in components

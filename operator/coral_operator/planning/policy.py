@@ -8,6 +8,12 @@ containers drop every capability. The shipped default (`Policy()`) is restrictiv
 open it per namespace (`coral_operator.config`). A CoralSystem asking for more is refused as a
 whole (Stalled, nothing deployed). Paths are normalised before they are compared, so `..` cannot
 climb out of an allowed folder. Pure.
+
+Host paths are owned (issue 47): a namespace may mount only folders inside its own data subtree
+`<data root>/<namespace>`, or inside a folder an administrator listed for it. `host_path_volume`
+says which of those folders a path lies in, so the pod builder mounts that folder as the volume
+and the rest of the path as a `subPath`, which the kubelet resolves without following a link out
+of the volume: a link a tenant planted inside cannot lead to `/etc` or another namespace.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from coral_operator.api.system import CoralSystemSpec
 
 ANY_NAMESPACE = "*"
 DEFAULT_PLUGIN_ROOT = "/var/lib/coral/plugins"
-DEFAULT_HOST_PATH_PREFIXES = ("/var/lib/coral",)
+DEFAULT_DATA_ROOT = "/var/lib/coral/data"
 DEFAULT_DEVICE_PATTERNS = ("/dev/ttyUSB*", "/dev/ttyACM*", "/dev/video*")
 
 
@@ -37,8 +43,13 @@ class Policy:
     host_network_namespaces: frozenset[str] = frozenset()
     """Namespaces whose systems may use the host network and host IPC (`ros.network: Host`, which
     ROS 2 DDS discovery between robots and shared-memory transport need)."""
-    host_path_prefixes: tuple[str, ...] = DEFAULT_HOST_PATH_PREFIXES
-    """Robot folders under which `hostPaths` may mount, except the plugin roots."""
+    data_root: str = DEFAULT_DATA_ROOT
+    """The robot folder holding one data subtree per namespace, `<data_root>/<namespace>`: a
+    namespace's `hostPaths` may mount anything inside its own, and nothing of another's."""
+    host_paths: tuple[tuple[str, str], ...] = ()
+    """(namespace or `*`, robot folder) pairs an administrator opened: the namespace may mount that
+    folder or anything inside it, besides its data subtree. A folder listed for two namespaces, or
+    for `*`, is shared between them (read-only data such as maps and bags)."""
     device_patterns: tuple[str, ...] = DEFAULT_DEVICE_PATTERNS
     """Robot device paths `devices` may pass in, as glob patterns (`*` stays within one name)."""
     plugin_roots: tuple[str, ...] = (DEFAULT_PLUGIN_ROOT,)
@@ -68,6 +79,35 @@ def _overlaps(path: str, folder: str) -> bool:
     return is_under(path, folder) or is_under(folder, path)
 
 
+def data_subtree(policy: Policy, namespace: str) -> str:
+    """The namespace's own data folder on every robot."""
+    return posixpath.join(normalise(policy.data_root), namespace)
+
+
+def allowed_folders(policy: Policy, namespace: str) -> list[str]:
+    """The folders the namespace's host paths may lie in: its data subtree first, then the
+    administrator's folders for it."""
+    listed = {normalise(folder) for ns, folder in policy.host_paths if ns in (namespace, ANY_NAMESPACE)}
+    return [data_subtree(policy, namespace), *sorted(listed)]
+
+
+def host_path_volume(policy: Policy, namespace: str, path: str) -> tuple[str, str] | None:
+    """The (volume folder, subPath) a host path of the namespace is mounted as, or None when the
+    policy does not let the namespace mount it.
+
+    The volume is the allowed folder the path lies in (the innermost, if listed folders nest), the
+    subPath the rest of the path, empty for the folder itself. Nothing but the operator writes
+    the volume folder's own parents, so the kubelet, which opens every name of the subPath
+    without following links out of the volume, keeps the mount inside the folder.
+    """
+    normal = normalise(path)
+    inside = [folder for folder in allowed_folders(policy, namespace) if is_under(normal, folder)]
+    if not inside:
+        return None
+    folder = max(inside, key=len)
+    return folder, posixpath.relpath(normal, folder) if normal != folder else ""
+
+
 def _device_allowed(path: str, patterns: tuple[str, ...]) -> bool:
     normal = PurePosixPath(normalise(path))
     # An absolute pattern of as many names as the path: `match` then compares the whole path,
@@ -94,9 +134,12 @@ def _component_problems(where: str, component: Component, namespace: str, policy
     for index, mount in enumerate(component.host_paths):
         path = normalise(mount.host_path)
         field = f"{where}: hostPaths[{index}].hostPath"
-        if not any(is_under(path, prefix) for prefix in policy.host_path_prefixes):
-            allowed = ", ".join(policy.host_path_prefixes) or "none"
-            problems.append(f"{field}: host path {path} is outside the allowed prefixes ({allowed})")
+        if host_path_volume(policy, namespace, path) is None:
+            allowed = ", ".join(allowed_folders(policy, namespace))
+            problems.append(
+                f"{field}: host path {path} is outside the folders namespace {namespace} may mount "
+                f"({allowed})"
+            )
         elif any(_overlaps(path, root) for root in policy.plugin_roots):
             problems.append(
                 f"{field}: host path {path} overlaps the plugin root, which holds other systems' plugins"

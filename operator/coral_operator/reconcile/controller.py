@@ -17,6 +17,7 @@ from typing import Any
 from coral_operator.api import names
 from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
+from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instances_on_node
@@ -49,7 +50,13 @@ class Controller:
     """Everything the operator runs between watch events and API writes; one per process."""
 
     def __init__(
-        self, *, policy: Policy, post: events.Poster, memory: Memory | None = None, workers: int = WORKERS
+        self,
+        *,
+        policy: Policy,
+        post: events.Poster,
+        memory: Memory | None = None,
+        workers: int = WORKERS,
+        pod_settings: PodSettings | None = None,
     ) -> None:
         self.memory = memory or Memory()
         self.indexes = Indexes()
@@ -65,6 +72,7 @@ class Controller:
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
             policy=policy,
+            pod_settings=pod_settings or PodSettings(policy=policy),
         )
         self.systems = SystemReconciler(
             memory=self.memory,

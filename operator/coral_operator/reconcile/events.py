@@ -29,7 +29,7 @@ _NOTABLE = {
 }
 # Reasons of `ComponentsReady=False` that no other Event tells the instance's user about (the pod's
 # own Events name the pod, not the robot's instance, and a refused pod has none).
-_DELIVERY_FAILURES = {"PodRefused", "ImagePullFailed", "PodUnschedulable"}
+_DELIVERY_FAILURES = {"PodRefused", "ImagePullFailed", "ContainerRefused", "PodUnschedulable"}
 
 
 def names(listed: list[str], shown: int = 10) -> str:

@@ -28,6 +28,7 @@ from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import instance_pass, provenance
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
+from coral_operator.planning.pods import HostPathRefused, PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
@@ -76,14 +77,16 @@ class InstanceReconciler:
         wake_system: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
         policy: Policy | None = None,
+        pod_settings: PodSettings | None = None,
     ) -> None:
         self.memory = memory
-        self.policy = policy or Policy()
+        self.policy = pod_settings.policy if pod_settings is not None else policy or Policy()
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
         self.wake_system = wake_system
         self.clock = clock
+        self.pod_settings = pod_settings or PodSettings(policy=self.policy)
 
     def reconcile(self, key: Key) -> None:
         indexed: InstanceRecord | None = next(
@@ -97,28 +100,29 @@ class InstanceReconciler:
         status = self.memory.observed_status(record.uid, record.resource_version, record.status)
         spec = instance_pass.parse_instance_spec(record)
         if isinstance(spec, str):
-            new = instance_status.build_invalid_status(
-                spec,
-                old_conditions=transitions.written_conditions(status),
-                generation=record.generation,
-                now=now,
-            )
-            self._write_status(record, status, new)
+            self._write_invalid(record, status, spec, now=now)
             return
         node = self._robot(spec.node_name)
+        # Whose instance this is comes first: nothing is built for one the operator did not make.
         refusal = self._refusal(record, spec, node)
         if refusal is not None:
             self._refuse(record, status, *refusal, now=now)
             return
+        desired: list[dict[str, Any]] = []
+        if not spec.retiring:
+            parsed = spec
+            try:
+                desired = self.memory.desired_pods(
+                    record.uid,
+                    record.generation,
+                    lambda: instance_pass.build_desired_pods(record, parsed, self.pod_settings),
+                )
+            except HostPathRefused as refused:
+                # The policy check above refuses such a path first; this is the builder's own guard.
+                self._write_invalid(record, status, f"Refused by the operator's policy: {refused}", now=now)
+                return
         # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
         observed: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
-        desired = (
-            []
-            if spec.retiring
-            else self.memory.desired_pods(
-                record.uid, record.generation, lambda: instance_pass.build_desired_pods(record, spec)
-            )
-        )
         plan = instance_pass.plan_instance(
             record=record, spec=spec, desired=desired, node=node, observed=observed, now=now
         )
@@ -203,6 +207,17 @@ class InstanceReconciler:
         self._write_status(record, status, new, post_events=False)
         if (before.get("reason"), before.get("message")) != (reason.value, message):
             self.post(record.reference, "Warning", reason.value, message)
+
+    def _write_invalid(
+        self, record: InstanceRecord, status: dict[str, Any], message: str, *, now: datetime
+    ) -> None:
+        new = instance_status.build_invalid_status(
+            message,
+            old_conditions=transitions.written_conditions(status),
+            generation=record.generation,
+            now=now,
+        )
+        self._write_status(record, status, new)
 
     def _robot(self, node_name: str) -> RobotNode | None:
         node: RobotNode | None = next(iter(self.indexes.read("robot_nodes", ("node", node_name))), None)

@@ -61,6 +61,9 @@ class Reason(StrEnum):
     """The API server or an admission controller (Pod Security, quota) refused a component pod."""
     IMAGE_PULL_FAILED = "ImagePullFailed"
     """A component's image cannot be pulled."""
+    CONTAINER_REFUSED = "ContainerRefused"
+    """The robot's kubelet refuses to create a component's container (a host path's subPath that
+    leads out of its folder, a missing ConfigMap); the message is the kubelet's."""
     POD_UNSCHEDULABLE = "PodUnschedulable"
     """The robot cannot run a component pod (resources, node rules)."""
     POLICY_DENIED = "PolicyDenied"

@@ -86,6 +86,16 @@ def _delivery_verdict(view: InstanceView) -> Verdict | None:
         return Verdict(
             C.COMPONENTS_READY, False, R.IMAGE_PULL_FAILED, f"Image cannot be pulled for {'; '.join(pulling)}"
         )
+    refused = sorted(
+        f"{p.component}: {p.container_refused}" for p in view.pods if p.container_refused and not p.deleting
+    )
+    if refused:
+        return Verdict(
+            C.COMPONENTS_READY,
+            False,
+            R.CONTAINER_REFUSED,
+            f"The robot's kubelet refuses to create the container of {'; '.join(refused)}",
+        )
     unschedulable = sorted(
         f"{p.component}: {p.unschedulable}" for p in view.pods if p.unschedulable and not p.deleting
     )
@@ -272,14 +282,16 @@ def build_components(view: InstanceView) -> list[dict[str, Any]]:
 def _stalled_by(view: InstanceView, robot: Verdict, components: Verdict, tree: Verdict) -> Verdict | None:
     """Why the instance cannot get further without a change to the spec or the robot, if it cannot.
 
-    An unreachable robot, a failed component, a pod the API server refused, a blocking startup
+    An unreachable robot, a failed component, a pod the API server or a container the kubelet
+    refused (a subPath leading out of its folder stays refused until someone removes the link), a
+    blocking startup
     timeout and a tree whose root
     returned FAILURE all leave the instance where it is until someone acts; kstatus reads that as
     Failed, not as work still under way.
     """
     if robot.status is not True:
         return robot
-    if components.reason in (R.COMPONENT_FAILED, R.POD_REFUSED) or (
+    if components.reason in (R.COMPONENT_FAILED, R.POD_REFUSED, R.CONTAINER_REFUSED) or (
         components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
     ):
         return components

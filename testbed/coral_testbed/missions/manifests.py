@@ -18,11 +18,13 @@ SLAM_MISSION = ROOT / "examples" / "lidar-slam" / "mission.yaml"
 RELAY_MISSION = ROOT / "examples" / "relay" / "mission.yaml"
 SLAM_ROBOT = "robot-1"
 RELAY_ROBOTS = ("relay-survey", "relay-server", "relay-worker")
-SLAM_BAG = "/var/lib/coral/bags/lidar-slam"
+BAGS = "/var/lib/coral/bags"
+"""The robot folder the examples' bag players read (an administrator opens it per namespace)."""
+SLAM_BAG = f"{BAGS}/lidar-slam"
 CONTAINER_OUTPUT_DIR = "/var/lib/coral/output"
 """$CORAL_OUTPUT_DIR in the component images (components/Dockerfile): where the SLAM skillset's
 container writes the map and trajectory."""
-SURVEY_BAG = "/var/lib/coral/bags/survey"
+SURVEY_BAG = f"{BAGS}/survey"
 SITE_SHARE = "/srv/maps"
 
 

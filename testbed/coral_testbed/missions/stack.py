@@ -45,16 +45,20 @@ MISSION_IMAGES = (
     "snapshot-skillset",
     "examples-skillset",
 )
-HOST_PATH_PREFIXES = ("/var/lib/coral", manifests.SITE_SHARE)
-"""Robot folders the missions mount: the bags beside the plugin root, and the relay's site share."""
+MISSION_FOLDERS = (manifests.BAGS, manifests.SITE_SHARE)
+"""Robot folders the missions mount besides their namespace's own: the bags, and the relay's site
+share, which an administrator places on the robots and opens for the missions' namespace."""
 Echo = Callable[[str], None]
 PROGRESS_WORDS = ("building", "built", "cached", "pulled")
 
 
 def operator_policy(namespace: str) -> dict[str, tuple[str, ...]]:
     """The chart's `policy.*` opened for the missions in `namespace`, as an administrator would for
-    robots running ROS 2 over DDS: the host network, and the host paths of `HOST_PATH_PREFIXES`."""
-    return {"hostNetworkNamespaces": (namespace,), "hostPathPrefixes": HOST_PATH_PREFIXES}
+    robots running ROS 2 over DDS: the host network, and the folders of `MISSION_FOLDERS`."""
+    return {
+        "hostNetworkNamespaces": (namespace,),
+        "hostPaths": tuple(f"{namespace}={folder}" for folder in MISSION_FOLDERS),
+    }
 
 
 class MissionView:

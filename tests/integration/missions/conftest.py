@@ -10,6 +10,7 @@ import pytest
 from coral.lidar import generating
 from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.missions import MissionView, following
+from coral_testbed.missions.stack import operator_policy
 
 # Short bags keep the tests quick on a shared 2-core machine; the demo plays the full 300 scans.
 TEST_SCANS = 40
@@ -19,6 +20,12 @@ TEST_SCANS = 40
 def short_bag() -> Path:
     """The synthetic dataset (bag + ground truth) of TEST_SCANS scans, generated once and cached."""
     return generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
+
+
+@pytest.fixture
+def helm_policy(namespace: str) -> dict[str, tuple[str, ...]]:
+    """The missions' policy: the host network, and the bags (and the site share) as host paths."""
+    return operator_policy(namespace)
 
 
 @pytest.fixture

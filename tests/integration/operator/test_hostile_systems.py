@@ -80,7 +80,11 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
         cluster,
         namespaces,
         tmp_path_factory.mktemp("hostile") / "operator.log",
-        {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces)},
+        {
+            "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces),
+            # The fleet example's bag player reads the robot's bags, which the administrator opens.
+            "CORAL_POLICY_HOST_PATHS": ",".join(f"{n}=/var/lib/coral/bags" for n in namespaces),
+        },
     )
     try:
         coral = Coral(cluster.api_client, healthy)
@@ -216,8 +220,8 @@ def test_a_host_path_of_the_root_folder_is_refused(stage: Stage) -> None:
         stage, "rootfs", _driver(hostPaths=[{"hostPath": "/", "mountPath": "/host", "readOnly": False}])
     )
     assert (
-        "hostPaths[0].hostPath: host path / is outside the allowed prefixes (/var/lib/coral)"
-        in (stalled["message"])
+        f"hostPaths[0].hostPath: host path / is outside the folders namespace {stage.hostile} may mount "
+        f"(/var/lib/coral/data/{stage.hostile}, /var/lib/coral/bags)" in (stalled["message"])
     )
     stage.assert_still_serving()
 
@@ -244,9 +248,11 @@ def test_a_plugin_root_of_etc_is_refused(stage: Stage) -> None:
 
 
 def test_a_dot_dot_path_is_compared_after_normalising(stage: Stage) -> None:
-    climbing = [{"hostPath": "/var/lib/coral/../../../etc", "mountPath": "/etc-of-robot"}]
+    climbing = [
+        {"hostPath": f"/var/lib/coral/data/{stage.hostile}/../../../../../etc", "mountPath": "/etc-of-robot"}
+    ]
     stalled = _attack(stage, "climb", _driver(hostPaths=climbing))
-    assert "host path /etc is outside the allowed prefixes (/var/lib/coral)" in stalled["message"]
+    assert f"host path /etc is outside the folders namespace {stage.hostile} may mount" in stalled["message"]
     stage.assert_still_serving()
 
 

@@ -14,7 +14,7 @@ pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 def operator_env() -> dict[str, str]:
     return {
         "CORAL_POLICY_PRIVILEGED_NAMESPACES": "robots-hardware",
-        "CORAL_POLICY_HOST_PATH_PREFIXES": "/dev,/var/lib/coral",
+        "CORAL_POLICY_HOST_PATHS": "*=/dev,*=/var/lib/coral/bags",
     }
 
 
@@ -34,5 +34,5 @@ def test_a_privileged_driver_outside_the_allowed_namespaces_is_refused(scenario:
     message = condition(stalled, "Stalled")["message"]
     assert condition(stalled, "Stalled")["reason"] == "PolicyDenied"
     assert f"spec.drivers[0] (lidar-driver): privileged is not allowed in namespace {namespace}" in message
-    assert "host path /etc/ssh is outside the allowed prefixes" in message
+    assert f"host path /etc/ssh is outside the folders namespace {namespace} may mount" in message
     holds_for(lambda: not coral.instances() and not coral.pods(), duration=3, message="nothing deployed")

@@ -1,6 +1,8 @@
 """Generated CoralSystems, hostile and odd, thrown at the pure validation and planning functions.
 
-Property: they never raise; every refusal names the field (or the file and line) it is about.
+Property: they never raise; every refusal names the field (or the file and line) it is about. The
+policy is generated too (issue 47: administrators' host-path folders per namespace), and every pod
+built mounts a host path only from a folder the namespace may mount, the rest as a relative subPath.
 """
 
 from __future__ import annotations
@@ -30,10 +32,26 @@ NODES = [
 PORTS = ["num_cycles", "msec", "code", "ID", "name", "if", "x"]
 PATHS = st.one_of(
     st.sampled_from(
-        ["/", "/dev/mem", "/dev/ttyUSB0", "/var/lib/coral/plugins", "/var/lib/coral/../../etc", "//etc"]
+        [
+            "/",
+            "/dev/mem",
+            "/dev/ttyUSB0",
+            "/var/lib/coral/plugins",
+            "/var/lib/coral/../../etc",
+            "//etc",
+            "/var/lib/coral/data/ns",
+            "/var/lib/coral/data/ns/maps/",
+            "/var/lib/coral/data/ns/../other/x",
+            "/var/lib/coral/data/other",
+            "/srv/maps/a",
+        ]
     ),
     st.text(alphabet="/.abc", max_size=20).map(lambda text: "/" + text),
     st.text(max_size=5),
+)
+POLICY_HOST_PATHS = st.lists(
+    st.tuples(st.sampled_from(["ns", "other", "*"]), PATHS.filter(lambda path: path.startswith("/"))),
+    max_size=3,
 )
 LABEL_KEYS = st.sampled_from(["fleet", "coral.dev/model", "fleet", "bad key", ""])
 LABEL_VALUES = st.sampled_from(["a", "b", "x-1", "a", "bad value!"])
@@ -151,8 +169,10 @@ def systems(draw: st.DrawFn) -> dict[str, Any]:
 @settings(
     max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
 )
-@given(raw=systems())
-def test_generated_systems_are_refused_by_field_or_planned_never_crash(raw: dict[str, Any]) -> None:
+@given(raw=systems(), opened=POLICY_HOST_PATHS)
+def test_generated_systems_are_refused_by_field_or_planned_never_crash(
+    raw: dict[str, Any], opened: list[tuple[str, str]]
+) -> None:
     try:
         spec = CoralSystemSpec.model_validate(raw)
     except ValidationError as error:
@@ -163,12 +183,34 @@ def test_generated_systems_are_refused_by_field_or_planned_never_crash(raw: dict
     problems = validation.validate_tree(spec.tree.inline, "spec.tree.inline", None, spec.tree.files)
     problems += validation.validate_parameters(spec.parameters.inline, "spec.parameters.inline")
     assert all(problem.startswith("spec.") for problem in problems), problems
-    refusals = policy.evaluate_policy("ns", spec, policy.Policy())
+    rules = policy.Policy(host_paths=tuple((ns, policy.normalise(folder)) for ns, folder in opened))
+    refusals = policy.evaluate_policy("ns", spec, rules)
     assert all(refusal.startswith("spec.") for refusal in refusals), refusals
     template = instances.build_template(spec, "tree-cm", "params-cm")
     instance = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
-    built = pods.build_pods(spec=instance, instance="sys-r1", namespace="ns", instance_uid="u")
+    try:
+        built = pods.build_pods(
+            spec=instance,
+            instance="sys-r1",
+            namespace="ns",
+            instance_uid="u",
+            settings=pods.PodSettings(policy=rules),
+        )
+    except pods.HostPathRefused:
+        assert any("hostPaths" in refusal for refusal in refusals), refusals
+        return
     assert len(built) == len(spec.drivers) + len(spec.skillsets) + len(spec.executors)
+    allowed = policy.allowed_folders(rules, "ns")
+    for pod in built:
+        for volume in pod["spec"]["volumes"]:
+            if volume["name"].startswith("host-"):
+                assert volume["hostPath"]["path"] in allowed, volume
+        for container in [*pod["spec"].get("initContainers", []), *pod["spec"]["containers"]]:
+            if container["name"] == pods.FOLDERS_OWNER:
+                assert container["image"] == pods.DEFAULT_HELPER_IMAGE, container
+            for mount in container["volumeMounts"]:
+                sub_path = mount.get("subPath", "")
+                assert not sub_path.startswith("/") and ".." not in sub_path.split("/"), mount
 
 
 SUBDOMAIN = re.compile(r"[a-z0-9]([-a-z0-9]*[a-z0-9])?(\.[a-z0-9]([-a-z0-9]*[a-z0-9])?)*")

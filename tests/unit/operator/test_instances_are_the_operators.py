@@ -140,7 +140,7 @@ def test_the_policy_holds_for_a_revision_the_system_stored_before_it_was_narrowe
     open_policy = Policy(
         privileged_namespaces=frozenset({"ns"}),
         host_network_namespaces=frozenset({"ns"}),
-        host_path_prefixes=("/data",),
+        host_paths=(("ns", "/data"),),
     )
     assert (
         provenance.evaluate_instance_policy("ns", CoralInstanceSpec.model_validate(opened), open_policy) == []

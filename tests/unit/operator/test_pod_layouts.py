@@ -20,7 +20,7 @@ from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import ROBOT_POD_BLOCKS, CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing
-from coral_operator.planning import instances, naming, pods, startup
+from coral_operator.planning import instances, naming, pods, policy, startup
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.status import instance_status
 from operator_specs import NOW, instance_view, robot
@@ -35,8 +35,14 @@ def _instance_spec(spec: dict[str, Any]) -> CoralInstanceSpec:
     return CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
 
 
+# The examples' bags are a robot folder the missions' administrator opens for their namespace.
+SETTINGS = pods.PodSettings(policy=policy.Policy(host_paths=(("ns", "/var/lib/coral/bags"),)))
+
+
 def _pods(spec: dict[str, Any]) -> list[dict[str, Any]]:
-    return pods.build_pods(spec=_instance_spec(spec), instance="sys-r1", namespace="ns", instance_uid="u")
+    return pods.build_pods(
+        spec=_instance_spec(spec), instance="sys-r1", namespace="ns", instance_uid="u", settings=SETTINGS
+    )
 
 
 def _robot_pod(spec: dict[str, Any]) -> dict[str, Any]:

@@ -156,9 +156,10 @@ def test_non_root_components_get_the_plugin_folder_through_a_chown_only_init_ste
     slam = built["slam"]["spec"]
     (owner,) = slam["initContainers"]
     # The kubelet creates the host path root-owned 0755: the step gives it to the components' user
-    # with CAP_CHOWN alone, and the skillset itself stays non-root.
-    assert owner["command"] == ["chown", "10001:10001", "/var/lib/coral/plugins"]
-    assert owner["image"] == slam["containers"][0]["image"]
+    # with CAP_CHOWN alone, and the skillset itself stays non-root. The step runs the operator's
+    # helper image, never the component's (issue 47: its own `chown` ran as root on the robot).
+    assert owner["command"] == ["chown", "--no-dereference", "10001:10001", "/coral-owned/plugins"]
+    assert owner["image"] == pods.DEFAULT_HELPER_IMAGE != slam["containers"][0]["image"]
     assert owner["securityContext"]["capabilities"] == {"drop": ["ALL"], "add": ["CHOWN"]}
     assert owner["securityContext"]["allowPrivilegeEscalation"] is False
     assert [m["name"] for m in owner["volumeMounts"]] == ["plugins"]

@@ -39,7 +39,7 @@ def _nothing(spec: dict[str, Any]) -> None:
 
 
 DEVICES = "(/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
-OUTSIDE = "is outside the allowed prefixes (/var/lib/coral)"
+OUTSIDE = "is outside the folders namespace robots may mount (/var/lib/coral/data/robots)"
 HOST_NET_DENIED = "spec.ros.network: the host network (Host) is not allowed in namespace robots; use Pod"
 ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str]]] = [
     ("pod network needs nothing", _spec(**POD_NETWORK), {}, []),
@@ -83,29 +83,65 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
         [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path / {OUTSIDE}"],
     ),
     (
-        "a .. path climbing out of the allowed folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/../../../etc", "mountPath": "/x"}]),
+        "a .. path climbing out of the namespace's own folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/../../../../../etc", "mountPath": "/x"}]),
         OPEN_NETWORK,
         [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /etc {OUTSIDE}"],
     ),
     (
-        "a look-alike prefix is not the folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coralx", "mountPath": "/x"}]),
+        "a .. path climbing into another namespace's folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/../lab/maps", "mountPath": "/x"}]),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coralx {OUTSIDE}"],
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/lab/maps {OUTSIDE}"],
     ),
     (
-        "data under the allowed folder",
+        "another namespace's data folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/lab", "mountPath": "/x"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/lab {OUTSIDE}"],
+    ),
+    (
+        "the data root holding every namespace's folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data", "mountPath": "/x"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data {OUTSIDE}"],
+    ),
+    (
+        "a look-alike of the namespace's folder is not the folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robotsx", "mountPath": "/x"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/robotsx {OUTSIDE}"],
+    ),
+    (
+        "the shared folder of earlier versions is no longer open",
         _driver(hostPaths=[{"hostPath": "/var/lib/coral/bags", "mountPath": "/bags"}]),
+        OPEN_NETWORK,
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/bags {OUTSIDE}"],
+    ),
+    (
+        "data in the namespace's own folder",
+        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/maps", "mountPath": "/maps"}]),
         OPEN_NETWORK,
         [],
     ),
     (
-        "another namespace's plugins",
+        "the namespace's own folder itself, spelled differently",
+        _driver(hostPaths=[{"hostPath": "//var/lib/coral/./data/robots/", "mountPath": "/data"}]),
+        OPEN_NETWORK,
+        [],
+    ),
+    (
+        "the namespace's folder under a data root the administrator chose",
+        _driver(hostPaths=[{"hostPath": "/data/robots/maps", "mountPath": "/maps"}]),
+        {**OPEN_NETWORK, "CORAL_POLICY_DATA_ROOT": "/data"},
+        [],
+    ),
+    (
+        "another namespace's plugins, even in a folder opened by the administrator",
         _driver(
             hostPaths=[{"hostPath": "/var/lib/coral/plugins/other", "mountPath": "/p", "readOnly": False}]
         ),
-        OPEN_NETWORK,
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "robots=/var/lib/coral"},
         [
             "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/plugins/other overlaps "
             "the plugin root, which holds other systems' plugins"
@@ -114,17 +150,29 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
     (
         "a folder holding every namespace's plugins",
         _driver(hostPaths=[{"hostPath": "//var/lib/./coral/", "mountPath": "/p"}]),
-        OPEN_NETWORK,
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "robots=/var/lib/coral"},
         [
             "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral overlaps "
             "the plugin root, which holds other systems' plugins"
         ],
     ),
     (
-        "host paths opened by the administrator",
+        "a folder opened by the administrator for the namespace",
         _driver(hostPaths=[{"hostPath": "/srv/maps", "mountPath": "/maps"}]),
-        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATH_PREFIXES": "/var/lib/coral,/srv"},
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "lab=/srv/bags,robots=/srv"},
         [],
+    ),
+    (
+        "a folder opened by the administrator for every namespace",
+        _driver(hostPaths=[{"hostPath": "/srv/maps/site", "mountPath": "/maps"}]),
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "*=/srv/maps"},
+        [],
+    ),
+    (
+        "a folder opened by the administrator for another namespace only",
+        _driver(hostPaths=[{"hostPath": "/srv/bags", "mountPath": "/bags"}]),
+        {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "lab=/srv/bags"},
+        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /srv/bags {OUTSIDE}"],
     ),
     ("an allowed device", _driver(devices=[{"hostPath": "/dev/ttyUSB0"}]), OPEN_NETWORK, []),
     (

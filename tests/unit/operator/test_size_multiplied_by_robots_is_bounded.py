@@ -61,7 +61,9 @@ def _plan(
             stored_revisions=[],
             expected={},
             previous_rollout=None,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
+            policy=Policy(
+                host_network_namespaces=frozenset({"*"}), host_paths=(("*", "/var/lib/coral/bags"),)
+            ),
             now=datetime(2026, 1, 1, tzinfo=UTC),
             neighbours=neighbours or [],
         )
