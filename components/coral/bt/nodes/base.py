@@ -190,6 +190,63 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
                     obs(self, prev, st)
         return st
 
+    def execute_tick_hooked(self) -> int:
+        """`execute_tick` with BT.CPP's injected pre- and post-tick callbacks (`executeTick` in
+        tree_node.cpp), which the Groot2 publisher installs as `self.tick_hooks`: the pre-tick one
+        runs after the pre-conditions and only while the node is IDLE or RUNNING, and a SUCCESS or
+        FAILURE it returns replaces `tick()`; the post-tick one runs after the post-conditions
+        and a SUCCESS or FAILURE it returns replaces the result. Installed on the instance (as
+        `execute_tick`) only while a hook exists, so trees without hooks pay nothing."""
+        pre_hook, post_hook = self.tick_hooks
+        try:
+            st = self._check_pre() if self._pre is not None else None
+            if st is None:
+                if pre_hook is not None and self._status <= RUNNING:
+                    forced = pre_hook(self)
+                    if forced == SUCCESS or forced == FAILURE:
+                        st = forced
+                if st is None:
+                    st = self.tick()
+                    if st <= RUNNING and (st == IDLE or self.SYNC_ONLY):
+                        if st == IDLE:
+                            raise BTRuntimeError(
+                                f"{self.node_id} returned IDLE, which a tick may never return",
+                                node_path=self.path,
+                            )
+                        raise BTRuntimeError(
+                            f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
+                        )
+            if self._post is not None and (st == SUCCESS or st == FAILURE):
+                self._run_post(st)
+            if post_hook is not None:
+                forced = post_hook(self, st)
+                if forced == SUCCESS or forced == FAILURE:
+                    st = forced
+        except BTError as err:
+            if err.node_path is None and err.file is None:
+                err.node_path = self.path
+            raise
+        except Exception as err:  # noqa: BLE001 - a plugin's error is attributed to its node path
+            raise BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path) from err
+        if st != SKIPPED:
+            self.set_status(st)
+        if isinstance(self, DecoratorNode):
+            child = self.children[0]
+            if child._status == SUCCESS or child._status == FAILURE:
+                child.reset_status()
+        return st
+
+    def set_tick_hooks(
+        self, pre_hook: Callable[..., int] | None, post_hook: Callable[..., int] | None
+    ) -> None:
+        """Installs (or, with two Nones, removes) the injected tick callbacks; see `execute_tick_hooked`."""
+        if pre_hook is None and post_hook is None:
+            self.__dict__.pop("execute_tick", None)
+            self.__dict__.pop("tick_hooks", None)
+            return
+        self.tick_hooks = (pre_hook, post_hook)
+        self.execute_tick = self.execute_tick_hooked  # type: ignore[method-assign]
+
     def set_status(self, st: int) -> None:
         prev = self._status
         if prev != st:

@@ -1,0 +1,253 @@
+"""Publishes a running tree over BT.CPP's Groot2 protocol: a ZeroMQ REP socket on `port` answers
+requests, a PUB socket on `port + 1` announces reached hooks. Groot2, `coral tree watch` and
+other readers connect to it.
+
+The tick thread only records: a status observer writes each transition into the status buffer
+(one byte) and, while recording, appends it to a bounded deque. One server thread owns both
+sockets, answers every request, publishes queued hook notifications and watches the heartbeat.
+Its share of the interpreter is capped (a request flood slows the answers, not the tick), and
+requests are bounded in size and parts. Hooks that change how the tree runs are refused with an
+error reply unless `allow_hooks`.
+
+Used by the executor (`--groot2-port`) and `coral run`; see docs/bt-engine.md for where it
+follows BT.CPP 4.10 rather than the 4.8.2 that behaviortreepy bundles.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import threading
+import time
+from typing import TYPE_CHECKING
+
+import zmq
+
+from coral.bt.groot2 import protocol as p
+from coral.bt.groot2.boards import dump_boards
+from coral.bt.groot2.fulltree import build_fulltree_xml, subtree_instances
+from coral.bt.groot2.hooks import HookTable
+from coral.bt.status import IDLE
+
+if TYPE_CHECKING:
+    from coral.bt.nodes.base import TreeNode
+    from coral.bt.tree import Tree
+
+DEFAULT_PORT = 1667
+MAX_FRAME_BYTES = 64 * 1024  # larger frames make ZeroMQ drop the connection
+MAX_PARTS = 8
+MAX_TRANSITIONS = 1000  # as BT.CPP keeps
+QUEUED_REQUESTS = 64  # per connection, beyond which ZeroMQ drops them
+POLL_S = 0.02
+# The server thread may hold the interpreter this share of the time, at most: after a request that
+# took t seconds it rests t * (1 - share) / share before the next one.
+SERVER_SHARE = 0.04
+
+
+class Groot2Publisher:
+    """Serves one tree; `close()` (or the context manager) stops the thread and frees the ports."""
+
+    def __init__(
+        self,
+        tree: Tree,
+        port: int = DEFAULT_PORT,
+        *,
+        host: str = "127.0.0.1",
+        allow_hooks: bool = False,
+        max_heartbeat_delay_s: float = 5.0,
+        clock: object = None,
+    ) -> None:
+        self.tree = tree
+        self.port = port
+        self.host = host
+        self.allow_hooks = allow_hooks
+        self.max_heartbeat_delay_s = max_heartbeat_delay_s
+        self.tree_uuid = p.new_tree_uuid()
+        self.instances = subtree_instances(tree)
+        self.by_name = {instance.name: instance for instance in self.instances}
+        self.fulltree_xml = build_fulltree_xml(tree, self.instances).encode()
+        # The status buffer: 3 bytes per node in BT.CPP's order; the tick thread writes the third.
+        self.status = bytearray()
+        self._offset: dict[int, int] = {}
+        nodes_by_uid: dict[int, TreeNode] = {}
+        for instance in self.instances:
+            for node in instance.nodes:
+                nodes_by_uid[node.uid] = node
+                self._offset[node.uid] = len(self.status) + 2
+                self.status += p.encode_status([(node.uid, node._status)])
+        self.recording = False
+        self.transitions: collections.deque[tuple[int, int, int]] = collections.deque(maxlen=MAX_TRANSITIONS)
+        self._record_start = 0.0
+        self._notifications: collections.deque[int] = collections.deque(maxlen=64)
+        self.hooks = HookTable(nodes_by_uid, self._notifications.append)
+        self.last_request = time.monotonic()
+        self.connected = threading.Event()  # set by the first request
+        self._stop = threading.Event()
+        self._context = zmq.Context.instance()
+        self._server = self._socket(zmq.REP, port)
+        try:
+            self._publisher = self._socket(zmq.PUB, port + 1)
+        except zmq.ZMQError:
+            self._server.close(linger=0)
+            raise
+        tree.add_status_observer(self._on_status)
+        self._thread = threading.Thread(target=self._serve, name=f"groot2-{port}", daemon=True)
+        self._thread.start()
+
+    def _socket(self, kind: int, port: int) -> zmq.Socket:
+        socket = self._context.socket(kind)
+        socket.setsockopt(zmq.LINGER, 0)
+        socket.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+        socket.setsockopt(zmq.RCVHWM, QUEUED_REQUESTS)
+        socket.setsockopt(zmq.SNDHWM, QUEUED_REQUESTS)
+        socket.setsockopt(zmq.SNDTIMEO, 1000)
+        try:
+            socket.bind(f"tcp://{self.host}:{port}")
+        except zmq.ZMQError:
+            socket.close(linger=0)
+            raise
+        return socket
+
+    # tick thread ----------------------------------------------------------------------------
+    def _on_status(self, node: TreeNode, previous: int, status: int) -> None:
+        offset = self._offset.get(node.uid)
+        if offset is not None:
+            self.status[offset] = status if status != IDLE else p.IDLE_FROM + previous
+        if self.recording:
+            self.transitions.append((time.monotonic(), node.uid, status))
+
+    # server thread --------------------------------------------------------------------------
+    def _serve(self) -> None:
+        poller = zmq.Poller()
+        poller.register(self._server, zmq.POLLIN)
+        had_heartbeat = True
+        while not self._stop.is_set():
+            ready = dict(poller.poll(POLL_S * 1000))
+            self._publish_notifications()
+            if self._server in ready:
+                started = time.perf_counter()
+                try:
+                    frames = self._server.recv_multipart(zmq.NOBLOCK)
+                except zmq.ZMQError:
+                    continue
+                self.last_request = time.monotonic()
+                self.connected.set()
+                reply = self.answer(frames)
+                try:
+                    self._server.send_multipart(reply)
+                except zmq.ZMQError:
+                    pass  # the client left; REP is ready for the next request anyway
+                spent = time.perf_counter() - started
+                self._stop.wait(spent * (1 - SERVER_SHARE) / SERVER_SHARE)
+            has_heartbeat = time.monotonic() - self.last_request < self.max_heartbeat_delay_s
+            if has_heartbeat != had_heartbeat:
+                self.hooks.enable_all(has_heartbeat)
+                had_heartbeat = has_heartbeat
+        self._publish_notifications()
+
+    def _publish_notifications(self) -> None:
+        while self._notifications:
+            uid = self._notifications.popleft()
+            header = p.encode_header(p.BREAKPOINT_REACHED, int.from_bytes(p.new_tree_uuid()[:4], "little"))
+            try:
+                self._publisher.send_multipart([header, str(uid).encode()], zmq.NOBLOCK)
+            except zmq.ZMQError:
+                pass
+
+    def answer(self, frames: list[bytes]) -> list[bytes]:
+        """The reply to one request; any bad request gets an error reply."""
+        try:
+            if not frames:
+                raise p.ProtocolError("empty request")
+            _protocol, kind, request_id = p.decode_header(frames[0])
+            if len(frames) > MAX_PARTS:
+                raise p.ProtocolError(f"a request has at most {MAX_PARTS} parts")
+            head = p.reply_header(kind, request_id, self.tree_uuid)
+            return [head, *self._payload(kind, frames)]
+        except p.ProtocolError as err:
+            return p.error_reply(str(err))
+        except Exception as err:  # noqa: BLE001 - no request may stop the server
+            return p.error_reply(f"{type(err).__name__}: {err}")
+
+    def _second(self, frames: list[bytes]) -> bytes:
+        if len(frames) != 2:
+            raise p.ProtocolError("must be 2 parts message")
+        return frames[1]
+
+    def _payload(self, kind: int, frames: list[bytes]) -> list[bytes]:
+        if kind == p.FULLTREE:
+            return [self.fulltree_xml]
+        if kind == p.STATUS:
+            return [bytes(self.status)]
+        if kind == p.BLACKBOARD:
+            names = self._second(frames).decode("utf-8", "replace")
+            return [dump_boards(names, self.by_name, self.tree.root_blackboard)]
+        if kind in p.CHANGING and not self.allow_hooks:
+            self._second(frames)
+            raise p.ProtocolError("hooks are disabled on this executor (see --groot2-allow-hooks)")
+        if kind == p.HOOK_INSERT:
+            for record in p.parse_hooks(self._second(frames)):
+                self.hooks.insert(record)
+            return []
+        if kind == p.BREAKPOINT_UNLOCK:
+            if not self.hooks.unlock(*p.parse_unlock(self._second(frames))):
+                raise p.ProtocolError("Node ID not found")
+            return []
+        if kind == p.HOOK_REMOVE:
+            if not self.hooks.remove(*p.parse_hook_address(self._second(frames))):
+                raise p.ProtocolError("Node ID not found")
+            return []
+        if kind == p.REMOVE_ALL_HOOKS:
+            self.hooks.remove_all()
+            return []
+        if kind == p.DISABLE_ALL_HOOKS:
+            self.hooks.enable_all(False)
+            return []
+        if kind == p.HOOKS_DUMP:
+            return [json.dumps(self.hooks.dump()).encode()]
+        if kind == p.TOGGLE_RECORDING:
+            command = self._second(frames)
+            if command == b"start":
+                self.transitions.clear()
+                self._record_start = time.monotonic()
+                self.recording = True
+                return [str(time.time_ns() // 1000).encode()]
+            if command == b"stop":
+                self.recording = False
+            return []
+        if kind == p.GET_TRANSITIONS:
+            out = bytearray()
+            start = self._record_start
+            while self.transitions:
+                stamp, uid, status = self.transitions.popleft()
+                out += p.encode_transition(int((stamp - start) * 1e6), uid, status)
+            return [bytes(out)]
+        raise p.ProtocolError("Request not recognized")
+
+    # lifecycle ------------------------------------------------------------------------------
+    def wait_for_client(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
+        """Holds the caller (before the first tick) until a client sent a request, `stop` is set
+        or timeout_s passed; True if a client came."""
+        deadline = time.monotonic() + timeout_s
+        while not self.connected.is_set() and not (stop is not None and stop.is_set()):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            self.connected.wait(min(left, 0.1))
+        return self.connected.is_set()
+
+    def close(self) -> None:
+        if self._stop.is_set():
+            return
+        self.tree.remove_status_observer(self._on_status)
+        self.hooks.close()
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self._server.close(linger=0)
+        self._publisher.close(linger=0)
+
+    def __enter__(self) -> Groot2Publisher:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
