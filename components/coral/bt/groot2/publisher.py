@@ -55,13 +55,14 @@ class Groot2Publisher:
         host: str = "127.0.0.1",
         allow_hooks: bool = False,
         max_heartbeat_delay_s: float = 5.0,
-        clock: object = None,
+        server_share: float = SERVER_SHARE,
     ) -> None:
         self.tree = tree
         self.port = port
         self.host = host
         self.allow_hooks = allow_hooks
         self.max_heartbeat_delay_s = max_heartbeat_delay_s
+        self._rest_factor = (1 - server_share) / server_share
         self.tree_uuid = p.new_tree_uuid()
         self.instances = subtree_instances(tree)
         self.by_name = {instance.name: instance for instance in self.instances}
@@ -138,7 +139,7 @@ class Groot2Publisher:
                 except zmq.ZMQError:
                     pass  # the client left; REP is ready for the next request anyway
                 spent = time.perf_counter() - started
-                self._stop.wait(spent * (1 - SERVER_SHARE) / SERVER_SHARE)
+                self._stop.wait(spent * self._rest_factor)
             has_heartbeat = time.monotonic() - self.last_request < self.max_heartbeat_delay_s
             if has_heartbeat != had_heartbeat:
                 self.hooks.enable_all(has_heartbeat)
