@@ -157,6 +157,7 @@ class _CoralHost:
                     allow_hooks=True,
                     max_heartbeat_delay_s=req.heartbeat_ms / 1000,
                     server_share=1.0,
+                    rate_per_s=1e9,
                 )
                 break
             except zmq.ZMQError:

@@ -39,10 +39,12 @@ MAX_PARTS = 8
 MAX_TRANSITIONS = 1000  # as BT.CPP keeps
 QUEUED_REQUESTS = 64  # per connection, beyond which ZeroMQ drops them
 POLL_S = 0.02
-BURST = 8  # requests answered per wake-up, at most (so at most 200 a second)
-# Between two bursts the server thread rests at least this long: each wake-up takes the
-# interpreter from the tick thread once, whatever it then answers.
-MIN_GAP_S = 0.04
+BURST = 8  # requests answered per wake-up, at most
+# Requests answered per second, with bursts of up to BUCKET: Groot2 asks a few times a second,
+# a flood is paced, and each wake-up of the server thread (which takes the interpreter from the
+# tick thread once, whatever it then answers) serves a burst.
+RATE_PER_S = 200.0
+BUCKET = 40.0
 # The server thread may hold the interpreter this share of the time, at most: after a request that
 # took t seconds it rests t * (1 - share) / share before the next one.
 SERVER_SHARE = 0.03
@@ -60,6 +62,7 @@ class Groot2Publisher:
         allow_hooks: bool = False,
         max_heartbeat_delay_s: float = 5.0,
         server_share: float = SERVER_SHARE,
+        rate_per_s: float = RATE_PER_S,
     ) -> None:
         self.tree = tree
         self.port = port
@@ -67,6 +70,9 @@ class Groot2Publisher:
         self.allow_hooks = allow_hooks
         self.max_heartbeat_delay_s = max_heartbeat_delay_s
         self._rest_factor = (1 - server_share) / server_share
+        self._rate = rate_per_s
+        self._tokens = BUCKET
+        self._refilled = time.monotonic()
         self.tree_uuid = p.new_tree_uuid()
         self.instances = subtree_instances(tree)
         self.by_name = {instance.name: instance for instance in self.instances}
@@ -136,6 +142,7 @@ class Groot2Publisher:
                 # Every time this thread takes the interpreter back from the tick thread costs the
                 # tick a switch, so queued requests are answered in one go, then it rests.
                 started = time.perf_counter()
+                handled = 0
                 for _ in range(BURST):
                     try:
                         frames = self._server.recv_multipart(zmq.NOBLOCK)
@@ -143,19 +150,31 @@ class Groot2Publisher:
                         break
                     self.last_request = time.monotonic()
                     self.requests += 1
+                    handled += 1
                     self.connected.set()
                     reply = self.answer(frames)
                     try:
                         self._server.send_multipart(reply, zmq.NOBLOCK)
                     except zmq.ZMQError:
                         pass  # the client left or reads nothing; REP takes the next request anyway
-                spent = time.perf_counter() - started
-                self._stop.wait(max(spent * self._rest_factor, MIN_GAP_S))
+                self._pace(handled, time.perf_counter() - started)
             has_heartbeat = time.monotonic() - self.last_request < self.max_heartbeat_delay_s
             if has_heartbeat != had_heartbeat:
                 self.hooks.enable_all(has_heartbeat)
                 had_heartbeat = has_heartbeat
         self._publish_notifications()
+
+    def _pace(self, handled: int, spent_s: float) -> None:
+        """Rests so that the thread holds the interpreter at most `server_share` of the time and
+        answers at most `rate_per_s` requests a second (beyond a burst of BUCKET)."""
+        now = time.monotonic()
+        self._tokens = min(BUCKET, self._tokens + (now - self._refilled) * self._rate) - handled
+        self._refilled = now
+        rest = spent_s * self._rest_factor
+        if self._tokens < 0:
+            rest = max(rest, -self._tokens / self._rate)
+        if rest > 0:
+            self._stop.wait(rest)
 
     def _publish_notifications(self) -> None:
         while self._notifications:
