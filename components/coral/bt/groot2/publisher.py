@@ -77,15 +77,11 @@ class Groot2Publisher:
         self.instances = subtree_instances(tree)
         self.by_name = {instance.name: instance for instance in self.instances}
         self.fulltree_xml = build_fulltree_xml(tree, self.instances).encode()
-        # The status buffer: 3 bytes per node in BT.CPP's order; the tick thread writes the third.
-        self.status = bytearray()
-        self._offset: dict[int, int] = {}
-        nodes_by_uid: dict[int, TreeNode] = {}
-        for instance in self.instances:
-            for node in instance.nodes:
-                nodes_by_uid[node.uid] = node
-                self._offset[node.uid] = len(self.status) + 2
-                self.status += p.encode_status([(node.uid, node._status)])
+        # The status buffer's records in BT.CPP's order; the server thread fills in the statuses
+        # from the nodes themselves when asked, so the tick pays nothing for it.
+        self._ordered = [node for instance in self.instances for node in instance.nodes]
+        self._status_template = p.encode_status([(node.uid, 0) for node in self._ordered])
+        nodes_by_uid = {node.uid: node for node in self._ordered}
         self.recording = False
         self.transitions: collections.deque[tuple[int, int, int]] = collections.deque(maxlen=MAX_TRANSITIONS)
         self._record_start = 0.0
@@ -102,7 +98,6 @@ class Groot2Publisher:
         except zmq.ZMQError:
             self._server.close(linger=0)
             raise
-        tree.add_status_observer(self._on_status)
         self._thread = threading.Thread(target=self._serve, name=f"groot2-{port}", daemon=True)
         self._thread.start()
 
@@ -123,14 +118,25 @@ class Groot2Publisher:
         return socket
 
     # tick thread ----------------------------------------------------------------------------
-    def _on_status(self, node: TreeNode, previous: int, status: int) -> None:
-        offset = self._offset.get(node.uid)
-        if offset is not None:
-            self.status[offset] = status if status != IDLE else p.IDLE_FROM + previous
-        if self.recording:
-            self.transitions.append((time.monotonic(), node.uid, status))
+    def _on_status(self, node: TreeNode, _previous: int, status: int) -> None:
+        """Observes transitions only while a client records them."""
+        self.transitions.append((time.monotonic(), node.uid, status))
 
     # server thread --------------------------------------------------------------------------
+    def status_buffer(self) -> bytes:
+        """3 bytes per node: uid, then its status, or 10 + the status it left for an IDLE node
+        that ran (BT.CPP's IDLE_FROM_*); read from the nodes without stopping the tick."""
+        out = bytearray(self._status_template)
+        index = 2
+        for node in self._ordered:
+            status = node._status
+            if status == IDLE:
+                left = node._left
+                status = p.IDLE_FROM + left if left != IDLE else IDLE
+            out[index] = status
+            index += 3
+        return bytes(out)
+
     def _serve(self) -> None:
         poller = zmq.Poller()
         poller.register(self._server, zmq.POLLIN)
@@ -141,7 +147,8 @@ class Groot2Publisher:
             if self._server in ready:
                 # Every time this thread takes the interpreter back from the tick thread costs the
                 # tick a switch, so queued requests are answered in one go, then it rests.
-                started = time.perf_counter()
+                # CPU time, not wall time: waiting for the interpreter is not holding it.
+                started = time.thread_time()
                 handled = 0
                 for _ in range(BURST):
                     try:
@@ -157,7 +164,7 @@ class Groot2Publisher:
                         self._server.send_multipart(reply, zmq.NOBLOCK)
                     except zmq.ZMQError:
                         pass  # the client left or reads nothing; REP takes the next request anyway
-                self._pace(handled, time.perf_counter() - started)
+                self._pace(handled, time.thread_time() - started)
             has_heartbeat = time.monotonic() - self.last_request < self.max_heartbeat_delay_s
             if has_heartbeat != had_heartbeat:
                 self.hooks.enable_all(has_heartbeat)
@@ -209,7 +216,7 @@ class Groot2Publisher:
         if kind == p.FULLTREE:
             return [self.fulltree_xml]
         if kind == p.STATUS:
-            return [bytes(self.status)]
+            return [self.status_buffer()]
         if kind == p.BLACKBOARD:
             names = self._second(frames).decode("utf-8", "replace")
             return [dump_boards(names, self.by_name, self.tree.root_blackboard)]
@@ -241,10 +248,13 @@ class Groot2Publisher:
             if command == b"start":
                 self.transitions.clear()
                 self._record_start = time.monotonic()
-                self.recording = True
+                if not self.recording:
+                    self.recording = True
+                    self.tree.add_status_observer(self._on_status)
                 return [str(time.time_ns() // 1000).encode()]
-            if command == b"stop":
+            if command == b"stop" and self.recording:
                 self.recording = False
+                self.tree.remove_status_observer(self._on_status)
             return []
         if kind == p.GET_TRANSITIONS:
             out = bytearray()
@@ -277,7 +287,9 @@ class Groot2Publisher:
     def close(self) -> None:
         if self._stop.is_set():
             return
-        self.tree.remove_status_observer(self._on_status)
+        if self.recording:
+            self.recording = False
+            self.tree.remove_status_observer(self._on_status)
         self.hooks.close()
         self._stop.set()
         self._thread.join(timeout=5)

@@ -101,6 +101,8 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         self.line = config.line
         self.cpp_widths = config.cpp_widths
         self._status: int = IDLE
+        # The status before the last change: what Groot2 shows for an IDLE node (10 + it).
+        self._left: int = IDLE
         self.last_result: int = IDLE
         self._pre: list[tuple[int, Script]] | None = None
         self._post: dict[str, Script] | None = None
@@ -183,6 +185,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
             prev = self._status
             if prev != st:
                 self._status = st
+                self._left = prev
                 if st >= SUCCESS:
                     self.last_result = st
                 obs = self.rt.observer
@@ -251,6 +254,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         prev = self._status
         if prev != st:
             self._status = st
+            self._left = prev
             if st == SUCCESS or st == FAILURE:
                 self.last_result = st
             obs = self.rt.observer
@@ -261,6 +265,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         prev = self._status
         if prev != IDLE:
             self._status = IDLE
+            self._left = prev
             obs = self.rt.observer
             if obs is not None:
                 obs(self, prev, IDLE)
