@@ -104,7 +104,7 @@ def _finite(_context: click.Context, _parameter: click.Parameter, value: float) 
     type=click.FloatRange(min=0.0, max=3600.0),
     default=0.0,
     show_default=True,
-    help="Hold the first tick until a Groot2 client connects, for at most this many seconds.",
+    help="Hold the first tick until a Groot2 client sets a hook (or watched for 3 s), at most this long.",
 )
 @click.option("-v", "--verbose", is_flag=True, help="Print every node transition on the terminal.")
 def executor_command(

@@ -97,7 +97,7 @@ def _checked_handle(_context: click.Context, _parameter: click.Parameter, value:
     "groot2_wait_s",
     type=click.FloatRange(min=0.0, max=3600.0),
     default=0.0,
-    help="Executors hold their first tick until a Groot2 client connects, for at most this many seconds.",
+    help="Executors hold their first tick until a Groot2 client sets a hook (or watched 3 s), at most S s.",
 )
 def run_command(
     target: Path,

@@ -95,17 +95,25 @@ def test_malformed_hook_requests_get_error_replies_as_in_bt_cpp_4_10() -> None:
         assert tree.tick_exactly_once() == S
 
 
-def test_wait_for_client_holds_until_a_request_comes_or_the_timeout() -> None:
+def test_wait_for_client_holds_until_a_hook_is_set_or_a_watching_client_had_its_grace() -> None:
     tree, _ = make_tree(BODY, {"a": [R], "b": [S]})
-    with publish(tree) as publisher:
+    with publish(tree, allow_hooks=True) as publisher:
         started = time.monotonic()
-        assert publisher.wait_for_client(0.2) is False
+        assert publisher.wait_for_client(0.2) is False, "nobody came"
         assert 0.15 < time.monotonic() - started < 2
         with Groot2Client(port=publisher.port) as client:
-            asking = threading.Timer(0.1, client.status)
-            asking.start()
-            assert publisher.wait_for_client(5) is True
-            asking.join(5)
+            client.status()
+            started = time.monotonic()
+            assert publisher.wait_for_client(5, grace_s=0.3) is True, "a client that only watches"
+            assert 0.2 < time.monotonic() - started < 2
+    tree, _ = make_tree(BODY, {"a": [R], "b": [S]})
+    with publish(tree, allow_hooks=True) as publisher, Groot2Client(port=publisher.port) as client:
+        asking = threading.Timer(0.2, lambda: client.insert_hooks([p.HookRecord(uid=3)]))
+        asking.start()
+        started = time.monotonic()
+        assert publisher.wait_for_client(30, grace_s=30) is True
+        assert time.monotonic() - started < 5, "the hook ended the wait"
+        asking.join(5)
 
 
 def test_closing_the_publisher_releases_a_held_breakpoint() -> None:

@@ -39,6 +39,8 @@ MAX_PARTS = 8
 MAX_TRANSITIONS = 1000  # as BT.CPP keeps
 QUEUED_REQUESTS = 64  # per connection, beyond which ZeroMQ drops them
 POLL_S = 0.02
+# `wait_for_client`: how long a client that sets no hook holds the first tick after it came.
+WAIT_GRACE_S = 3.0
 BURST = 8  # requests answered per wake-up, at most
 # Requests answered per second, with bursts of up to BUCKET: Groot2 asks a few times a second,
 # a flood is paced, and each wake-up of the server thread (which takes the interpreter from the
@@ -90,6 +92,8 @@ class Groot2Publisher:
         self.last_request = time.monotonic()
         self.requests = 0  # answered so far
         self.connected = threading.Event()  # set by the first request
+        self._connected_at: float | None = None
+        self.hooked = threading.Event()  # set by the first hook a client inserts
         self._stop = threading.Event()
         self._context = zmq.Context.instance()
         self._server = self._socket(zmq.REP, port)
@@ -158,7 +162,9 @@ class Groot2Publisher:
                     self.last_request = time.monotonic()
                     self.requests += 1
                     handled += 1
-                    self.connected.set()
+                    if not self.connected.is_set():
+                        self._connected_at = time.monotonic()
+                        self.connected.set()
                     reply = self.answer(frames)
                     try:
                         self._server.send_multipart(reply, zmq.NOBLOCK)
@@ -226,6 +232,7 @@ class Groot2Publisher:
         if kind == p.HOOK_INSERT:
             for record in p.parse_hooks(self._second(frames)):
                 self.hooks.insert(record)
+            self.hooked.set()
             return []
         if kind == p.BREAKPOINT_UNLOCK:
             if not self.hooks.unlock(*p.parse_unlock(self._second(frames))):
@@ -273,15 +280,21 @@ class Groot2Publisher:
         return time.clock_gettime(time.pthread_getcpuclockid(ident))
 
     # lifecycle ------------------------------------------------------------------------------
-    def wait_for_client(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
-        """Holds the caller (before the first tick) until a client sent a request, `stop` is set
-        or timeout_s passed; True if a client came."""
+    def wait_for_client(
+        self, timeout_s: float, stop: threading.Event | None = None, grace_s: float = WAIT_GRACE_S
+    ) -> bool:
+        """Holds the caller (before the first tick) until a client has set a hook, or has been
+        connected for grace_s without setting one (it only watches), or `stop` is set, or
+        timeout_s passed; True if a client came. Ending at the first request would race the
+        client's breakpoints against the mission's first tick."""
         deadline = time.monotonic() + timeout_s
-        while not self.connected.is_set() and not (stop is not None and stop.is_set()):
-            left = deadline - time.monotonic()
-            if left <= 0:
+        while not (stop is not None and stop.is_set()) and not self.hooked.is_set():
+            now = time.monotonic()
+            if self._connected_at is not None and now - self._connected_at >= grace_s:
                 break
-            self.connected.wait(min(left, 0.1))
+            if now >= deadline:
+                break
+            self.hooked.wait(min(deadline - now, 0.05))
         return self.connected.is_set()
 
     def close(self) -> None:
