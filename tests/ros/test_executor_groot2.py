@@ -5,6 +5,7 @@ before the mission started, and goes on with the result the client chose (issue 
 from __future__ import annotations
 
 import random
+import signal
 import socket
 import time
 from pathlib import Path
@@ -77,3 +78,30 @@ def test_a_breakpoint_set_before_the_first_tick_holds_the_mission_until_unlocked
     assert waited["client_connected"] is True
     [finished] = records_of(status, "finished")
     assert finished["root_status"] == "SUCCESS"
+
+
+def test_a_stop_signal_releases_a_held_breakpoint_and_the_executor_halts(
+    tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
+) -> None:
+    port = _free_port_pair()
+    # A long Sleep after the breakpoint: the released tick leaves the tree RUNNING, then the stop halts it.
+    tree = write_tree(tmp_path / "tree.xml", TREE.replace("</Sequence>", '<Sleep msec="60000"/></Sequence>'))
+    status, log = tmp_path / "status.jsonl", tmp_path / "executor.log"
+    (tmp_path / "plugins").mkdir()
+    args = ("--groot2-port", str(port), "--groot2-wait", "60", "--groot2-allow-hooks", "--liveness-wait", "0")
+    executor = start_executor(spawned, ros_env, tree, tmp_path / "plugins", status, log, *args)
+    with Groot2Client(port=port, timeout_s=1) as client:
+        client.next_breakpoint(0)
+        wait_until(lambda: _answering(client) or executor.poll() is not None, 60, "the publisher")
+        client.insert_hooks([p.HookRecord(uid=4)])
+        assert client.next_breakpoint(30) == 4, log.read_text()
+        executor.send_signal(signal.SIGTERM)
+        # The client stays connected (its heartbeat would keep the breakpoint): the stop releases it.
+        deadline = time.monotonic() + 20
+        while executor.poll() is None and time.monotonic() < deadline:
+            try:
+                client.status()
+            except Groot2Error:
+                pass
+            time.sleep(0.1)
+    assert finish(executor, 10, log) == 128 + signal.SIGTERM, log.read_text()

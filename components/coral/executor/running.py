@@ -196,6 +196,13 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
         waker["tree"] = tree
         loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
         publisher = _start_groot2(options, tree, fanout)
+        if publisher is not None:
+
+            def release_and_wake() -> None:
+                publisher.hooks.close()  # a stop must not wait at a breakpoint
+                wake_up()
+
+            stop.wake = release_and_wake
         freeze_startup_heap()  # the tree and its plugins are built: nothing of them is garbage
         loop.wait_for_components(options.liveness_wait_s, stop.event)
         if publisher is not None and options.groot2_wait_s > 0:

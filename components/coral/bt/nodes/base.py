@@ -77,6 +77,8 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
     # controls and decorators only mirror their children (True), except those that re-check
     # something on every tick.
     SIGNALS_WAKE_UP = False
+    # Injected (pre-tick, post-tick) callbacks; an instance gets its own with `set_tick_hooks`.
+    tick_hooks: tuple[Callable[..., int] | None, Callable[..., int] | None] = (None, None)
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         # Behaviour.__init__ is not called: it starts py_trees' generator tick, which we replace.
@@ -244,6 +246,8 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
     ) -> None:
         """Installs (or, with two Nones, removes) the injected tick callbacks; see `execute_tick_hooked`."""
         if pre_hook is None and post_hook is None:
+            # The tick thread may be entering `execute_tick_hooked` right now: it then reads the
+            # class's (None, None) and ticks as usual.
             self.__dict__.pop("execute_tick", None)
             self.__dict__.pop("tick_hooks", None)
             return
