@@ -9,6 +9,7 @@ runs N random trees (`make bench-bt` runs 2,000).
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 import xml.etree.ElementTree as ET
@@ -68,6 +69,17 @@ def board_names(shape: Any) -> list[str]:
     return names
 
 
+def comparable(value: Any) -> Any:
+    """NaN as text with its sign ("-nan" as BT.CPP prints 0/0), so that equal dumps compare equal."""
+    if isinstance(value, float) and math.isnan(value):
+        return "-nan" if math.copysign(1.0, value) < 0 else "nan"
+    if isinstance(value, dict):
+        return {k: comparable(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [comparable(v) for v in value]
+    return value
+
+
 def observe(host: EngineHost, request: LoadRequest, ticks: int = TICKS) -> Trace:
     verdict, value = host.load(request)
     if verdict != "LOADED":
@@ -84,7 +96,7 @@ def observe(host: EngineHost, request: LoadRequest, ticks: int = TICKS) -> Trace
                 trace.statuses.append(result if kind == "status" else "ERROR")
                 trace.status_maps.append(client.status())
                 trace.transitions.append([(uid, status) for _t, uid, status in client.transitions()])
-                boards = client.blackboards(names)
+                boards = comparable(client.blackboards(names))
                 if isinstance(boards, dict) and ROOT in boards and ROOT not in names:
                     trace.extra_root.append(boards.pop(ROOT) == boards.get(names[0]))
                 trace.boards.append(boards)

@@ -223,6 +223,8 @@ def _start_groot2(options: ExecutorOptions, tree: Any, fanout: sinks.SinkFanout)
     tree runs without it)."""
     if options.groot2_port is None:
         return None
+    import struct
+
     import zmq
 
     from coral.bt.groot2 import Groot2Publisher
@@ -231,7 +233,7 @@ def _start_groot2(options: ExecutorOptions, tree: Any, fanout: sinks.SinkFanout)
         publisher = Groot2Publisher(
             tree, options.groot2_port, host=options.groot2_host, allow_hooks=options.groot2_allow_hooks
         )
-    except zmq.ZMQError as err:
+    except (zmq.ZMQError, struct.error) as err:  # a port in use; a tree beyond 65,535 nodes (uint16 uids)
         _emit(fanout, "error", message=f"Groot2 publisher not started on port {options.groot2_port}: {err}")
         return None
     _emit(

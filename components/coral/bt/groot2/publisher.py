@@ -2,11 +2,12 @@
 requests, a PUB socket on `port + 1` announces reached hooks. Groot2, `coral tree watch` and
 other readers connect to it.
 
-The tick thread only records: a status observer writes each transition into the status buffer
-(one byte) and, while recording, appends it to a bounded deque. One server thread owns both
-sockets, answers every request, publishes queued hook notifications and watches the heartbeat.
-Its share of the interpreter is capped (a request flood slows the answers, not the tick), and
-requests are bounded in size and parts. Hooks that change how the tree runs are refused with an
+The tick thread pays nothing for STATUS (the server thread reads each node's status and the
+status it left) and, only while a client records transitions, appends each transition to a
+bounded deque. One server thread owns both sockets, answers every request, publishes queued hook
+notifications and watches the heartbeat. It answers in paced bursts and its share of the
+interpreter is capped (a request flood slows the answers, not the tick); requests are bounded in
+size, parts and queue length. Hooks that change how the tree runs are refused with an
 error reply unless `allow_hooks`.
 
 Used by the executor (`--groot2-port`) and `coral run`; see docs/bt-engine.md for where it
@@ -37,7 +38,7 @@ DEFAULT_PORT = 1667
 MAX_FRAME_BYTES = 64 * 1024  # larger frames make ZeroMQ drop the connection
 MAX_PARTS = 8
 MAX_TRANSITIONS = 1000  # as BT.CPP keeps
-QUEUED_REQUESTS = 64  # per connection, beyond which ZeroMQ drops them
+QUEUED_REQUESTS = 64  # per connection; beyond it ZeroMQ stops reading from that connection
 POLL_S = 0.02
 # `wait_for_client`: how long a client that sets no hook holds the first tick after it came.
 WAIT_GRACE_S = 3.0
