@@ -2,13 +2,13 @@
 requests, a PUB socket on `port + 1` announces reached hooks. Groot2, `coral tree watch` and
 other readers connect to it.
 
-The tick thread pays nothing for STATUS (the server thread reads each node's status and the
-status it left) and, only while a client records transitions, appends each transition to a
-bounded deque. One server thread owns both sockets, answers every request, publishes queued hook
-notifications and watches the heartbeat. It answers in paced bursts and its share of the
-interpreter is capped (a request flood slows the answers, not the tick); requests are bounded in
-size, parts and queue length. Hooks that change how the tree runs are refused with an
-error reply unless `allow_hooks`.
+The tick thread pays next to nothing: every node keeps the status it left when it was last reset
+(`TreeNode._left`; the server thread reads the nodes' statuses for STATUS), and only while a client
+records transitions does an observer append each one to a bounded deque. One server thread owns
+both sockets, answers every request, publishes queued hook notifications and watches the
+heartbeat. It answers in paced bursts and its share of the interpreter is capped (a request flood
+slows the answers, not the tick); requests are bounded in size, parts and queue length. Hooks that
+change how the tree runs are refused with an error reply unless `allow_hooks`.
 
 Used by the executor (`--groot2-port`) and `coral run`; see docs/bt-engine.md for where it
 follows BT.CPP 4.10 rather than the 4.8.2 that behaviortreepy bundles.

@@ -103,7 +103,8 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         self.line = config.line
         self.cpp_widths = config.cpp_widths
         self._status: int = IDLE
-        # The status before the last change: what Groot2 shows for an IDLE node (10 + it).
+        # The status the node left when it was last reset (the only way back to IDLE): Groot2
+        # shows an IDLE node as 10 + it.
         self._left: int = IDLE
         self.last_result: int = IDLE
         self._pre: list[tuple[int, Script]] | None = None
@@ -187,7 +188,6 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
             prev = self._status
             if prev != st:
                 self._status = st
-                self._left = prev
                 if st >= SUCCESS:
                     self.last_result = st
                 obs = self.rt.observer
@@ -258,7 +258,6 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         prev = self._status
         if prev != st:
             self._status = st
-            self._left = prev
             if st == SUCCESS or st == FAILURE:
                 self.last_result = st
             obs = self.rt.observer
