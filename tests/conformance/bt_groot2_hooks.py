@@ -21,6 +21,8 @@ from coral.bt.groot2.client import Groot2Client
 
 UNLOCKS = ("SUCCESS", "FAILURE", "SKIPPED")
 SUB_SETTLE_S = 0.1
+# A held tick ends by an unlock, or 5 s after the client's last request (the heartbeat).
+TICK_LIMIT_S = 60.0
 QUIET_S = 0.04
 
 
@@ -75,7 +77,10 @@ def run_script(host: EngineHost, request: LoadRequest, script: HookScript) -> li
                 host.start_tick()
                 hits: list[Any] = []
                 done = None
+                deadline = time.monotonic() + TICK_LIMIT_S
                 while done is None:
+                    if time.monotonic() > deadline:
+                        raise TimeoutError(f"the {host.engine} tick did not end in {TICK_LIMIT_S} s: {hits}")
                     done = host.tick_done(0.0)
                     if done is not None:
                         break
