@@ -5,6 +5,10 @@ Two trees: one of constant leaves, and a blackboard-heavy one whose every leaf r
 entry (coral/BT.CPP: Script `k := k + 1` and ScriptCondition `k > 0`; py_trees:
 SetBlackboardVariable and CheckBlackboardVariableValue).
 
+Then the Groot2 publisher: the tick of the same 100-node tree published with a client polling
+STATUS every 50 ms against the tree unpublished (target <= 1.1x), and 2,000 random trees read
+through Groot2 in BT.CPP's publisher and ours (the differential test runs a sample of them).
+
 Run with `make bench-bt` (or `.venv/bin/python benchmarks/bench_bt.py`).
 """
 
@@ -112,9 +116,98 @@ def report(label: str, board_heavy: bool) -> None:
     )
 
 
+# A Groot2 client in its own process: STATUS every 50 ms, as Groot2 polls, until stdin closes.
+POLLING_CLIENT = """
+import select, struct, sys, time, zmq
+socket = zmq.Context().socket(zmq.REQ)
+socket.setsockopt(zmq.RCVTIMEO, 2000)
+socket.connect("tcp://127.0.0.1:" + sys.argv[1])
+answered = 0
+while not select.select([sys.stdin], [], [], 0.05)[0]:
+    socket.send(struct.pack("<BBI", 2, ord("S"), answered))
+    answered += len(socket.recv_multipart()[1]) == 300
+print(answered)
+"""
+
+
+def report_groot2() -> None:
+    """Tick cost of the 100-node tree published over Groot2 with a client polling STATUS every
+    50 ms, against the same tree unpublished, in interleaved rounds of one run (the client polls
+    throughout, so both sides share the machine's load alike)."""
+    import subprocess
+    import sys
+
+    import zmq
+    from coral.bt.groot2 import Groot2Publisher
+
+    plain = coral_tick()
+    registry = bt.NodeRegistry.with_builtins()
+    tree = bt.load_tree_text(tree_xml(), registry).build(registry, blackboard=host_entries())
+    port = 21667
+    while True:
+        try:
+            publisher = Groot2Publisher(tree, port)
+            break
+        except zmq.ZMQError:
+            port += 2
+    client = subprocess.Popen(
+        [sys.executable, "-c", POLLING_CLIENT, str(port)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        if not publisher.wait_for_client(30):
+            raise RuntimeError("the polling client never connected")
+        for _ in range(200):
+            plain()
+            tree.tick_exactly_once()
+        alone, watched = [], []
+        for _ in range(ROUNDS * 3):
+            for tick, out in ((plain, alone), (tree.tick_exactly_once, watched)):
+                start = time.perf_counter()
+                for _ in range(TICKS):
+                    tick()
+                out.append((time.perf_counter() - start) / TICKS * 1e6)
+        answered = int(client.communicate("", timeout=30)[0])
+    finally:
+        if client.poll() is None:
+            client.kill()
+        publisher.close()
+    ours, base = statistics.median(watched), statistics.median(alone)
+    ratio = ours / base
+    print(f"BENCH name=bt_tick_100_nodes_groot2_polled value={ours:.1f} unit=us target=>0 result=ok")
+    print(f"BENCH name=bt_tick_100_nodes_unpublished value={base:.1f} unit=us target=>0 result=ok")
+    print(f"BENCH name=bt_groot2_status_polls value={answered} unit=requests target=>0 result=ok")
+    print(
+        f"BENCH name=bt_tick_ratio_groot2_polled_to_unpublished value={ratio:.3f} unit=ratio "
+        f"target=<=1.1 result={'ok' if ratio <= 1.1 else 'miss'}"
+    )
+
+
+def report_groot2_differential(trees: int = 2000) -> None:
+    """Random trees read through Groot2 in BT.CPP's publisher and ours (acceptance 1 of issue 49)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "conformance"))
+    from bt_groot2_differential import Report, compare, random_requests
+
+    report = compare(random_requests(range(trees)), Report())
+    for line in report.mismatches[:5]:
+        print(line)
+    print(
+        f"BENCH name=bt_groot2_differential_agreeing value={report.agreeing} unit=trees "
+        f"target=>={trees} result={'ok' if report.agreeing >= trees else 'miss'}"
+    )
+    print(f"BENCH name=bt_groot2_differential_seconds value={report.seconds:.0f} unit=s target=>0 result=ok")
+
+
 def main() -> None:
     report("100_nodes", board_heavy=False)
     report("blackboard_100_nodes", board_heavy=True)
+    report_groot2()
+    report_groot2_differential()
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ VERBS: dict[str, str] = {
     "dev-cluster": "coral_testbed.cluster.cli:dev_cluster",
     "images": "coral_testbed.images.cli:images",
     "executor": "coral.executor.cli:executor_command",
+    "tree": "coral.tree_cli:tree_group",
     "skillset": "coral.sdk.cli:skillset_command",
     "plugins": "coral.plugins.cli:plugins_command",
     "operator": "coral_operator.cli:operator_command",

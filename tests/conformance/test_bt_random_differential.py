@@ -38,8 +38,8 @@ def test_the_oracle_is_the_bt_cpp_release_the_tests_were_written_for() -> None:
 @pytest.mark.slow
 def test_random_trees_behave_exactly_as_bt_cpp() -> None:
     report = compare_random_trees(range(TREES))
-    assert not report.mismatches, (
-        f"{len(report.mismatches)} of {report.trees} trees differ:\n" + "\n".join(report.mismatches[:5])
+    assert not report.mismatches, f"{len(report.mismatches)} of {report.trees} trees differ:\n" + "\n".join(
+        report.mismatches[:5]
     )
     assert report.agreeing == TREES
     assert set(CONTROLS) | set(DECORATORS) | FEATURES <= report.used, "the generator lost a node type"

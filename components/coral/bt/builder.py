@@ -124,6 +124,8 @@ class _Builder:
         self._conditions(node, el, path)
         self.nodes.append(node)
         if spec.kind == NodeKind.SUBTREE:
+            node.subtree_id = type_id
+            node.subtree_remap = {k: v for k, v in el.attrs.items() if is_port_attribute(k)}
             child = self._subtree(el, board, path, stack, depth)
             node.children = [child]
             child.parent = node
@@ -292,4 +294,6 @@ def build_tree(
     verify_structure(doc, registry)
     builder = _Builder(doc, registry, runtime)
     root = builder.create(main.root, root_board, "", [main.tree_id])
-    return Tree(root, runtime, root_board, builder.nodes, doc.warnings)
+    tree = Tree(root, runtime, root_board, builder.nodes, doc.warnings)
+    tree.main_tree_id = main.tree_id
+    return tree

@@ -66,7 +66,10 @@ class Tree:
         self.tick_count = 0
         self.last_tick_duration_s = 0.0
         self.last_status: Status = Status.IDLE
+        # The ID of the <BehaviorTree> the root belongs to (set by the builder).
+        self.main_tree_id = "MainTree"
         self._listeners: list[Callable[[Transition], None]] = []
+        self._status_observers: list[Callable[[TreeNode, int, int], None]] = []
 
     # ticking ----------------------------------------------------------------------------
     def _execute(self) -> int:
@@ -127,12 +130,37 @@ class Tree:
     # observability ------------------------------------------------------------------------
     def add_transition_listener(self, fn: Callable[[Transition], None]) -> None:
         self._listeners.append(fn)
-        self.runtime.observer = self._on_transition
+        self._route_observers()
 
     def remove_transition_listener(self, fn: Callable[[Transition], None]) -> None:
         self._listeners.remove(fn)
-        if not self._listeners:
+        self._route_observers()
+
+    def add_status_observer(self, fn: Callable[[TreeNode, int, int], None]) -> None:
+        """A raw observer `fn(node, previous, status)` on the tick thread, with no `Transition`
+        built for it: for recorders that must cost the tick next to nothing (the Groot2 publisher)."""
+        self._status_observers.append(fn)
+        self._route_observers()
+
+    def remove_status_observer(self, fn: Callable[[TreeNode, int, int], None]) -> None:
+        self._status_observers.remove(fn)
+        self._route_observers()
+
+    def _route_observers(self) -> None:
+        raw = list(self._status_observers)
+        if self._listeners:
+            raw.append(self._on_transition)
+        if not raw:
             self.runtime.observer = None
+        elif len(raw) == 1:
+            self.runtime.observer = raw[0]
+        else:
+
+            def fan_out(node: TreeNode, previous: int, status: int) -> None:
+                for fn in raw:
+                    fn(node, previous, status)
+
+            self.runtime.observer = fan_out
 
     def _on_transition(self, node: TreeNode, previous: int, status: int) -> None:
         event = Transition(

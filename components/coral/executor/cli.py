@@ -81,6 +81,31 @@ def _finite(_context: click.Context, _parameter: click.Parameter, value: float) 
     show_default=True,
     help="Before the first tick, wait up to this long to hear every component in use alive.",
 )
+@click.option(
+    "--groot2-port",
+    type=click.IntRange(1, 65534),
+    default=None,
+    help="Publish the tree over BT.CPP's Groot2 protocol on this port (and the next), on 127.0.0.1.",
+)
+@click.option(
+    "--groot2-host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Address the Groot2 publisher binds (the pod's loopback unless told otherwise).",
+)
+@click.option(
+    "--groot2-allow-hooks",
+    is_flag=True,
+    help="Let Groot2 clients set breakpoints and replace node results (refused by default).",
+)
+@click.option(
+    "--groot2-wait",
+    "groot2_wait_s",
+    type=click.FloatRange(min=0.0, max=3600.0),
+    default=0.0,
+    show_default=True,
+    help="Hold the first tick until a Groot2 client sets a hook (or watched for 3 s), at most this long.",
+)
 @click.option("-v", "--verbose", is_flag=True, help="Print every node transition on the terminal.")
 def executor_command(
     tree: Path,
@@ -95,6 +120,10 @@ def executor_command(
     extra_sinks: tuple[str, ...],
     wait_timeout_s: float | None,
     liveness_wait_s: float,
+    groot2_port: int | None,
+    groot2_host: str,
+    groot2_allow_hooks: bool,
+    groot2_wait_s: float,
     verbose: bool,
 ) -> None:
     """Run a behavior tree with the behaviors the running components exported."""
@@ -112,8 +141,14 @@ def executor_command(
         extra_sinks=list(extra_sinks),
         wait_timeout_s=wait_timeout_s,
         liveness_wait_s=liveness_wait_s,
+        groot2_port=groot2_port,
+        groot2_host=groot2_host,
+        groot2_allow_hooks=groot2_allow_hooks,
+        groot2_wait_s=groot2_wait_s,
         verbose=verbose,
     )
+    if groot2_port is None and (groot2_allow_hooks or groot2_wait_s):
+        raise click.UsageError("--groot2-allow-hooks and --groot2-wait need --groot2-port")
     if hostname:
         options.hostname = hostname
     sys.exit(running.run_executor(options))

@@ -44,6 +44,10 @@ class ExecutorOptions:
     extra_sinks: list[str] = field(default_factory=list)
     wait_timeout_s: float | None = None
     liveness_wait_s: float = 10.0
+    groot2_port: int | None = None
+    groot2_host: str = "127.0.0.1"
+    groot2_allow_hooks: bool = False
+    groot2_wait_s: float = 0.0
     verbose: bool = False
 
 
@@ -149,6 +153,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
         wake.set()
 
     stop.wake = wake_up
+    publisher = None
     context = ExecutorContext(
         node_name=options.node_name, hostname=options.hostname, params_file=options.params, wake_up=wake_up
     )
@@ -190,14 +195,56 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
         calls.open_clients(tree.nodes)
         waker["tree"] = tree
         loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
+        publisher = _start_groot2(options, tree, fanout)
+        if publisher is not None:
+
+            def release_and_wake() -> None:
+                publisher.hooks.close()  # a stop must not wait at a breakpoint
+                wake_up()
+
+            stop.wake = release_and_wake
         freeze_startup_heap()  # the tree and its plugins are built: nothing of them is garbage
         loop.wait_for_components(options.liveness_wait_s, stop.event)
+        if publisher is not None and options.groot2_wait_s > 0:
+            connected = publisher.wait_for_client(options.groot2_wait_s, stop.event)
+            _emit(fanout, "groot2", port=options.groot2_port, client_connected=connected)
         return loop.run(stop.event, lambda: 128 + stop.signum)
     finally:
+        if publisher is not None:
+            publisher.close()
         # The ROS sink goes first, while its node still exists, so tools get the final records.
         fanout.remove(ros_sink)
         ros_sink.close()
         context.shutdown()
+
+
+def _start_groot2(options: ExecutorOptions, tree: Any, fanout: sinks.SinkFanout) -> Any:
+    """The Groot2 publisher when `--groot2-port` asks for one (a port in use is reported, and the
+    tree runs without it)."""
+    if options.groot2_port is None:
+        return None
+    import struct
+
+    import zmq
+
+    from coral.bt.groot2 import Groot2Publisher
+
+    try:
+        publisher = Groot2Publisher(
+            tree, options.groot2_port, host=options.groot2_host, allow_hooks=options.groot2_allow_hooks
+        )
+    except (zmq.ZMQError, struct.error) as err:  # a port in use; a tree beyond 65,535 nodes (uint16 uids)
+        _emit(fanout, "error", message=f"Groot2 publisher not started on port {options.groot2_port}: {err}")
+        return None
+    _emit(
+        fanout,
+        "groot2",
+        port=options.groot2_port,
+        host=options.groot2_host,
+        hooks=options.groot2_allow_hooks,
+        tree_uuid=publisher.tree_uuid.hex(),
+    )
+    return publisher
 
 
 def _wait_for_node_types(

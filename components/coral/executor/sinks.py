@@ -63,6 +63,9 @@ class TerminalSink:
             self._line(
                 f"Condition {record['type']}={record['status']} ({record['reason']}): {record['message']}"
             )
+        elif event == "groot2":
+            details = {k: v for k, v in record.items() if k not in ("ts", "event")}
+            self._line(f"Groot2 publisher: {json.dumps(details, sort_keys=True)}")
         elif event in ("started", "finished", "error"):
             details = {k: v for k, v in record.items() if k not in ("ts", "event")}
             self._line(f"Executor {event}: {json.dumps(details, sort_keys=True)}")

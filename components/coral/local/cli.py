@@ -83,6 +83,22 @@ def _checked_handle(_context: click.Context, _parameter: click.Parameter, value:
     "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
 )
 @TREE_PNG
+@click.option(
+    "--groot2-port",
+    type=click.IntRange(1, 65534),
+    default=None,
+    help="Executors publish their trees over Groot2's protocol on 127.0.0.1, from this port (two each).",
+)
+@click.option(
+    "--groot2-allow-hooks", is_flag=True, help="Let Groot2 clients set breakpoints and replace results."
+)
+@click.option(
+    "--groot2-wait",
+    "groot2_wait_s",
+    type=click.FloatRange(min=0.0, max=3600.0),
+    default=0.0,
+    help="Executors hold their first tick until a Groot2 client sets a hook (or watched 3 s), at most S s.",
+)
 def run_command(
     target: Path,
     handle: str | None,
@@ -92,9 +108,16 @@ def run_command(
     live: bool | None,
     env_pairs: tuple[str, ...],
     tree_png: Path | None,
+    groot2_port: int | None,
+    groot2_allow_hooks: bool,
+    groot2_wait_s: float,
 ) -> None:
     """Run a Coral project (compose file, tree, parameters) as local processes."""
     from coral.local import compose, running
+
+    if groot2_port is None and (groot2_allow_hooks or groot2_wait_s):
+        raise click.UsageError("--groot2-allow-hooks and --groot2-wait need --groot2-port")
+    groot2 = running.Groot2Settings(groot2_port, groot2_allow_hooks, groot2_wait_s)
 
     extra_env = dict(pair.split("=", 1) for pair in env_pairs if "=" in pair)
     if detach:
@@ -103,7 +126,12 @@ def run_command(
         try:
             print(
                 running.start_detached(
-                    target, handle=handle, group=group, output_dir=output_dir, tree_png=tree_png
+                    target,
+                    handle=handle,
+                    group=group,
+                    output_dir=output_dir,
+                    tree_png=tree_png,
+                    groot2=groot2,
                 )
             )
         except (compose.ComposeError, RuntimeError) as err:
@@ -118,6 +146,7 @@ def run_command(
             live=live,
             extra_env=extra_env,
             tree_png=tree_png,
+            groot2=groot2,
         )
     )
 

@@ -127,4 +127,18 @@ def command_for(
         rate = service.rate or project.rate
         if rate:
             argv += ["--rate", f"{rate:g}"]
+        argv += groot2_arguments(project, service)
+    return argv
+
+
+def groot2_arguments(project: Project, service: Service) -> list[str]:
+    """The executor's Groot2 flags: each executor gets its own pair of ports."""
+    if project.groot2_port is None:
+        return []
+    index = [s.name for s in project.by_role("executor")].index(service.name)
+    argv = ["--groot2-port", str(project.groot2_port + 2 * index)]
+    if project.groot2_allow_hooks:
+        argv.append("--groot2-allow-hooks")
+    if project.groot2_wait_s:
+        argv += ["--groot2-wait", f"{project.groot2_wait_s:g}"]
     return argv

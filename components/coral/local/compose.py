@@ -84,6 +84,10 @@ class Project:
     main_tree: str | None = None
     rate: float | None = None
     warnings: list[str] = field(default_factory=list)
+    # `coral run --groot2-port`: the first executor publishes on this port, the next on port + 2...
+    groot2_port: int | None = None
+    groot2_allow_hooks: bool = False
+    groot2_wait_s: float = 0.0
 
     @property
     def root(self) -> Path:

@@ -11,9 +11,34 @@ import os
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from coral.local import compose, console, polling, state, supervising
+
+
+@dataclass(frozen=True)
+class Groot2Settings:
+    """`coral run --groot2-port/--groot2-allow-hooks/--groot2-wait`, handed to every executor."""
+
+    port: int | None = None
+    allow_hooks: bool = False
+    wait_s: float = 0.0
+
+    def apply(self, project: compose.Project) -> None:
+        project.groot2_port = self.port
+        project.groot2_allow_hooks = self.allow_hooks
+        project.groot2_wait_s = self.wait_s
+
+    def arguments(self) -> list[str]:
+        if self.port is None:
+            return []
+        argv = ["--groot2-port", str(self.port)]
+        if self.allow_hooks:
+            argv.append("--groot2-allow-hooks")
+        if self.wait_s:
+            argv += ["--groot2-wait", f"{self.wait_s:g}"]
+        return argv
 
 
 def default_output_dir(project: compose.Project) -> Path:
@@ -36,6 +61,7 @@ def run_project(
     extra_env: dict[str, str] | None = None,
     stream: object | None = None,
     tree_png: Path | None = None,
+    groot2: Groot2Settings | None = None,
 ) -> int:
     """Runs the project in `target` (folder or compose file) in the foreground; returns the exit code."""
     out = console.Console(stream, live=live)  # type: ignore[arg-type]
@@ -44,6 +70,8 @@ def run_project(
     except compose.ComposeError as err:
         out.note(f"error: {err}")
         return supervising.EXIT_BAD_INPUT
+    if groot2 is not None:
+        groot2.apply(project)
     handle = handle or state.new_handle(project.name)
     output = (output_dir or default_output_dir(project)).resolve()
     run = state.RunRecord(
@@ -87,6 +115,7 @@ def start_detached(
     output_dir: Path | None,
     tree_png: Path | None = None,
     wait_s: float = 15.0,
+    groot2: Groot2Settings | None = None,
 ) -> str:
     """Starts `coral run` in the background (own session); returns its handle once it is recorded."""
     project = load_project(target)
@@ -98,6 +127,8 @@ def start_detached(
         argv += ["--output", str(output_dir)]
     if tree_png:
         argv += ["--tree-png", str(tree_png.resolve())]
+    if groot2 is not None:
+        argv += groot2.arguments()
     folder = state.runs_root() / handle
     folder.mkdir(parents=True, exist_ok=True)
     with (folder / "supervisor.log").open("ab") as log:

@@ -122,8 +122,7 @@ def test_writing_a_port_the_node_never_declared_is_an_error_naming_the_node() ->
     registry = bt.NodeRegistry.with_builtins()
     registry.register("Typo", _Typo)
     xml = (
-        '<root BTCPP_format="4"><BehaviorTree ID="M">'
-        '<Typo name="typo" distance="{d}"/></BehaviorTree></root>'
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Typo name="typo" distance="{d}"/></BehaviorTree></root>'
     )
     tree = bt.load_tree_text(xml, registry).build(registry)
     with pytest.raises(bt.BTRuntimeError, match=r"typo.*distnce|distnce.*typo"):

@@ -13,8 +13,12 @@ PROJECT_RULES = ".git\n.venv\n**/__pycache__\n**/*.pyc\nout\ntests\n"
     [
         pytest.param(PROJECT_RULES, "components/coral/cli.py", False, id="keep a source file"),
         pytest.param(PROJECT_RULES, ".venv/bin/python", True, id="leave out everything under a named folder"),
-        pytest.param(PROJECT_RULES, "components/coral/__pycache__/cli.cpython-311.pyc", True,
-                     id="leave out a nested folder matched through **"),
+        pytest.param(
+            PROJECT_RULES,
+            "components/coral/__pycache__/cli.cpython-311.pyc",
+            True,
+            id="leave out a nested folder matched through **",
+        ),
         pytest.param(PROJECT_RULES, "deep/a/b/c.pyc", True, id="match a file name at any depth through **"),
         pytest.param(PROJECT_RULES, "tests_data/x", False, id="not match a longer name that starts the same"),
         pytest.param("*.md\n!README.md", "README.md", False, id="bring back a file with a later ! rule"),

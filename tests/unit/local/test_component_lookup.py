@@ -89,3 +89,22 @@ def test_an_executor_gets_the_tree_parameters_status_file_and_rate(tmp_path: Pat
         "--main-tree": "Main",
         "--rate": "20",
     }
+
+
+def test_executors_get_their_own_groot2_port_pairs_when_coral_run_asks(tmp_path: Path) -> None:
+    project = _project(tmp_path)
+    project.services = [
+        Service(name="first", role="executor", line=1),
+        Service(name="second", role="executor", line=2),
+    ]
+    project.groot2_port, project.groot2_allow_hooks, project.groot2_wait_s = 1667, True, 30.0
+    first, second = (components.command_for(project, s, _paths(tmp_path)) for s in project.services)
+    assert first[first.index("--groot2-port") + 1] == "1667"
+    assert second[second.index("--groot2-port") + 1] == "1669"
+    assert "--groot2-allow-hooks" in first and first[first.index("--groot2-wait") + 1] == "30"
+
+
+def test_executors_publish_nothing_over_groot2_unless_asked(tmp_path: Path) -> None:
+    service = Service(name="executor", role="executor", line=1)
+    argv = components.command_for(_project(tmp_path), service, _paths(tmp_path))
+    assert not any(arg.startswith("--groot2") for arg in argv)

@@ -147,9 +147,7 @@ def test_the_models_refuse_a_key_they_do_not_have_at_any_depth() -> None:
 
 
 @pytest.mark.parametrize("online", [True, False], ids=["robot online", "robot away"])
-def test_the_status_the_operator_writes_is_a_valid_status(
-    spec_dict: Any, online: bool
-) -> None:
+def test_the_status_the_operator_writes_is_a_valid_status(spec_dict: Any, online: bool) -> None:
     summary = sink.summarize({}, EXECUTOR_RECORDS[3])
     template = instances.build_template(CoralSystemSpec.model_validate(spec_dict()), "t", "p")
     parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))

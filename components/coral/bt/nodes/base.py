@@ -77,6 +77,8 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
     # controls and decorators only mirror their children (True), except those that re-check
     # something on every tick.
     SIGNALS_WAKE_UP = False
+    # Injected (pre-tick, post-tick) callbacks; an instance gets its own with `set_tick_hooks`.
+    tick_hooks: tuple[Callable[..., int] | None, Callable[..., int] | None] = (None, None)
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         # Behaviour.__init__ is not called: it starts py_trees' generator tick, which we replace.
@@ -101,6 +103,9 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         self.line = config.line
         self.cpp_widths = config.cpp_widths
         self._status: int = IDLE
+        # The status the node left when it was last reset (the only way back to IDLE): Groot2
+        # shows an IDLE node as 10 + it.
+        self._left: int = IDLE
         self.last_result: int = IDLE
         self._pre: list[tuple[int, Script]] | None = None
         self._post: dict[str, Script] | None = None
@@ -190,6 +195,65 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
                     obs(self, prev, st)
         return st
 
+    def execute_tick_hooked(self) -> int:
+        """`execute_tick` with BT.CPP's injected pre- and post-tick callbacks (`executeTick` in
+        tree_node.cpp), which the Groot2 publisher installs as `self.tick_hooks`: the pre-tick one
+        runs after the pre-conditions and only while the node is IDLE or RUNNING, and a SUCCESS or
+        FAILURE it returns replaces `tick()`; the post-tick one runs after the post-conditions
+        and a SUCCESS or FAILURE it returns replaces the result. Installed on the instance (as
+        `execute_tick`) only while a hook exists, so trees without hooks pay nothing."""
+        pre_hook, post_hook = self.tick_hooks
+        try:
+            st = self._check_pre() if self._pre is not None else None
+            if st is None:
+                if pre_hook is not None and self._status <= RUNNING:
+                    forced = pre_hook(self)
+                    if forced == SUCCESS or forced == FAILURE:
+                        st = forced
+                if st is None:
+                    st = self.tick()
+                    if st <= RUNNING and (st == IDLE or self.SYNC_ONLY):
+                        if st == IDLE:
+                            raise BTRuntimeError(
+                                f"{self.node_id} returned IDLE, which a tick may never return",
+                                node_path=self.path,
+                            )
+                        raise BTRuntimeError(
+                            f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
+                        )
+            if self._post is not None and (st == SUCCESS or st == FAILURE):
+                self._run_post(st)
+            if post_hook is not None:
+                forced = post_hook(self, st)
+                if forced == SUCCESS or forced == FAILURE:
+                    st = forced
+        except BTError as err:
+            if err.node_path is None and err.file is None:
+                err.node_path = self.path
+            raise
+        except Exception as err:  # noqa: BLE001 - a plugin's error is attributed to its node path
+            raise BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path) from err
+        if st != SKIPPED:
+            self.set_status(st)
+        if isinstance(self, DecoratorNode):
+            child = self.children[0]
+            if child._status == SUCCESS or child._status == FAILURE:
+                child.reset_status()
+        return st
+
+    def set_tick_hooks(
+        self, pre_hook: Callable[..., int] | None, post_hook: Callable[..., int] | None
+    ) -> None:
+        """Installs (or, with two Nones, removes) the injected tick callbacks; see `execute_tick_hooked`."""
+        if pre_hook is None and post_hook is None:
+            # The tick thread may be entering `execute_tick_hooked` right now: it then reads the
+            # class's (None, None) and ticks as usual.
+            self.__dict__.pop("execute_tick", None)
+            self.__dict__.pop("tick_hooks", None)
+            return
+        self.tick_hooks = (pre_hook, post_hook)
+        self.execute_tick = self.execute_tick_hooked  # type: ignore[method-assign]
+
     def set_status(self, st: int) -> None:
         prev = self._status
         if prev != st:
@@ -204,6 +268,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
         prev = self._status
         if prev != IDLE:
             self._status = IDLE
+            self._left = prev
             obs = self.rt.observer
             if obs is not None:
                 obs(self, prev, IDLE)
