@@ -72,6 +72,19 @@ def _node_ready(view: InstanceView) -> Verdict:
     return Verdict(C.READY, True, R.NODE_READY)
 
 
+_POD_PROBLEMS: tuple[tuple[Callable[[ObservedPod], str | None], R, str], ...] = (
+    (lambda p: p.image_problem, R.IMAGE_PULL_FAILED, "Image cannot be pulled for"),
+    (
+        lambda p: p.container_refused,
+        R.CONTAINER_REFUSED,
+        "The robot's kubelet refuses to create the container of",
+    ),
+    (lambda p: p.unschedulable, R.POD_UNSCHEDULABLE, "The robot cannot run the pod of"),
+)
+"""What keeps a pod that is not being deleted from starting, with its reason and the words that
+introduce it; the first one any pod has is the one told."""
+
+
 def _delivery_verdict(view: InstanceView) -> Verdict | None:
     """Why a component pod cannot even start, in the words of whoever refused it; None if none."""
     if view.refused:
@@ -79,33 +92,10 @@ def _delivery_verdict(view: InstanceView) -> Verdict | None:
         return Verdict(
             C.COMPONENTS_READY, False, R.POD_REFUSED, f"The API server refused the pod of {details}"
         )
-    pulling = sorted(
-        f"{p.component}: {p.image_problem}" for p in view.pods if p.image_problem and not p.deleting
-    )
-    if pulling:
-        return Verdict(
-            C.COMPONENTS_READY, False, R.IMAGE_PULL_FAILED, f"Image cannot be pulled for {'; '.join(pulling)}"
-        )
-    refused = sorted(
-        f"{p.component}: {p.container_refused}" for p in view.pods if p.container_refused and not p.deleting
-    )
-    if refused:
-        return Verdict(
-            C.COMPONENTS_READY,
-            False,
-            R.CONTAINER_REFUSED,
-            f"The robot's kubelet refuses to create the container of {'; '.join(refused)}",
-        )
-    unschedulable = sorted(
-        f"{p.component}: {p.unschedulable}" for p in view.pods if p.unschedulable and not p.deleting
-    )
-    if unschedulable:
-        return Verdict(
-            C.COMPONENTS_READY,
-            False,
-            R.POD_UNSCHEDULABLE,
-            f"The robot cannot run the pod of {'; '.join(unschedulable)}",
-        )
+    for problem, reason, told in _POD_PROBLEMS:
+        found = sorted(f"{p.component}: {problem(p)}" for p in view.pods if problem(p) and not p.deleting)
+        if found:
+            return Verdict(C.COMPONENTS_READY, False, reason, f"{told} {'; '.join(found)}")
     return None
 
 
