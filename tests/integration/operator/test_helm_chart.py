@@ -3,13 +3,14 @@ needs."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import subprocess
 import sys
 import tarfile
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -154,27 +155,9 @@ def _token_kubeconfig(cluster: Any, namespace: str, account: str, path: Path) ->
     return path
 
 
-@pytest.mark.cluster
-@pytest.mark.slow
-def test_the_operator_runs_with_nothing_but_the_charts_rbac(
-    cluster: Any,
-    namespace: str,
-    coral_crds: None,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
-    tmp_path: Path,
-) -> None:
-    release = f"c{uuid.uuid4().hex[:6]}"
-    env = cluster.env()
-    install = [
-        _helm(),
-        "install",
-        release,
-        str(CHART),
-        "-n",
-        namespace,
-        "--wait=false",
+def _values_for(namespace: str) -> list[str]:
+    """The chart's values for an operator of `namespace` that runs as a process, not as the chart's pod."""
+    return [
         "--set",
         f"watchNamespaces={{{namespace}}}",
         "--set",
@@ -183,7 +166,22 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
         "--set",
         "nodeSelector.coral-test=no-such-node",
     ]
-    subprocess.run(install, env=env, check=True, capture_output=True, text=True)
+
+
+@contextlib.contextmanager
+def _operator_as_the_release(cluster: Any, namespace: str, tmp_path: Path) -> Iterator[str]:
+    """Installs the chart in `namespace` and runs the operator as a process with nothing but the
+    release's ServiceAccount token, its output in `tmp_path`/operator.log; yields the release name.
+    Stops the operator and uninstalls the release afterwards."""
+    release = f"c{uuid.uuid4().hex[:6]}"
+    env = cluster.env()
+    subprocess.run(
+        [_helm(), "install", release, str(CHART), "-n", namespace, "--wait=false", *_values_for(namespace)],
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     process = None
     try:
         kubeconfig = _token_kubeconfig(cluster, namespace, release, tmp_path / "operator.kubeconfig")
@@ -196,6 +194,27 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
             start_new_session=True,
             preexec_fn=processes.die_with_parent,
         )
+        yield release
+    finally:
+        if process is not None:
+            stop_process_group(process, timeout=15)
+        subprocess.run(
+            [_helm(), "uninstall", release, "-n", namespace], env=env, check=True, capture_output=True
+        )
+
+
+@pytest.mark.cluster
+@pytest.mark.slow
+def test_the_operator_runs_with_nothing_but_the_charts_rbac(
+    cluster: Any,
+    namespace: str,
+    coral_crds: None,
+    robots: Callable[..., list[str]],
+    fleet_label: str,
+    wait: Any,
+    tmp_path: Path,
+) -> None:
+    with _operator_as_the_release(cluster, namespace, tmp_path):
         robots(2, {"fleet": fleet_label})
         coral = Coral(cluster.api_client, namespace)
         coral.create_system(fleet_mission("fleet", fleet_label))
@@ -208,12 +227,6 @@ def test_the_operator_runs_with_nothing_but_the_charts_rbac(
         # A status 403, not the milliseconds of a log line's timestamp (",403").
         refused = re.search(r"(?<![,\d])403(?!\d)", text) or "Forbidden" in text
         assert not refused, text[-3000:]
-    finally:
-        if process is not None:
-            stop_process_group(process, timeout=15)
-        subprocess.run(
-            [_helm(), "uninstall", release, "-n", namespace], env=env, check=True, capture_output=True
-        )
     # The CRDs stay when the release goes (they live in the chart's crds/ folder).
     assert "coralsystems.coral.dev" in cluster.kubectl("get", "crd", "-o", "name").stdout
 
@@ -271,42 +284,7 @@ def test_every_request_of_the_operator_is_granted_by_the_chart_and_every_grant_i
     `NOT_EXERCISED` (so removing a verb from the chart, or granting one too many, fails here)."""
     if cluster.state_dir is None:
         pytest.skip("needs the local control plane's audit log")
-    release = f"c{uuid.uuid4().hex[:6]}"
-    env = cluster.env()
-    values = [
-        "--set",
-        f"watchNamespaces={{{namespace}}}",
-        "--set",
-        f"policy.hostNetworkNamespaces={{{namespace}}}",
-        # Keep the chart's own operator pod off the simulated robots; this test runs it as a process.
-        "--set",
-        "nodeSelector.coral-test=no-such-node",
-    ]
-    subprocess.run(
-        [_helm(), "install", release, str(CHART), "-n", namespace, "--wait=false", *values],
-        env=env,
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    rendered = subprocess.run(
-        [_helm(), "template", release, str(CHART), "-n", namespace, *values],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout
-    process = None
-    try:
-        kubeconfig = _token_kubeconfig(cluster, namespace, release, tmp_path / "operator.kubeconfig")
-        log = (tmp_path / "operator.log").open("w")
-        process = subprocess.Popen(
-            [sys.executable, "-m", "coral_operator", "-n", namespace],
-            env={**env, **opened_policy(namespace), "KUBECONFIG": str(kubeconfig), "PYTHONUNBUFFERED": "1"},
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            preexec_fn=processes.die_with_parent,
-        )
+    with _operator_as_the_release(cluster, namespace, tmp_path) as release:
         coral = Coral(cluster.api_client, namespace)
 
         def ready_on(count: int) -> bool:
@@ -362,12 +340,12 @@ def test_every_request_of_the_operator_is_granted_by_the_chart_and_every_grant_i
         wait(adopted, lambda: f"the system to adopt its objects again; log:\n{operator_log()}", timeout=120)
         coral.delete_system("fleet")
         wait(lambda: not coral.instances(), "the instances to go with their system", timeout=120)
-    finally:
-        if process is not None:
-            stop_process_group(process, timeout=15)
-        subprocess.run(
-            [_helm(), "uninstall", release, "-n", namespace], env=env, check=True, capture_output=True
-        )
+    rendered = subprocess.run(
+        [_helm(), "template", release, str(CHART), "-n", namespace, *_values_for(namespace)],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
     layout_log = Path(cluster.state_dir) / "logs" / "audit.log"
     requests = audit.requests_of(layout_log, f"system:serviceaccount:{namespace}:{release}")
     assert requests, f"no request of the operator in {layout_log}"

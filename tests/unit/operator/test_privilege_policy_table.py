@@ -27,6 +27,11 @@ def _driver(**fields: Any) -> Callable[[dict[str, Any]], None]:
     return change
 
 
+def _mount(host_path: str, at: str = "/x", **more: Any) -> Callable[[dict[str, Any]], None]:
+    """The driver mounts `host_path` at `at`."""
+    return _driver(hostPaths=[{"hostPath": host_path, "mountPath": at, **more}])
+
+
 def _spec(**top: Any) -> Callable[[dict[str, Any]], None]:
     def change(spec: dict[str, Any]) -> None:
         spec.update(copy.deepcopy(top))
@@ -41,6 +46,13 @@ def _nothing(spec: dict[str, Any]) -> None:
 DEVICES = "(/dev/ttyUSB*, /dev/ttyACM*, /dev/video*)"
 OUTSIDE = "is outside the folders namespace robots may mount (/var/lib/coral/data/robots)"
 HOST_NET_DENIED = "spec.ros.network: the host network (Host) is not allowed in namespace robots; use Pod"
+
+
+def _outside(host_path: str) -> list[str]:
+    """The one problem of a driver mounting `host_path` (as the policy spells it) outside those folders."""
+    return [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path {host_path} {OUTSIDE}"]
+
+
 ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str]]] = [
     ("pod network needs nothing", _spec(**POD_NETWORK), {}, []),
     ("host network is closed by default", _nothing, {}, [HOST_NET_DENIED]),
@@ -78,69 +90,67 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
     ),
     (
         "hostPath / by default",
-        _driver(hostPaths=[{"hostPath": "/", "mountPath": "/host", "readOnly": False}]),
+        _mount("/", at="/host", readOnly=False),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path / {OUTSIDE}"],
+        _outside("/"),
     ),
     (
         "a .. path climbing out of the namespace's own folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/../../../../../etc", "mountPath": "/x"}]),
+        _mount("/var/lib/coral/data/robots/../../../../../etc"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /etc {OUTSIDE}"],
+        _outside("/etc"),
     ),
     (
         "a .. path climbing into another namespace's folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/../lab/maps", "mountPath": "/x"}]),
+        _mount("/var/lib/coral/data/robots/../lab/maps"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/lab/maps {OUTSIDE}"],
+        _outside("/var/lib/coral/data/lab/maps"),
     ),
     (
         "another namespace's data folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/lab", "mountPath": "/x"}]),
+        _mount("/var/lib/coral/data/lab"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/lab {OUTSIDE}"],
+        _outside("/var/lib/coral/data/lab"),
     ),
     (
         "the data root holding every namespace's folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data", "mountPath": "/x"}]),
+        _mount("/var/lib/coral/data"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data {OUTSIDE}"],
+        _outside("/var/lib/coral/data"),
     ),
     (
         "a look-alike of the namespace's folder is not the folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robotsx", "mountPath": "/x"}]),
+        _mount("/var/lib/coral/data/robotsx"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/data/robotsx {OUTSIDE}"],
+        _outside("/var/lib/coral/data/robotsx"),
     ),
     (
         "the shared folder of earlier versions is no longer open",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/bags", "mountPath": "/bags"}]),
+        _mount("/var/lib/coral/bags", at="/bags"),
         OPEN_NETWORK,
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/bags {OUTSIDE}"],
+        _outside("/var/lib/coral/bags"),
     ),
     (
         "data in the namespace's own folder",
-        _driver(hostPaths=[{"hostPath": "/var/lib/coral/data/robots/maps", "mountPath": "/maps"}]),
+        _mount("/var/lib/coral/data/robots/maps", at="/maps"),
         OPEN_NETWORK,
         [],
     ),
     (
         "the namespace's own folder itself, spelled differently",
-        _driver(hostPaths=[{"hostPath": "//var/lib/coral/./data/robots/", "mountPath": "/data"}]),
+        _mount("//var/lib/coral/./data/robots/", at="/data"),
         OPEN_NETWORK,
         [],
     ),
     (
         "the namespace's folder under a data root the administrator chose",
-        _driver(hostPaths=[{"hostPath": "/data/robots/maps", "mountPath": "/maps"}]),
+        _mount("/data/robots/maps", at="/maps"),
         {**OPEN_NETWORK, "CORAL_POLICY_DATA_ROOT": "/data"},
         [],
     ),
     (
         "another namespace's plugins, even in a folder opened by the administrator",
-        _driver(
-            hostPaths=[{"hostPath": "/var/lib/coral/plugins/other", "mountPath": "/p", "readOnly": False}]
-        ),
+        _mount("/var/lib/coral/plugins/other", at="/p", readOnly=False),
         {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "robots=/var/lib/coral"},
         [
             "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral/plugins/other overlaps "
@@ -149,7 +159,7 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
     ),
     (
         "a folder holding every namespace's plugins",
-        _driver(hostPaths=[{"hostPath": "//var/lib/./coral/", "mountPath": "/p"}]),
+        _mount("//var/lib/./coral/", at="/p"),
         {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "robots=/var/lib/coral"},
         [
             "spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /var/lib/coral overlaps "
@@ -158,21 +168,21 @@ ROWS: list[tuple[str, Callable[[dict[str, Any]], None], dict[str, str], list[str
     ),
     (
         "a folder opened by the administrator for the namespace",
-        _driver(hostPaths=[{"hostPath": "/srv/maps", "mountPath": "/maps"}]),
+        _mount("/srv/maps", at="/maps"),
         {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "lab=/srv/bags,robots=/srv"},
         [],
     ),
     (
         "a folder opened by the administrator for every namespace",
-        _driver(hostPaths=[{"hostPath": "/srv/maps/site", "mountPath": "/maps"}]),
+        _mount("/srv/maps/site", at="/maps"),
         {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "*=/srv/maps"},
         [],
     ),
     (
         "a folder opened by the administrator for another namespace only",
-        _driver(hostPaths=[{"hostPath": "/srv/bags", "mountPath": "/bags"}]),
+        _mount("/srv/bags", at="/bags"),
         {**OPEN_NETWORK, "CORAL_POLICY_HOST_PATHS": "lab=/srv/bags"},
-        [f"spec.drivers[0] (lidar): hostPaths[0].hostPath: host path /srv/bags {OUTSIDE}"],
+        _outside("/srv/bags"),
     ),
     ("an allowed device", _driver(devices=[{"hostPath": "/dev/ttyUSB0"}]), OPEN_NETWORK, []),
     (

@@ -806,8 +806,7 @@ def test_system_not_ready_without_matching_robots(harness: Harness) -> None:
 
 def test_system_stalled_with_the_servers_message_when_a_write_is_refused(harness: Harness) -> None:
     harness.kube.refuse_instances = "exceeded quota: coralinstances"
-    status = harness.pass_system(_spec())
-    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    stalled = _stalled(harness.pass_system(_spec()))
     assert (stalled["status"], stalled["reason"]) == ("True", "ApplyRefused")
     assert "exceeded quota" in stalled["message"]
 
@@ -815,7 +814,6 @@ def test_system_stalled_with_the_servers_message_when_a_write_is_refused(harness
 def test_system_stalled_naming_the_owner_of_an_instance_name_it_needs(harness: Harness) -> None:
     """Issue 47, item 9: a system whose instance name was another's was silently never served."""
     harness.kube.taken_by = "CoralSystem other"
-    status = harness.pass_system(_spec())
-    stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
+    stalled = _stalled(harness.pass_system(_spec()))
     assert (stalled["status"], stalled["reason"]) == ("True", "NameTaken")
     assert "belongs to CoralSystem other" in stalled["message"]

@@ -34,6 +34,13 @@ def _existing(manifest: dict[str, Any]) -> ObservedInstance:
     )
 
 
+def _as_the_api_server_renders_it(manifest: dict[str, Any]) -> ObservedInstance:
+    """The instance of `manifest` as read back: the API server gives `tickRateHz: 10.0` as 10."""
+    spec = manifest["spec"]
+    stored = {**spec, "tree": {**spec["tree"], "tickRateHz": 10}}
+    return dataclasses.replace(_existing(manifest), spec=stored, revision="x")
+
+
 def test_the_selector_matches_robots_by_labels_and_expressions() -> None:
     nodes = [robot("r1", model="x1"), robot("r2", model="x2"), robot("r3")]
     chosen = selection.select_robots(
@@ -120,15 +127,7 @@ def test_the_api_servers_rendering_of_the_spec_is_not_a_change(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     desired = _desired(spec_dict(), [robot("r1")])
-    stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
-    observed = ObservedInstance(
-        name="sys-r1",
-        robot="r1",
-        spec=stored,
-        revision="x",
-        labels=desired[0]["metadata"]["labels"],
-        controller_uid="uid",
-    )
+    observed = _as_the_api_server_renders_it(desired[0])
     assert instances.plan_instances(desired, [observed]).empty
 
 
@@ -170,15 +169,7 @@ def test_with_shared_keys_the_api_servers_rendering_is_not_a_change(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     desired, keys = _built(spec_dict(), [robot("r1")])
-    stored = {**desired[0]["spec"], "tree": {**desired[0]["spec"]["tree"], "tickRateHz": 10}}
-    observed = ObservedInstance(
-        name="sys-r1",
-        robot="r1",
-        spec=stored,
-        revision="x",
-        labels=desired[0]["metadata"]["labels"],
-        controller_uid="uid",
-    )
+    observed = _as_the_api_server_renders_it(desired[0])
     assert instances.plan_instances(desired, [observed], None, keys).empty
 
 
