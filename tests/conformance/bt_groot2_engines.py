@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import socket
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from fixtures.ports import free_port_pair
 
 HERE = Path(__file__).resolve().parent
 BTCPP, CORAL = "btcpp", "coral"
@@ -40,20 +41,6 @@ class LoadRequest:
     file: str | None = None  # load this file instead of `xml` (its includes resolve beside it)
 
 
-def _free_port_pair(start: int) -> int:
-    """The first even port from `start` whose pair both bind on 127.0.0.1 right now."""
-    port = start
-    while port < 65000:
-        try:
-            with socket.socket() as a, socket.socket() as b:
-                a.bind(("127.0.0.1", port))
-                b.bind(("127.0.0.1", port + 1))
-            return port
-        except OSError:
-            port += 2
-    raise RuntimeError("no free port pair")
-
-
 # ------------------------------------------------------------------------------- child process
 class _BtcppHost:
     def __init__(self) -> None:
@@ -65,46 +52,18 @@ class _BtcppHost:
         self.tick: Any = None
 
     def load(self, req: LoadRequest, port: int) -> tuple[str, Any]:
-        from bt_harness import TO_BTCPP, Outcomes
+        from bt_harness import Outcomes, btcpp_blackboard, btcpp_stub_factory, build_btcpp_tree
 
-        btpy = self.btpy
-        outcomes = Outcomes(req.outcomes)
-        factory = btpy.BehaviorTreeFactory()
-
-        def on_start(node: Any) -> Any:
-            return TO_BTCPP[outcomes.next(node.name())]
-
-        for leaf in req.leaf_ids:
-            factory.register_simple_stateful_action(leaf, on_start, on_start, lambda node: None)
-        for cond in req.cond_ids:
-            factory.register_simple_condition(cond, on_start)
-        for deco in req.deco_ids:
-            factory.register_simple_decorator(deco, lambda status, node: status)
-        board = btpy.Blackboard.create()
-        for k, v in req.host_vars.items():
-            if isinstance(v, bool):
-                board.set_bool(k, v)
-            elif isinstance(v, int):
-                board.set_int(k, v)
-            elif isinstance(v, float):
-                board.set_double(k, v)
-            else:
-                board.set_string(k, str(v))
+        factory = btcpp_stub_factory(Outcomes(req.outcomes), req.leaf_ids, req.cond_ids, req.deco_ids)
+        board = btcpp_blackboard(req.host_vars)
         try:
-            if req.main_tree is not None:
-                text = Path(req.file).read_text(encoding="utf-8") if req.file else req.xml
-                factory.register_behavior_tree_from_text(text)
-                tree = factory.create_tree(req.main_tree, board)
-            elif req.file is not None:
-                tree = factory.create_tree_from_file(req.file, board)
-            else:
-                tree = factory.create_tree_from_text(req.xml, board)
+            tree = build_btcpp_tree(factory, board, req.xml, req.file, req.main_tree)
         except Exception as err:  # noqa: BLE001 - any load failure is the REJECT verdict
             return "REJECT", str(err)
         while True:
-            port = _free_port_pair(port)
+            port = free_port_pair(port)
             try:
-                publisher = btpy.Groot2Publisher(tree, port)
+                publisher = self.btpy.Groot2Publisher(tree, port)
                 break
             except Exception:  # noqa: BLE001 - taken meanwhile: the next pair
                 port += 2
@@ -148,7 +107,7 @@ class _CoralHost:
         except bt.BTLoadError as err:
             return "REJECT", str(err)
         while True:
-            port = _free_port_pair(port)
+            port = free_port_pair(port)
             try:
                 # The tests read every tick at once: no share cap on the server thread here.
                 self.publisher = Groot2Publisher(

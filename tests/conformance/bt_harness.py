@@ -242,47 +242,12 @@ def run_btcpp(
     batch: list[_Pending] | None = None,
     observe: bool = False,
 ) -> Run:
-    factory = btpy.BehaviorTreeFactory()
-    calls: list[tuple[str, tuple[tuple[str, str], ...]]] = []
-
-    def on_start(node: btpy.TreeNode) -> btpy.NodeStatus:
-        if observe:
-            calls.append((node.name(), tuple(btcpp_board_text(node.config().blackboard).items())))
-        return TO_BTCPP[outcomes.next(node.name())]
-
-    def on_halted(node: btpy.TreeNode) -> None:
-        outcomes.halts.append(node.name())
-
-    for leaf in leaf_ids:
-        factory.register_simple_stateful_action(leaf, on_start, on_start, on_halted)
-    for cond in cond_ids:
-        factory.register_simple_condition(cond, on_start)
-    for deco in deco_ids:
-        factory.register_simple_decorator(deco, lambda status, node: status)
-    board = None
-    if host_vars:
-        board = btpy.Blackboard.create()
-        for k, v in host_vars.items():
-            if isinstance(v, bool):
-                board.set_bool(k, v)
-            elif isinstance(v, int):
-                board.set_int(k, v)
-            elif isinstance(v, float):
-                board.set_double(k, v)
-            else:
-                board.set_string(k, str(v))
+    if observe:
+        outcomes.calls = []
+    factory = btcpp_stub_factory(outcomes, leaf_ids, cond_ids, deco_ids)
+    board = btcpp_blackboard(host_vars) if host_vars else None
     try:
-        if main_tree is not None:
-            if file is not None:
-                # behaviortreepy cannot convert a path argument; the text suffices (no includes there).
-                factory.register_behavior_tree_from_text(Path(file).read_text(encoding="utf-8"))
-            else:
-                factory.register_behavior_tree_from_text(xml_text or "")
-            tree = factory.create_tree(main_tree, board)
-        elif file is not None:
-            tree = factory.create_tree_from_file(file, board)
-        else:
-            tree = factory.create_tree_from_text(xml_text or "", board)
+        tree = build_btcpp_tree(factory, board, xml_text, file, main_tree)
     except Exception as err:  # noqa: BLE001 - any load failure is the REJECT verdict
         return Run("REJECT", [], [], str(err))
     fd, log_path = tempfile.mkstemp(suffix=".btlog")
@@ -299,8 +264,8 @@ def run_btcpp(
             statuses.append(ERROR)
             run.verdict, run.error = "TICKERR", str(err)
         if observe:
-            run.calls.append(list(calls))
-            calls.clear()
+            run.calls.append(list(outcomes.calls or []))
+            (outcomes.calls or []).clear()
             run.boards.append(btcpp_board_text(tree.root_blackboard()))
         if run.verdict == "TICKERR":
             break
@@ -328,6 +293,69 @@ def run_btcpp(
     else:
         finish_batch([pending])
     return run
+
+
+def btcpp_stub_factory(
+    outcomes: Outcomes,
+    leaf_ids: tuple[str, ...] = ("Leaf",),
+    cond_ids: tuple[str, ...] = ("Cond",),
+    deco_ids: tuple[str, ...] = (),
+) -> btpy.BehaviorTreeFactory:
+    """BT.CPP's counterpart of `stub_registry`: leaves and conditions answer from `outcomes` (and
+    record their calls while `outcomes.calls` is a list), decorators pass their child's status on."""
+    factory = btpy.BehaviorTreeFactory()
+
+    def on_start(node: btpy.TreeNode) -> btpy.NodeStatus:
+        if outcomes.calls is not None:
+            outcomes.calls.append((node.name(), tuple(btcpp_board_text(node.config().blackboard).items())))
+        return TO_BTCPP[outcomes.next(node.name())]
+
+    def on_halted(node: btpy.TreeNode) -> None:
+        outcomes.halts.append(node.name())
+
+    for leaf in leaf_ids:
+        factory.register_simple_stateful_action(leaf, on_start, on_start, on_halted)
+    for cond in cond_ids:
+        factory.register_simple_condition(cond, on_start)
+    for deco in deco_ids:
+        factory.register_simple_decorator(deco, lambda status, node: status)
+    return factory
+
+
+def btcpp_blackboard(host_vars: dict[str, object]) -> btpy.Blackboard:
+    """A BT.CPP blackboard holding `host_vars`, each with the C++ type of its Python value."""
+    board = btpy.Blackboard.create()
+    for k, v in host_vars.items():
+        if isinstance(v, bool):
+            board.set_bool(k, v)
+        elif isinstance(v, int):
+            board.set_int(k, v)
+        elif isinstance(v, float):
+            board.set_double(k, v)
+        else:
+            board.set_string(k, str(v))
+    return board
+
+
+def build_btcpp_tree(
+    factory: btpy.BehaviorTreeFactory,
+    board: btpy.Blackboard | None,
+    xml_text: str | None,
+    file: str | None = None,
+    main_tree: str | None = None,
+) -> btpy.Tree:
+    """`main_tree` of the file or text, else the file's or the text's main tree; raises what BT.CPP
+    raises for a tree it refuses."""
+    if main_tree is not None:
+        if file is not None:
+            # behaviortreepy cannot convert a path argument; the text suffices (no includes there).
+            factory.register_behavior_tree_from_text(Path(file).read_text(encoding="utf-8"))
+        else:
+            factory.register_behavior_tree_from_text(xml_text or "")
+        return factory.create_tree(main_tree, board)
+    if file is not None:
+        return factory.create_tree_from_file(file, board)
+    return factory.create_tree_from_text(xml_text or "", board)
 
 
 @dataclass

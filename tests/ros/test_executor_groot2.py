@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import random
 import signal
-import socket
 import time
 from pathlib import Path
 
 import pytest
 from coral.bt.groot2 import protocol as p
 from coral.bt.groot2.client import Groot2Client, Groot2Error
+from fixtures.ports import free_port_pair
 from fixtures.processes import Spawn
 
 from .runtime_processes import finish, records_of, start_executor, wait_until, write_tree
@@ -29,18 +29,6 @@ TREE = """
 """
 
 
-def _free_port_pair() -> int:
-    port = random.randrange(50000, 60000, 2)
-    while True:
-        try:
-            with socket.socket() as a, socket.socket() as b:
-                a.bind(("127.0.0.1", port))
-                b.bind(("127.0.0.1", port + 1))
-            return port
-        except OSError:
-            port += 2
-
-
 def _answering(client: Groot2Client) -> bool:
     try:
         client.hooks()
@@ -52,7 +40,7 @@ def _answering(client: Groot2Client) -> bool:
 def test_a_breakpoint_set_before_the_first_tick_holds_the_mission_until_unlocked(
     tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
 ) -> None:
-    port = _free_port_pair()
+    port = free_port_pair(random.randrange(50000, 60000, 2))
     tree = write_tree(tmp_path / "tree.xml", TREE)
     status, log = tmp_path / "status.jsonl", tmp_path / "executor.log"
     (tmp_path / "plugins").mkdir()
@@ -83,7 +71,7 @@ def test_a_breakpoint_set_before_the_first_tick_holds_the_mission_until_unlocked
 def test_a_stop_signal_releases_a_held_breakpoint_and_the_executor_halts(
     tmp_path: Path, ros_env: dict[str, str], spawned: Spawn
 ) -> None:
-    port = _free_port_pair()
+    port = free_port_pair(random.randrange(50000, 60000, 2))
     # A long Sleep after the breakpoint: the released tick leaves the tree RUNNING, then the stop halts it.
     tree = write_tree(tmp_path / "tree.xml", TREE.replace("</Sequence>", '<Sleep msec="60000"/></Sequence>'))
     status, log = tmp_path / "status.jsonl", tmp_path / "executor.log"

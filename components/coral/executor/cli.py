@@ -4,11 +4,44 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import click
+from click.decorators import FC
 
 from coral.executor import MAX_TICK_RATE_HZ
+
+
+def groot2_options(port_help: str) -> Callable[[FC], FC]:
+    """`--groot2-port`, `--groot2-allow-hooks` and `--groot2-wait` (parameters `groot2_port`,
+    `groot2_allow_hooks`, `groot2_wait_s`) of `coral executor` and `coral run`; the command calls
+    `check_groot2_options` with them."""
+    port = click.option("--groot2-port", type=click.IntRange(1, 65534), default=None, help=port_help)
+    allow_hooks = click.option(
+        "--groot2-allow-hooks",
+        is_flag=True,
+        help="Let Groot2 clients set breakpoints and replace node results (refused by default).",
+    )
+    wait = click.option(
+        "--groot2-wait",
+        "groot2_wait_s",
+        type=click.FloatRange(min=0.0, max=3600.0),
+        default=0.0,
+        show_default=True,
+        help="Hold each executor's first tick until a Groot2 client sets a hook (or watched for 3 s), "
+        "at most this long.",
+    )
+
+    def decorate(command: FC) -> FC:
+        return port(allow_hooks(wait(command)))
+
+    return decorate
+
+
+def check_groot2_options(groot2_port: int | None, groot2_allow_hooks: bool, groot2_wait_s: float) -> None:
+    if groot2_port is None and (groot2_allow_hooks or groot2_wait_s):
+        raise click.UsageError("--groot2-allow-hooks and --groot2-wait need --groot2-port")
 
 
 def _finite(_context: click.Context, _parameter: click.Parameter, value: float) -> float:
@@ -81,30 +114,12 @@ def _finite(_context: click.Context, _parameter: click.Parameter, value: float) 
     show_default=True,
     help="Before the first tick, wait up to this long to hear every component in use alive.",
 )
-@click.option(
-    "--groot2-port",
-    type=click.IntRange(1, 65534),
-    default=None,
-    help="Publish the tree over BT.CPP's Groot2 protocol on this port (and the next), on 127.0.0.1.",
-)
+@groot2_options("Publish the tree over BT.CPP's Groot2 protocol on this port (and the next), on 127.0.0.1.")
 @click.option(
     "--groot2-host",
     default="127.0.0.1",
     show_default=True,
     help="Address the Groot2 publisher binds (the pod's loopback unless told otherwise).",
-)
-@click.option(
-    "--groot2-allow-hooks",
-    is_flag=True,
-    help="Let Groot2 clients set breakpoints and replace node results (refused by default).",
-)
-@click.option(
-    "--groot2-wait",
-    "groot2_wait_s",
-    type=click.FloatRange(min=0.0, max=3600.0),
-    default=0.0,
-    show_default=True,
-    help="Hold the first tick until a Groot2 client sets a hook (or watched for 3 s), at most this long.",
 )
 @click.option("-v", "--verbose", is_flag=True, help="Print every node transition on the terminal.")
 def executor_command(
@@ -147,8 +162,7 @@ def executor_command(
         groot2_wait_s=groot2_wait_s,
         verbose=verbose,
     )
-    if groot2_port is None and (groot2_allow_hooks or groot2_wait_s):
-        raise click.UsageError("--groot2-allow-hooks and --groot2-wait need --groot2-port")
+    check_groot2_options(groot2_port, groot2_allow_hooks, groot2_wait_s)
     if hostname:
         options.hostname = hostname
     sys.exit(running.run_executor(options))

@@ -17,6 +17,7 @@ import click
 from rich.text import Text
 
 from coral import parsing
+from coral.executor.cli import check_groot2_options, groot2_options
 from coral.local import polling, state
 
 # How `coral ps` colours run and component states on a terminal.
@@ -83,22 +84,7 @@ def _checked_handle(_context: click.Context, _parameter: click.Parameter, value:
     "--env", "env_pairs", multiple=True, metavar="KEY=VALUE", help="Extra environment for components."
 )
 @TREE_PNG
-@click.option(
-    "--groot2-port",
-    type=click.IntRange(1, 65534),
-    default=None,
-    help="Executors publish their trees over Groot2's protocol on 127.0.0.1, from this port (two each).",
-)
-@click.option(
-    "--groot2-allow-hooks", is_flag=True, help="Let Groot2 clients set breakpoints and replace results."
-)
-@click.option(
-    "--groot2-wait",
-    "groot2_wait_s",
-    type=click.FloatRange(min=0.0, max=3600.0),
-    default=0.0,
-    help="Executors hold their first tick until a Groot2 client sets a hook (or watched 3 s), at most S s.",
-)
+@groot2_options("Executors publish their trees over Groot2's protocol on 127.0.0.1 from this port, two each.")
 def run_command(
     target: Path,
     handle: str | None,
@@ -115,8 +101,7 @@ def run_command(
     """Run a Coral project (compose file, tree, parameters) as local processes."""
     from coral.local import compose, running
 
-    if groot2_port is None and (groot2_allow_hooks or groot2_wait_s):
-        raise click.UsageError("--groot2-allow-hooks and --groot2-wait need --groot2-port")
+    check_groot2_options(groot2_port, groot2_allow_hooks, groot2_wait_s)
     groot2 = running.Groot2Settings(groot2_port, groot2_allow_hooks, groot2_wait_s)
 
     extra_env = dict(pair.split("=", 1) for pair in env_pairs if "=" in pair)

@@ -21,21 +21,6 @@ def publish(tree: bt.Tree, **options: Any) -> Groot2Publisher:
     raise RuntimeError("no free port pair for a Groot2 publisher")
 
 
-def publish_port_pair() -> int:
-    """An even port whose pair is free on 127.0.0.1 right now."""
-    import socket
-
-    port = random.randrange(40000, 50000, 2)
-    while True:
-        try:
-            with socket.socket() as a, socket.socket() as b:
-                a.bind(("127.0.0.1", port))
-                b.bind(("127.0.0.1", port + 1))
-            return port
-        except OSError:
-            port += 2
-
-
 def hundred_node_tree() -> bt.Tree:
     """99 AlwaysSuccess leaves in 9 Sequences of 11 under one root Sequence (100 nodes with the
     root): every node runs on every tick."""

@@ -169,21 +169,14 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
             else:
                 st = self.tick()
             if st <= RUNNING and (st == IDLE or self.SYNC_ONLY):
-                if st == IDLE:
-                    raise BTRuntimeError(
-                        f"{self.node_id} returned IDLE, which a tick may never return", node_path=self.path
-                    )
-                raise BTRuntimeError(
-                    f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
-                )
+                raise self._refused_result(st)
             if self._post is not None and (st == SUCCESS or st == FAILURE):
                 self._run_post(st)
         except BTError as err:
-            if err.node_path is None and err.file is None:
-                err.node_path = self.path
+            self._attribute(err)
             raise
         except Exception as err:  # noqa: BLE001 - a plugin's error is attributed to its node path
-            raise BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path) from err
+            raise self._plugin_error(err) from err
         if st != SKIPPED:
             prev = self._status
             if prev != st:
@@ -213,14 +206,7 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
                 if st is None:
                     st = self.tick()
                     if st <= RUNNING and (st == IDLE or self.SYNC_ONLY):
-                        if st == IDLE:
-                            raise BTRuntimeError(
-                                f"{self.node_id} returned IDLE, which a tick may never return",
-                                node_path=self.path,
-                            )
-                        raise BTRuntimeError(
-                            f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
-                        )
+                        raise self._refused_result(st)
             if self._post is not None and (st == SUCCESS or st == FAILURE):
                 self._run_post(st)
             if post_hook is not None:
@@ -228,11 +214,10 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
                 if forced == SUCCESS or forced == FAILURE:
                     st = forced
         except BTError as err:
-            if err.node_path is None and err.file is None:
-                err.node_path = self.path
+            self._attribute(err)
             raise
         except Exception as err:  # noqa: BLE001 - a plugin's error is attributed to its node path
-            raise BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path) from err
+            raise self._plugin_error(err) from err
         if st != SKIPPED:
             self.set_status(st)
         if isinstance(self, DecoratorNode):
@@ -240,6 +225,26 @@ class TreeNode(PortAccess, py_trees.behaviour.Behaviour):
             if child._status == SUCCESS or child._status == FAILURE:
                 child.reset_status()
         return st
+
+    # The error paths `execute_tick` and `execute_tick_hooked` share (kept out of their hot path).
+    def _refused_result(self, st: int) -> BTRuntimeError:
+        """The error for a `tick()` that returned IDLE, or RUNNING from a synchronous node."""
+        if st == IDLE:
+            return BTRuntimeError(
+                f"{self.node_id} returned IDLE, which a tick may never return", node_path=self.path
+            )
+        return BTRuntimeError(
+            f"{self.node_id} is synchronous and may not return RUNNING", node_path=self.path
+        )
+
+    def _attribute(self, err: BTError) -> None:
+        """Gives an error that names no place yet this node's path."""
+        if err.node_path is None and err.file is None:
+            err.node_path = self.path
+
+    def _plugin_error(self, err: Exception) -> BTRuntimeError:
+        """Any other error a node raised (a plugin's), as a BTRuntimeError at this node's path."""
+        return BTRuntimeError(f"{type(err).__name__}: {err}", node_path=self.path)
 
     def set_tick_hooks(
         self, pre_hook: Callable[..., int] | None, post_hook: Callable[..., int] | None
