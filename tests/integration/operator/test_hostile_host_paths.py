@@ -9,15 +9,12 @@ user ran `chown` from the component's own image as root.
 
 Now each namespace mounts only inside its own data subtree `/var/lib/coral/data/<namespace>`, as
 that folder plus a `subPath`, which the kubelet opens without following a link out of the volume.
-One operator (under the memory cap of the hostile tests) serves A and B on a real robot; B runs a
-healthy system writing into its own folder throughout.
+One operator (in a memory cgroup of the chart's limit, as in the other hostile tests) serves A and
+B on a real robot; B runs a healthy system writing into its own folder throughout.
 """
 
 from __future__ import annotations
 
-import resource
-import subprocess
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,26 +22,21 @@ from typing import Any
 
 import pytest
 from coral_api import Coral, condition, is_current_and_true
-from coral_testbed.cluster import operatorchart, processes, realrobots
+from coral_testbed.cluster import operatorchart, realrobots
 from coral_testbed.images import catalog
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
-from fixtures.processes import stop_process_group
+from fixtures.confined import ConfinedOperator
 from fixtures.robots import REAL_ROBOTS
+from hostile import NEEDS_A_MEMORY_CGROUP, confined_operator
 from kubernetes import client as k8s
 
-pytestmark = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.real_robots]
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.real_robots, NEEDS_A_MEMORY_CGROUP]
 
-MEMORY_CAP_BYTES = 1536 * 1024 * 1024
 DATA_ROOT = "/var/lib/coral/data"
 COMPONENT_UID = 10001
 TREE = '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></root>'
 SECRET = "data of namespace b"
-
-
-def _cap_memory() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
-    processes.die_with_parent()
 
 
 @dataclass
@@ -54,14 +46,13 @@ class Stage:
     robot: str
     a: str
     b: str
-    operator: subprocess.Popen[Any]
-    log: Path
+    operator: ConfinedOperator
 
     def coral(self, namespace: str) -> Coral:
         return Coral(self.cluster.api_client, namespace)
 
     def logs(self) -> str:
-        return self.log.read_text()
+        return self.operator.logs()
 
     def on_robot(self, path: str) -> Path:
         return self.robots.host_path(self.robot, path)
@@ -80,32 +71,37 @@ class Stage:
             lines.append(f"pod {name}: {pod.status.phase} {[(s.name, s.state.to_dict()) for s in statuses]}")
         return "\n".join(lines) + f"\noperator log:\n{self.logs()[-2000:]}"
 
+    def deploy(self, namespace: str, name: str, script: str, host_paths: list[dict[str, Any]]) -> None:
+        """A one-driver system on the robot: the driver (the runtime image, non-root) runs `script`
+        with `host_paths` mounted; the executor only waits."""
+        runtime = catalog.by_name()["runtime"].reference
+        driver = {
+            "name": "driver",
+            "image": runtime,
+            "command": ["sh", "-c", script],
+            "hostPaths": host_paths,
+        }
+        self.coral(namespace).create_system(
+            {
+                "apiVersion": "coral.dev/v1alpha1",
+                "kind": "CoralSystem",
+                "metadata": {"name": name},
+                "spec": {
+                    "robots": {"matchLabels": {"coral.dev/robot": self.robot}},
+                    "ros": {"network": "Pod"},
+                    "parameters": {"inline": ""},
+                    "tree": {"inline": TREE},
+                    "drivers": [driver],
+                    "executors": [{"name": "executor", "image": runtime, "command": ["sleep", "infinity"]}],
+                },
+            }
+        )
+
     def assert_still_serving(self) -> None:
-        """Same operator process, no traceback, B's healthy system Ready and still writing."""
-        assert self.operator.poll() is None, f"the operator exited:\n{self.logs()[-3000:]}"
-        assert "Traceback" not in self.logs(), self.logs()[-5000:]
+        """Same operator process, never OOM-killed, no traceback, B's healthy system Ready and still
+        writing."""
+        self.operator.assert_serving()
         assert is_current_and_true(self.coral(self.b).system("healthy"), "Ready")
-
-
-def _system(name: str, robot: str, script: str, host_paths: list[dict[str, Any]]) -> dict[str, Any]:
-    """A one-driver system on `robot`: the driver (the runtime image, non-root) runs `script` with
-    `host_paths` mounted; the executor only waits."""
-    runtime = catalog.by_name()["runtime"].reference
-    return {
-        "apiVersion": "coral.dev/v1alpha1",
-        "kind": "CoralSystem",
-        "metadata": {"name": name},
-        "spec": {
-            "robots": {"matchLabels": {"coral.dev/robot": robot}},
-            "ros": {"network": "Pod"},
-            "parameters": {"inline": ""},
-            "tree": {"inline": TREE},
-            "drivers": [
-                {"name": "driver", "image": runtime, "command": ["sh", "-c", script], "hostPaths": host_paths}
-            ],
-            "executors": [{"name": "executor", "image": runtime, "command": ["sleep", "infinity"]}],
-        },
-    }
 
 
 @pytest.fixture(scope="module")
@@ -119,32 +115,15 @@ def stage(
     core = k8s.CoreV1Api(cluster.api_client)
     a, b = create_test_namespace(core, "tenant-a"), create_test_namespace(core, "tenant-b")
     log = tmp_path_factory.mktemp("host-paths") / "operator.log"
-    env = {
-        **cluster.env(),
-        "PYTHONUNBUFFERED": "1",
-        "MALLOC_ARENA_MAX": "2",
-        "CORAL_HELPER_IMAGE": _helper_image(),
-    }
-    with log.open("w") as out:
-        operator = subprocess.Popen(
-            [sys.executable, "-m", "coral_operator", f"--namespace={a}", f"--namespace={b}"],
-            env=env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            preexec_fn=_cap_memory,
-        )
-    robot = REAL_ROBOTS[0]
-    stage = Stage(cluster, real_robots, robot, a, b, operator, log)
-    try:
+    with confined_operator(cluster, [a, b], log, {"CORAL_HELPER_IMAGE": _helper_image()}) as operator:
+        stage = Stage(cluster, real_robots, REAL_ROBOTS[0], a, b, operator)
         # B's healthy system keeps writing into its own folder, handed to its user by the helper.
-        healthy = _system(
+        stage.deploy(
+            b,
             "healthy",
-            robot,
             f"echo '{SECRET}' > /data/secret && while true; do date > /data/alive; sleep 1; done",
             [{"hostPath": f"{DATA_ROOT}/{b}/mine", "mountPath": "/data", "readOnly": False}],
         )
-        stage.coral(b).create_system(healthy)
         wait_for(
             lambda: is_current_and_true(stage.coral(b).system("healthy"), "Ready"),
             timeout=420,
@@ -152,10 +131,6 @@ def stage(
             message=lambda: f"B's healthy system to become Ready:\n{stage.describe(b)}",
         )
         yield stage
-    finally:
-        stop_process_group(operator, timeout=15)
-        for namespace in (a, b):
-            core.delete_namespace(namespace)
 
 
 def _helper_image() -> str:
@@ -187,15 +162,12 @@ def _refused(stage: Stage, namespace: str, system: str) -> dict[str, Any]:
 
 def test_links_planted_by_a_tenant_lead_nowhere_outside_its_folder(stage: Stage) -> None:
     a, b = stage.a, stage.b
-    coral = stage.coral(a)
     # A pod of A, with every right a tenant has on its own folder, plants the links.
-    coral.create_system(
-        _system(
-            "planter",
-            stage.robot,
-            f"ln -sfn /etc /plant/etc && ln -sfn {DATA_ROOT}/{b}/mine /plant/b && sleep infinity",
-            [{"hostPath": f"{DATA_ROOT}/{a}/plant", "mountPath": "/plant", "readOnly": False}],
-        )
+    stage.deploy(
+        a,
+        "planter",
+        f"ln -sfn /etc /plant/etc && ln -sfn {DATA_ROOT}/{b}/mine /plant/b && sleep infinity",
+        [{"hostPath": f"{DATA_ROOT}/{a}/plant", "mountPath": "/plant", "readOnly": False}],
     )
     planted = stage.on_robot(f"{DATA_ROOT}/{a}/plant")
     wait_for(
@@ -210,14 +182,8 @@ def test_links_planted_by_a_tenant_lead_nowhere_outside_its_folder(stage: Stage)
     # Both systems pass the policy (the paths are inside A's folder) and reach the robot...
     for name, link, target in (("reader", "etc", "/stolen"), ("writer", "b", "/victim")):
         script = "cat /stolen/hostname /stolen/shadow; echo pwned > /victim/pwned; sleep infinity"
-        coral.create_system(
-            _system(
-                name,
-                stage.robot,
-                script,
-                [{"hostPath": f"{DATA_ROOT}/{a}/plant/{link}", "mountPath": target, "readOnly": False}],
-            )
-        )
+        mount = {"hostPath": f"{DATA_ROOT}/{a}/plant/{link}", "mountPath": target, "readOnly": False}
+        stage.deploy(a, name, script, [mount])
     # ...where the kubelet refuses the containers, and the instance says so in its words.
     for name in ("reader", "writer"):
         instance = _refused(stage, a, name)
@@ -243,15 +209,13 @@ def test_links_planted_by_a_tenant_lead_nowhere_outside_its_folder(stage: Stage)
 
 def test_a_tenant_asking_for_another_namespaces_folder_is_refused_by_the_policy(stage: Stage) -> None:
     a, b = stage.a, stage.b
-    coral = stage.coral(a)
-    coral.create_system(
-        _system(
-            "neighbour",
-            stage.robot,
-            "sleep infinity",
-            [{"hostPath": f"{DATA_ROOT}/{a}/../{b}/mine", "mountPath": "/victim"}],
-        )
+    stage.deploy(
+        a,
+        "neighbour",
+        "sleep infinity",
+        [{"hostPath": f"{DATA_ROOT}/{a}/../{b}/mine", "mountPath": "/victim"}],
     )
+    coral = stage.coral(a)
     system = wait_for(
         lambda: is_current_and_true(coral.system("neighbour"), "Stalled") and coral.system("neighbour"),
         timeout=60,

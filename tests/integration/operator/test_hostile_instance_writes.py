@@ -5,80 +5,45 @@ Issue 47, items 5 and 6. With its own token an executor wrote `Ready=True` and a
 forged Ready stuck. And a user who may create CoralInstances but not pods got a privileged,
 host-network pod with `/` mounted, or a pod running as another system's executor account.
 
-One operator serves two namespaces for the module: `attacks` (two systems, `mine` and `other`, and a
-ServiceAccount whose Role allows CoralInstances and nothing else) and `healthy` (a system that must
-stay Ready with the same pods throughout). The policy is the shipped default opened only for the
-host network, as an administrator running ROS 2 over DDS would.
+One operator (in a memory cgroup of the chart's limit) serves two namespaces for the module:
+`attacks` (two systems, `mine` and `other`, and a ServiceAccount whose Role allows CoralInstances and
+nothing else) and `healthy` (a system that must stay Ready with the same pods throughout). The
+policy is the shipped default opened only for the host network and the robot's bags, as an
+administrator running the fleet example would.
 """
 
 from __future__ import annotations
 
 import copy
-import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pytest
-from coral_api import Coral, client_as, condition, executor_client, fleet_mission, is_current_and_true
+from coral_api import client_as, condition, executor_client, fleet_mission, is_current_and_true
 from coral_operator.api import names
 from coral_operator.api.names import GROUP, VERSION
-from coral_testbed.cluster import processes
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
-from fixtures.processes import stop_process_group
+from hostile import NEEDS_A_MEMORY_CGROUP, HostileStage, forge_ready
 from kubernetes import client as k8s
 
-pytestmark = [pytest.mark.cluster, pytest.mark.slow]
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, NEEDS_A_MEMORY_CGROUP]
 
 # "Within seconds": the operator's passes of one instance are spaced by tens of milliseconds.
 OVERWRITTEN_WITHIN_S = 15
 REPORTED_WITHIN_S = 30
 # How long a hand-made instance is watched for a pod that must never come.
 NO_POD_FOR_S = 8
-CHART_MEMORY_LIMIT_KIB = 512 * 1024
 MERGE = "application/merge-patch+json"
 WRITER = "instance-writer"
 
 
 @dataclass
-class Stage:
-    cluster: Any
+class Stage(HostileStage):
     attacks: str
-    healthy: str
-    operator: subprocess.Popen[Any]
-    log: Path
-    healthy_pods: dict[str, str]
-
-    def coral(self, namespace: str) -> Coral:
-        return Coral(self.cluster.api_client, namespace)
-
-    def logs(self) -> str:
-        return self.log.read_text()
-
-    def assert_still_serving(self) -> None:
-        """The operator is the same process, logged no traceback, stayed under the chart's memory
-        limit, and the healthy system kept its Ready and its pods."""
-        assert self.operator.poll() is None, f"the operator exited:\n{self.logs()[-3000:]}"
-        assert "Traceback" not in self.logs(), self.logs()[-5000:]
-        status = Path(f"/proc/{self.operator.pid}/status").read_text()
-        peak = int(next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:")))
-        assert peak < CHART_MEMORY_LIMIT_KIB
-        healthy = self.coral(self.healthy)
-        assert is_current_and_true(healthy.system("healthy"), "Ready")
-        assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
-
-
-def _ready(coral: Coral, name: str, log: Path) -> None:
-    wait_for(
-        lambda: is_current_and_true(coral.system(name), "Ready"),
-        timeout=90,
-        message=lambda: f"the system {name} to become Ready; operator log:\n{log.read_text()[-3000:]}",
-    )
 
 
 def _instance_writer(cluster: Any, namespace: str) -> None:
@@ -101,39 +66,14 @@ def _instance_writer(cluster: Any, namespace: str) -> None:
 def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stage]:
     core = k8s.CoreV1Api(cluster.api_client)
     attacks, healthy = create_test_namespace(core, "attacks"), create_test_namespace(core, "healthy")
-    fleet = f"f{uuid.uuid4().hex[:8]}"
-    robot = f"r{uuid.uuid4().hex[:5]}-1"
-    cluster.add_robots([robot], {"fleet": fleet})
     log = tmp_path_factory.mktemp("hostile-instances") / "operator.log"
-    env = {
-        **cluster.env(),
-        "PYTHONUNBUFFERED": "1",
-        "CORAL_POLICY_HOST_NETWORK_NAMESPACES": f"{attacks},{healthy}",
-    }
-    with log.open("w") as out:
-        operator = subprocess.Popen(
-            [sys.executable, "-m", "coral_operator", f"--namespace={attacks}", f"--namespace={healthy}"],
-            env=env,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-            preexec_fn=processes.die_with_parent,
-        )
-    try:
-        Coral(cluster.api_client, healthy).create_system(fleet_mission("healthy", fleet))
+    with Stage.serving(cluster, [attacks, healthy], healthy, log, attacks=attacks) as stage:
         for name in ("mine", "other"):
-            Coral(cluster.api_client, attacks).create_system(fleet_mission(name, fleet))
-        _ready(Coral(cluster.api_client, healthy), "healthy", log)
+            stage.coral(attacks).create_system(fleet_mission(name, stage.fleet))
         for name in ("mine", "other"):
-            _ready(Coral(cluster.api_client, attacks), name, log)
+            stage.wait_ready(attacks, name)
         _instance_writer(cluster, attacks)
-        pods = {n: p.metadata.uid for n, p in Coral(cluster.api_client, healthy).pods().items()}
-        yield Stage(cluster, attacks, healthy, operator, log, pods)
-    finally:
-        stop_process_group(operator, timeout=15)
-        for name in (attacks, healthy):
-            core.delete_namespace(name)
-        cluster.remove_robots([robot])
+        yield stage
 
 
 def _own_instance(stage: Stage, system: str) -> dict[str, Any]:
@@ -144,27 +84,8 @@ def test_a_forged_ready_with_an_unparsable_time_is_overwritten_and_the_field_rep
     instance = _own_instance(stage, "mine")
     name = instance["metadata"]["name"]
     as_executor = k8s.CustomObjectsApi(executor_client(stage.cluster, stage.attacks, name))
-    forged = [
-        {
-            "type": "Ready",
-            "status": "True",
-            "reason": "Forged",
-            "message": "forged by the executor",
-            "observedGeneration": instance["metadata"]["generation"],
-            "lastTransitionTime": "2026-01-01T00:00:00Z",
-        }
-    ]
-    tree = {"rootStatus": "RUNNING", "updatedAt": "not a time"}
     start = time.monotonic()
-    as_executor.patch_namespaced_custom_object_status(
-        GROUP,
-        VERSION,
-        stage.attacks,
-        "coralinstances",
-        name,
-        {"status": {"conditions": forged, "tree": tree}},
-        _content_type=MERGE,
-    )
+    forge_ready(as_executor, instance, "Forged", tree={"rootStatus": "RUNNING", "updatedAt": "not a time"})
     coral = stage.coral(stage.attacks)
 
     def overwritten() -> dict[str, Any] | None:

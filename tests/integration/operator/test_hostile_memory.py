@@ -18,22 +18,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from coral_api import Coral, condition, fleet_mission, is_current_and_true
-from coral_testbed.cluster import memorycgroup
+from coral_api import Coral, condition, fleet_mission
 from coral_testbed.waiting import wait_for
 from fixtures.cluster import create_test_namespace
-from fixtures.confined import ConfinedOperator
+from fixtures.yaml_bombs import merge_bomb
+from hostile import NEEDS_A_MEMORY_CGROUP, HostileStage, refused_at_admission
 from kubernetes import client as k8s
-from kubernetes.client.exceptions import ApiException
 from maximal import parameters
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.skipif(memorycgroup.available() is not None, reason=str(memorycgroup.available())),
-]
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, NEEDS_A_MEMORY_CGROUP]
 
-CLEAR_WITHIN_S = 60
 MiB = 1024 * 1024
 # Issue 47 measured 2.85 MB per robot kept by the operator for a 0.7 MB system; what a robot's copy
 # costs now is its index record and its desired pods, well under a third of that.
@@ -42,31 +36,9 @@ GROWTH_PER_ROBOT_BYTES = 0.75 * MiB
 LEFT_AFTER_DELETION_BYTES = 24 * MiB
 
 
-def merge_bomb(levels: int, fan: int = 10) -> str:
-    """A few hundred bytes: each level merges the one below and refers to it `fan` times."""
-    lines = ["a0: &a0 {x0: 1, x1: 2, x2: 3, x3: 4, x4: 5, x5: 6, x6: 7, x7: 8, x8: 9, x9: 10}"]
-    for level in range(1, levels + 1):
-        keys = ", ".join(f"k{j}: *a{level - 1}" for j in range(fan))
-        lines.append(f"a{level}: &a{level} {{<<: *a{level - 1}, {keys}}}")
-    return "\n".join(lines) + "\n"
-
-
 @dataclass
-class Stage:
-    cluster: Any
+class Stage(HostileStage):
     hostile: str
-    healthy: str
-    operator: ConfinedOperator
-    healthy_pods: dict[str, str]
-
-    def coral(self, namespace: str) -> Coral:
-        return Coral(self.cluster.api_client, namespace)
-
-    def assert_still_serving(self) -> None:
-        self.operator.assert_serving()
-        healthy = self.coral(self.healthy)
-        assert is_current_and_true(healthy.system("healthy"), "Ready")
-        assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
 
 
 @pytest.fixture(scope="module")
@@ -76,30 +48,9 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
         create_test_namespace(core, "memory-hostile"),
         create_test_namespace(core, "memory-healthy"),
     )
-    fleet = f"f{uuid.uuid4().hex[:8]}"
-    robot = f"r{uuid.uuid4().hex[:5]}-1"
-    cluster.add_robots([robot], {"fleet": fleet})
-    operator = ConfinedOperator.start(
-        cluster,
-        [hostile, healthy],
-        tmp_path_factory.mktemp("memory") / "operator.log",
-        {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": f"{hostile},{healthy}"},
-    )
-    try:
-        coral = Coral(cluster.api_client, healthy)
-        coral.create_system(fleet_mission("healthy", fleet))
-        wait_for(
-            lambda: is_current_and_true(coral.system("healthy"), "Ready"),
-            timeout=90,
-            message=lambda: f"the healthy system to become Ready; operator log:\n{operator.logs()[-3000:]}",
-        )
-        pods = {n: p.metadata.uid for n, p in coral.pods().items()}
-        yield Stage(cluster, hostile, healthy, operator, pods)
-    finally:
-        operator.stop()
-        for name in (hostile, healthy):
-            core.delete_namespace(name)
-        cluster.remove_robots([robot])
+    log = tmp_path_factory.mktemp("memory") / "operator.log"
+    with Stage.serving(cluster, [hostile, healthy], healthy, log, hostile=hostile) as stage:
+        yield stage
 
 
 def _served(coral: Coral, name: str) -> dict[str, Any] | None:
@@ -108,18 +59,6 @@ def _served(coral: Coral, name: str) -> dict[str, Any] | None:
     if system and (system.get("status") or {}).get("observedGeneration") == system["metadata"]["generation"]:
         return system
     return None
-
-
-def _stalled(stage: Stage, name: str) -> dict[str, str]:
-    coral = stage.coral(stage.hostile)
-    system = wait_for(
-        lambda: is_current_and_true(coral.system(name), "Stalled") and coral.system(name),
-        timeout=CLEAR_WITHIN_S,
-        interval=0.3,
-        message=lambda: f"{name} to be Stalled; operator log:\n{stage.operator.logs()[-3000:]}",
-    )
-    assert not [i for i in coral.instances().values() if i["spec"]["system"] == name]
-    return condition(system, "Stalled")
 
 
 def _with_env(manifest: dict[str, Any], count: int, size: int = 4096) -> dict[str, Any]:
@@ -136,7 +75,7 @@ def test_a_merge_key_bomb_is_refused_with_its_expansion_without_costing_the_oper
     manifest["spec"]["parameters"] = {"inline": merge_bomb(9)}
     before = stage.operator.cgroup.peak_bytes()
     stage.coral(stage.hostile).create_system(manifest)
-    stalled = _stalled(stage, "bomb")
+    stalled = stage.stalled(stage.hostile, "bomb")
     assert stalled["reason"] == "InvalidParameters"
     assert (
         "coralsystem/bomb spec.parameters.inline:5: expands to 57,581,082,611 entries; the limit is 100,000"
@@ -172,17 +111,14 @@ def test_forty_systems_with_maximal_parameters_leave_the_operator_under_its_limi
 
 def test_an_env_value_past_its_length_is_refused_at_admission_naming_the_field(stage: Stage) -> None:
     manifest = _with_env(fleet_mission("long-env", "nobody"), count=1, size=4097)
-    with pytest.raises(ApiException) as refused:
-        stage.coral(stage.hostile).create_system(manifest)
-    assert refused.value.status == 422
-    message = json.loads(refused.value.body)["message"]
+    message = refused_at_admission(stage.coral(stage.hostile), manifest)
     assert "spec.drivers[0].env[0].value: Too long: may not be more than 4096 bytes" in message
     stage.assert_still_serving()
 
 
 def test_a_robot_copy_past_its_bound_is_refused_naming_the_figure(stage: Stage) -> None:
     stage.coral(stage.hostile).create_system(_with_env(fleet_mission("heavy", "nobody"), count=40))
-    stalled = _stalled(stage, "heavy")
+    stalled = stage.stalled(stage.hostile, "heavy")
     assert stalled["reason"] == "TooLarge"
     assert "bytes are copied to every robot; the limit is 131,072" in stalled["message"]
     assert stalled["message"].startswith("spec.drivers, spec.skillsets and spec.executors")

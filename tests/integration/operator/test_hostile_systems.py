@@ -5,62 +5,34 @@ OOM-killed, logs no traceback, and keeps serving a healthy system in another nam
 One operator serves three namespaces for the whole module: `hostile` (the attacks), `healthy` (a
 system that must stay Ready with the same pods throughout) and `baseline` (labelled for Pod
 Security's baseline level, which refuses Coral's pods). The policy is the shipped default, opened
-only for the host network, as an administrator running ROS 2 over DDS would.
+only for the host network and the robot's bags, as an administrator running the fleet example would.
 """
 
 from __future__ import annotations
 
 import copy
-import json
 import socket
-import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from coral_api import Coral, condition, executor_client, fleet_mission, is_current_and_true
-from coral_testbed.cluster import memorycgroup
+from coral_api import condition, executor_client, fleet_mission, is_current_and_true
 from coral_testbed.waiting import holds_for, wait_for, wait_until_steady
 from fixtures.cluster import create_test_namespace
-from fixtures.confined import ConfinedOperator
+from hostile import CLEAR_WITHIN_S, NEEDS_A_MEMORY_CGROUP, HostileStage, forge_ready, refused_at_admission
 from kubernetes import client as k8s
-from kubernetes.client.exceptions import ApiException
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.skipif(memorycgroup.available() is not None, reason=str(memorycgroup.available())),
-]
+pytestmark = [pytest.mark.cluster, pytest.mark.slow, NEEDS_A_MEMORY_CGROUP]
 
-CLEAR_WITHIN_S = 60
 HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
 SUBTREE_MAIN = '  <BehaviorTree ID="Main">\n    <SubTree ID="Nav"/>\n  </BehaviorTree>\n'
 
 
 @dataclass
-class Stage:
-    cluster: Any
+class Stage(HostileStage):
     hostile: str
-    healthy: str
     baseline: str
-    fleet: str
-    operator: ConfinedOperator
-    healthy_pods: dict[str, str]
-
-    def coral(self, namespace: str) -> Coral:
-        return Coral(self.cluster.api_client, namespace)
-
-    def logs(self) -> str:
-        return self.operator.logs()
-
-    def assert_still_serving(self) -> None:
-        """The operator is the same process, was never OOM-killed, logged no traceback, and the
-        healthy system is untouched."""
-        self.operator.assert_serving()
-        healthy = self.coral(self.healthy)
-        assert is_current_and_true(healthy.system("healthy"), "Ready")
-        assert {n: p.metadata.uid for n, p in healthy.pods().items()} == self.healthy_pods
 
 
 @pytest.fixture(scope="module")
@@ -73,55 +45,17 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
         create_test_namespace(core, "baseline", baseline_labels),
     ]
     hostile, healthy, baseline = namespaces
-    fleet = f"f{uuid.uuid4().hex[:8]}"
-    robot = f"r{uuid.uuid4().hex[:5]}-1"
-    cluster.add_robots([robot], {"fleet": fleet})
-    operator = ConfinedOperator.start(
-        cluster,
-        namespaces,
-        tmp_path_factory.mktemp("hostile") / "operator.log",
-        {
-            "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(namespaces),
-            # The fleet example's bag player reads the robot's bags, which the administrator opens.
-            "CORAL_POLICY_HOST_PATHS": ",".join(f"{n}=/var/lib/coral/bags" for n in namespaces),
-        },
-    )
-    try:
-        coral = Coral(cluster.api_client, healthy)
-        coral.create_system(fleet_mission("healthy", fleet))
-        wait_for(
-            lambda: is_current_and_true(coral.system("healthy"), "Ready"),
-            timeout=90,
-            message=lambda: f"the healthy system to become Ready; operator log:\n{operator.logs()[-3000:]}",
-        )
-        pods = {n: p.metadata.uid for n, p in coral.pods().items()}
-        yield Stage(cluster, hostile, healthy, baseline, fleet, operator, pods)
-    finally:
-        operator.stop()
-        for name in namespaces:
-            core.delete_namespace(name)
-        cluster.remove_robots([robot])
-
-
-def _stalled(stage: Stage, namespace: str, name: str) -> dict[str, Any]:
-    coral = stage.coral(namespace)
-    return wait_for(
-        lambda: is_current_and_true(coral.system(name), "Stalled") and coral.system(name),
-        timeout=CLEAR_WITHIN_S,
-        interval=0.3,
-        message=lambda: f"{name} to be Stalled; operator log:\n{stage.logs()[-3000:]}",
-    )
+    log = tmp_path_factory.mktemp("hostile") / "operator.log"
+    with Stage.serving(cluster, namespaces, healthy, log, hostile=hostile, baseline=baseline) as stage:
+        yield stage
 
 
 def _attack(stage: Stage, name: str, change: Callable[[dict[str, Any]], None]) -> dict[str, str]:
     """Create the system in the hostile namespace; its Stalled condition once it is clear."""
     manifest = copy.deepcopy(fleet_mission(name, stage.fleet))
     change(manifest["spec"])
-    coral = stage.coral(stage.hostile)
-    coral.create_system(manifest)
-    stalled = condition(_stalled(stage, stage.hostile, name), "Stalled")
-    assert not [i for i in coral.instances().values() if i["spec"]["system"] == name]
-    return stalled
+    stage.coral(stage.hostile).create_system(manifest)
+    return stage.stalled(stage.hostile, name)
 
 
 def _tree(text: str) -> Callable[[dict[str, Any]], None]:
@@ -197,10 +131,7 @@ def test_a_tree_of_almost_a_megabyte_is_refused_at_admission_naming_the_field(st
     padding = "<!--" + "x" * 990_000 + "-->"
     manifest = fleet_mission("huge", stage.fleet)
     manifest["spec"]["tree"] = {"inline": f"{HEAD}{padding}{SUBTREE_MAIN}</root>"}
-    with pytest.raises(ApiException) as refused:
-        stage.coral(stage.hostile).create_system(manifest)
-    assert refused.value.status == 422
-    message = json.loads(refused.value.body)["message"]
+    message = refused_at_admission(stage.coral(stage.hostile), manifest)
     assert "spec.tree.inline: Too long: may not be more than 262144 bytes" in message
     stage.assert_still_serving()
 
@@ -299,25 +230,7 @@ def test_a_forged_ready_condition_is_overwritten(stage: Stage) -> None:
     instance = _baseline_instance(stage)
     name = instance["metadata"]["name"]
     custom = k8s.CustomObjectsApi(stage.cluster.api_client)
-    forged = [
-        {
-            "type": "Ready",
-            "status": "True",
-            "reason": "Ready",
-            "message": "forged by the executor",
-            "observedGeneration": instance["metadata"]["generation"],
-            "lastTransitionTime": "2026-01-01T00:00:00Z",
-        }
-    ]
-    custom.patch_namespaced_custom_object_status(
-        "coral.dev",
-        "v1alpha1",
-        stage.baseline,
-        "coralinstances",
-        name,
-        {"status": {"conditions": forged}},
-        _content_type="application/merge-patch+json",
-    )
+    forge_ready(custom, instance, "Ready")
 
     def corrected() -> bool:
         current = custom.get_namespaced_custom_object(

@@ -5,8 +5,10 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
+from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.api.system import StartupSpec
+from coral_operator.api.system import CoralSystemSpec, StartupSpec
+from coral_operator.planning import instances, pods
 from coral_operator.planning import startup as startup_planning
 from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.status import instance_status
@@ -69,4 +71,41 @@ def instance_view(
         tree=tree,
         plugins=plugins,
         refused=refused or {},
+    )
+
+
+def view_with_pods_running(
+    spec: dict[str, Any],
+    *,
+    ready: bool = True,
+    node_ready: bool = True,
+    tree: dict[str, Any] | None = None,
+    plugins: dict[str, Any] | None = None,
+) -> instance_status.InstanceView:
+    """The instance of system `sys` with `spec` on robot r1, every component's pod Running (Ready or
+    not), and the executor's report `tree` and `plugins`."""
+    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
+    parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
+    desired = pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
+    observed = [
+        ObservedPod(
+            name=m["metadata"]["name"],
+            component=m["metadata"]["labels"][names.LABEL_COMPONENT],
+            role=m["metadata"]["labels"][names.LABEL_ROLE],
+            revision=m["metadata"]["labels"][names.LABEL_REVISION],
+            pod_hash=m["metadata"]["annotations"][names.ANNOTATION_POD_HASH],
+            phase="Running",
+            ready=ready,
+            created=NOW,
+        )
+        for m in desired
+    ]
+    return instance_view(
+        parsed,
+        desired,
+        observed,
+        startup=StartupSpec(),
+        node=robot("r1", ready=node_ready),
+        tree=tree,
+        plugins=plugins,
     )

@@ -7,16 +7,13 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import common, names
-from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.api.system import CoralSystemSpec, StartupSpec
-from coral_operator.planning import instances, pods
-from coral_operator.planning.observed import ObservedInstance, ObservedPod
+from coral_operator.api import common
+from coral_operator.planning.observed import ObservedInstance
 from coral_operator.status import instance_status, system_status
 from coral_operator.status.conditions import ConditionType, Reason
 from coral_operator.status.rollout import RolloutConditionType, RolloutReason
 from coral_operator.status.transitions import Verdict, find, merge_conditions
-from operator_specs import NOW, instance_view, robot
+from operator_specs import NOW, view_with_pods_running
 
 LATER = NOW + timedelta(minutes=5)
 
@@ -37,48 +34,13 @@ def test_the_transition_time_moves_only_when_the_status_flips() -> None:
     assert flipped[0]["status"] == "True"
 
 
-def _view(
-    spec: dict[str, Any],
-    *,
-    ready: bool = True,
-    node_ready: bool = True,
-    tree: dict | None = None,
-    plugins: dict | None = None,
-) -> instance_status.InstanceView:
-    template = instances.build_template(CoralSystemSpec.model_validate(spec), "t", "p")
-    parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
-    desired = pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
-    observed = [
-        ObservedPod(
-            name=m["metadata"]["name"],
-            component=m["metadata"]["labels"][names.LABEL_COMPONENT],
-            role=m["metadata"]["labels"][names.LABEL_ROLE],
-            revision=m["metadata"]["labels"][names.LABEL_REVISION],
-            pod_hash=m["metadata"]["annotations"][names.ANNOTATION_POD_HASH],
-            phase="Running",
-            ready=ready,
-            created=NOW,
-        )
-        for m in desired
-    ]
-    return instance_view(
-        parsed,
-        desired,
-        observed,
-        startup=StartupSpec(),
-        node=robot("r1", ready=node_ready),
-        tree=tree,
-        plugins=plugins,
-    )
-
-
 def _conditions(view: instance_status.InstanceView) -> dict[str, dict[str, Any]]:
     status = instance_status.build_instance_status(view, old_conditions=[], generation=3, now=NOW)
     return {c["type"]: c for c in status["conditions"]}
 
 
 def test_an_instance_with_every_pod_ready_is_ready(spec_dict: Callable[..., dict[str, Any]]) -> None:
-    view = _view(spec_dict())
+    view = view_with_pods_running(spec_dict())
     status = instance_status.build_instance_status(view, old_conditions=[], generation=3, now=NOW)
     conditions = {c["type"]: c for c in status["conditions"]}
     assert conditions["Ready"]["status"] == "True"
@@ -89,14 +51,14 @@ def test_an_instance_with_every_pod_ready_is_ready(spec_dict: Callable[..., dict
 
 
 def test_an_unreachable_robot_says_when_it_was_last_seen(spec_dict: Callable[..., dict[str, Any]]) -> None:
-    conditions = _conditions(_view(spec_dict(), node_ready=False))
+    conditions = _conditions(view_with_pods_running(spec_dict(), node_ready=False))
     assert conditions["RobotReachable"]["status"] == "False"
     assert "last seen 2026-01-01T12:00:00Z" in conditions["RobotReachable"]["message"]
     assert conditions["Ready"]["reason"] == "NodeUnreachable"
 
 
 def test_pods_not_ready_make_the_instance_reconciling(spec_dict: Callable[..., dict[str, Any]]) -> None:
-    conditions = _conditions(_view(spec_dict(), ready=False))
+    conditions = _conditions(view_with_pods_running(spec_dict(), ready=False))
     assert conditions["Ready"]["status"] == "False"
     assert conditions["Reconciling"]["status"] == "True"
     assert conditions["ComponentsReady"]["reason"] == "WaitingForDrivers"
@@ -105,12 +67,12 @@ def test_pods_not_ready_make_the_instance_reconciling(spec_dict: Callable[..., d
 def test_executor_reports_drive_the_tree_and_plugin_conditions(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
-    conditions = _conditions(_view(spec_dict()))
+    conditions = _conditions(view_with_pods_running(spec_dict()))
     assert (
         conditions["TreeHealthy"]["status"] == "Unknown" and conditions["PluginsReady"]["status"] == "Unknown"
     )
     failed = _conditions(
-        _view(
+        view_with_pods_running(
             spec_dict(),
             tree={
                 "rootStatus": "FAILURE",
@@ -269,9 +231,11 @@ def test_a_tree_failure_written_before_the_executor_restarted_is_not_current(
 ) -> None:
     """A FAILURE of the previous revision must not fail the robot on the next one (issue 14)."""
     tree = {"rootStatus": "FAILURE", "updatedAt": "2026-01-01T12:30:00Z"}
-    fresh = _conditions(_view(spec_dict(), tree=tree))
+    fresh = _conditions(view_with_pods_running(spec_dict(), tree=tree))
     assert (fresh["TreeHealthy"]["status"], fresh["Stalled"]["reason"]) == ("False", "TreeFailed")
-    restarted = _conditions(_view(spec_dict(), tree=tree | {"updatedAt": "2026-01-01T11:00:00Z"}))
+    restarted = _conditions(
+        view_with_pods_running(spec_dict(), tree=tree | {"updatedAt": "2026-01-01T11:00:00Z"})
+    )
     assert restarted["TreeHealthy"]["status"] == "Unknown" and restarted["Stalled"]["status"] == "False"
 
 

@@ -14,16 +14,12 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_operator.api import keys, names
-from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.api.system import CoralSystemSpec, StartupSpec
+from coral_operator.api import keys
 from coral_operator.kube import observing
-from coral_operator.planning import instances, pods
-from coral_operator.planning.observed import ObservedPod
 from coral_operator.status import executor_report, instance_status, transitions
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from operator_specs import BASE_SPEC, NOW, instance_view, robot
+from operator_specs import BASE_SPEC, NOW, view_with_pods_running
 
 TIMES = ["2026-01-01T12:00:00Z", "2026-01-01", "yesterday", "2026-13-45T99:00:00Z", "", "9" * 40]
 SCALARS = (
@@ -94,26 +90,8 @@ STATUSES = st.fixed_dictionaries(
 def _view(status: dict[str, Any], *, ready: bool) -> instance_status.InstanceView:
     """Robot r1 with every component's pod up, Ready or not, and the executor's report read from
     `status` as the reconciler reads it."""
-    template = instances.build_template(CoralSystemSpec.model_validate(BASE_SPEC), "t", "p")
-    spec = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
-    desired = pods.build_pods(spec=spec, instance="sys-r1", namespace="ns", instance_uid="u")
-    observed = [
-        ObservedPod(
-            name=m["metadata"]["name"],
-            component=m["metadata"]["labels"][names.LABEL_COMPONENT],
-            role=m["metadata"]["labels"][names.LABEL_ROLE],
-            revision=m["metadata"]["labels"][names.LABEL_REVISION],
-            pod_hash=m["metadata"]["annotations"][names.ANNOTATION_POD_HASH],
-            phase="Running",
-            ready=ready,
-            created=NOW,
-        )
-        for m in desired
-    ]
     report = executor_report.read_executor_report(status)
-    view = instance_view(
-        spec, desired, observed, startup=StartupSpec(), tree=report.tree, plugins=report.plugins
-    )
+    view = view_with_pods_running(BASE_SPEC, ready=ready, tree=report.tree, plugins=report.plugins)
     return instance_status.InstanceView(
         **{**view.__dict__, "ignored_tree": report.ignored_tree, "ignored_plugins": report.ignored_plugins}
     )

@@ -16,17 +16,9 @@ import yaml
 from coral import parsing
 from coral.sdk import params
 from coral_operator.planning import validation
+from fixtures.yaml_bombs import merge_bomb
 
 FILE = "coralsystem/x spec.parameters.inline"
-
-
-def merge_bomb(levels: int, fan: int = 10) -> str:
-    """Each level merges the one below and refers to it `fan` times: about 11**levels entries."""
-    lines = ["a0: &a0 {x0: 1, x1: 2, x2: 3, x3: 4, x4: 5, x5: 6, x6: 7, x7: 8, x8: 9, x9: 10}"]
-    for level in range(1, levels + 1):
-        keys = ", ".join(f"k{j}: *a{level - 1}" for j in range(fan))
-        lines.append(f"a{level}: &a{level} {{<<: *a{level - 1}, {keys}}}")
-    return "\n".join(lines) + "\n"
 
 
 def big_valid_parameters(nodes: int = 400, per_node: int = 40) -> str:
