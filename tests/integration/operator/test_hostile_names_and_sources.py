@@ -7,10 +7,10 @@ served and the operator logs no traceback.
 
 from __future__ import annotations
 
-import time
 import uuid
 from typing import Any
 
+import psutil
 import pytest
 from coral_api import condition, is_current_and_true
 from coral_operator.api import names
@@ -41,26 +41,31 @@ def _serving(scenario: Scenario) -> None:
     assert "Traceback" not in scenario.operator.logs(), scenario.operator.logs()[-4000:]
 
 
-def test_a_tree_made_of_newlines_is_handled_within_two_seconds(scenario: Scenario) -> None:
-    """The element's text grew a line at a time by copying it: 11-15 s of CPU per pass."""
+def test_a_tree_made_of_newlines_costs_the_operator_little_cpu(scenario: Scenario) -> None:
+    """The element's text grew a line at a time by copying it: 11-15 s of CPU per pass for a tree of
+    768 KiB. Trees are now at most 256 KiB from any source: on this one the quadratic parser spent
+    0.9 s of CPU per validation, the linear one 0.02 s, and the whole pass about 0.1 s. The
+    operator's own CPU time is measured, not the wall clock, so a busy machine cannot fail it."""
     scenario.robots(1)
     scenario.deploy(scenario.mission("healthy"))
-    # The largest tree the operator reads (768 KiB, from a ConfigMap), nearly all newlines.
-    text = TREE.format(run="\n" * 760_000)
+    # The largest tree the operator reads, nearly all newlines.
+    text = TREE.format(run="\n" * 260_000)
     scenario.coral.core.create_namespaced_config_map(
         scenario.namespace,
         {"metadata": {"name": "lines", "labels": {names.LABEL_SOURCE: "true"}}, "data": {"tree.xml": text}},
     )
     mission = scenario.mission("lines")
     mission["spec"]["tree"] = {"configMapRef": {"name": "lines", "key": "tree.xml"}, "tickRateHz": 10.0}
-    began = time.monotonic()
+    assert scenario.operator.process is not None
+    operator = psutil.Process(scenario.operator.process.pid)
+    before = sum(operator.cpu_times()[:2])
     scenario.coral.create_system(mission)
     scenario.wait(
         lambda: (scenario.coral.system("lines") or {}).get("status", {}).get("revision"),
         "the tree of newlines to be validated into a revision",
     )
-    took = time.monotonic() - began
-    assert took < 2.0, f"the system was handled in {took:.1f} s"
+    spent = sum(operator.cpu_times()[:2]) - before
+    assert spent < 0.5, f"the operator spent {spent:.1f} s of CPU on the system"
     scenario.wait(lambda: is_current_and_true(scenario.coral.system("lines"), "Ready"), "the system Ready")
     _serving(scenario)
 
