@@ -92,7 +92,11 @@ def test_two_hundred_maximal_systems_leave_room_and_time_for_a_new_one(
         cluster,
         load_namespaces,
         tmp_path / "operator.log",
-        {"CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(load_namespaces)},
+        {
+            "CORAL_POLICY_HOST_NETWORK_NAMESPACES": ",".join(load_namespaces),
+            # The newcomer is the fleet example, whose bag player reads the robot's bags.
+            "CORAL_POLICY_HOST_PATHS": f"{elsewhere}=/var/lib/coral/bags",
+        },
     )
     try:
         wanted = [(ns, f"max-{i}") for ns in loaded for i in range(SYSTEMS_PER_NAMESPACE)]
