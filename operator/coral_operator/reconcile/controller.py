@@ -71,7 +71,6 @@ class Controller:
             post=post,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
-            policy=policy,
             pod_settings=pod_settings or PodSettings(policy=policy),
         )
         self.systems = SystemReconciler(

@@ -29,7 +29,6 @@ from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import instance_pass, provenance
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.pods import HostPathRefused, PodSettings
-from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
@@ -76,17 +75,15 @@ class InstanceReconciler:
         requeue: Callable[[Key, float], None],
         wake_system: Callable[[Key], None] = lambda _key: None,
         clock: Callable[[], datetime] = lambda: datetime.now(UTC),
-        policy: Policy | None = None,
         pod_settings: PodSettings | None = None,
     ) -> None:
         self.memory = memory
-        self.policy = pod_settings.policy if pod_settings is not None else policy or Policy()
         self.indexes = indexes
         self.post = post
         self.requeue = requeue
         self.wake_system = wake_system
         self.clock = clock
-        self.pod_settings = pod_settings or PodSettings(policy=self.policy)
+        self.pod_settings = pod_settings or PodSettings()
 
     def reconcile(self, key: Key) -> None:
         indexed: InstanceRecord | None = next(
@@ -177,7 +174,7 @@ class InstanceReconciler:
         problem = provenance.evaluate_revision(spec, self._history(system, spec.revision))
         if problem is not None:
             return Reason.FOREIGN_INSTANCE, _not_served([problem])
-        denied = provenance.evaluate_instance_policy(record.namespace, spec, self.policy)
+        denied = provenance.evaluate_instance_policy(record.namespace, spec, self.pod_settings.policy)
         if denied:
             refusals = "; ".join(denied)
             return Reason.POLICY_DENIED, f"Not served, the operator's policy refuses: {refusals}."

@@ -20,6 +20,7 @@ from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import instances, naming, revisions
 from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
+from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
@@ -195,7 +196,9 @@ class Harness:
         }
         self.woken: list[tuple[str, str]] = []
         policy = Policy(host_network_namespaces=frozenset({NS}))
-        self.instances = InstanceReconciler(**common, wake_system=self.woken.append, policy=policy)
+        self.instances = InstanceReconciler(
+            **common, wake_system=self.woken.append, pod_settings=PodSettings(policy=policy)
+        )
         self.handed_over: list[tuple[str, str]] = []
         self.systems = SystemReconciler(
             **common,
