@@ -9,7 +9,9 @@ ignored on one machine):
 - `services.<name>.image`: looked up as an installed component (see `coral.local.components`).
 - `services.<name>.environment`: mapping or `KEY=VALUE` list. Every value of the file is
   interpolated as Docker Compose does (`${VAR}`, `${VAR:-default}`, `${VAR:?message}`,
-  `${VAR:+alt}`, `$$`, ...), from the environment, then `.env` beside the file.
+  `${VAR:+alt}`, `$$`, ...), from the environment, then `.env` beside the file. Each service's
+  whole mapping, interpolated the same way, is kept as `Service.fields` for `coral convert`,
+  which maps the fields `coral run` ignores (`command`, `volumes`, `devices`...) onto pods.
 - `services.<name>.x-coral`: `command` (argv list or string, run instead of the image's component;
   placeholders `{plugins}`, `{params}`, `{tree}`, `{name}`, `{output}`, `{python}`), `transient`
   (a driver that may exit 0 and count as done), `ready_timeout_s`, `main_tree` / `rate` (executors).
@@ -70,6 +72,8 @@ class Service:
     ready_timeout_s: float | None = None
     main_tree: str | None = None
     rate: float | None = None
+    # The service's whole mapping as plain data, every value interpolated (`interpolated_data`).
+    fields: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -220,6 +224,54 @@ def _line(node: yaml.Node) -> int:
     return node.start_mark.line + 1
 
 
+_RESOLVER = yaml.resolver.Resolver()
+_STRING_TAG = "tag:yaml.org,2002:str"
+# What an unquoted value may become once interpolated, as Docker Compose casts `privileged:
+# ${PRIVILEGED}` to a boolean; an empty result stays an empty string, as in compose.
+_CAST_TAGS = {"tag:yaml.org,2002:bool", "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"}
+
+
+def _interpolated_node(
+    node: yaml.Node, file: Path, env: dict[str, str], done: dict[int, yaml.Node]
+) -> yaml.Node:
+    """A copy of `node` with every string value interpolated; keys are left as written, as compose
+    leaves them. `done` maps nodes already copied, so an alias stays one shared (even recursive) node."""
+    if id(node) in done:
+        return done[id(node)]
+    if isinstance(node, yaml.ScalarNode):
+        if node.tag != _STRING_TAG or "$" not in node.value:
+            return node
+        value = interpolate(node.value, env, file, _line(node))
+        tag = _RESOLVER.resolve(yaml.ScalarNode, value, (True, False)) if node.style is None else node.tag
+        return yaml.ScalarNode(
+            tag if tag in _CAST_TAGS else _STRING_TAG, value, node.start_mark, node.end_mark, node.style
+        )
+    copy: yaml.CollectionNode
+    if isinstance(node, yaml.SequenceNode):
+        copy = done[id(node)] = yaml.SequenceNode(
+            node.tag, [], node.start_mark, node.end_mark, node.flow_style
+        )
+        copy.value.extend(_interpolated_node(item, file, env, done) for item in node.value)
+    else:
+        copy = done[id(node)] = yaml.MappingNode(
+            node.tag, [], node.start_mark, node.end_mark, node.flow_style
+        )
+        copy.value.extend((key, _interpolated_node(value, file, env, done)) for key, value in node.value)
+    return copy
+
+
+def interpolated_data(node: yaml.Node, file: Path, env: dict[str, str]) -> Any:
+    """The YAML `node` as plain data (merge keys applied), every value interpolated as compose does.
+
+    Raises ComposeError naming the line of a value that does not interpolate or a mapping YAML
+    cannot build."""
+    try:
+        return yaml.constructor.SafeConstructor().construct_document(_interpolated_node(node, file, env, {}))
+    except yaml.constructor.ConstructorError as err:
+        mark = err.problem_mark or err.context_mark
+        raise ComposeError(file, mark.line + 1 if mark else None, str(err.problem)) from None
+
+
 def _mapping(node: yaml.Node, file: Path, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
     if not isinstance(node, yaml.MappingNode):
         raise ComposeError(file, _line(node), f"{what} must be a mapping")
@@ -350,7 +402,7 @@ def _service(name: str, key: yaml.Node, node: yaml.Node, file: Path, env: dict[s
             f"service {name} needs exactly one of the profiles {', '.join(ROLES)}"
             f" (found {profiles or 'none'})",
         )
-    service = Service(name=name, role=roles[0], line=_line(key))
+    service = Service(name=name, role=roles[0], line=_line(key), fields=interpolated_data(node, file, env))
     if "image" in fields:
         service.image = _scalar(fields["image"][1], file, "image", env)
     if "environment" in fields:

@@ -61,7 +61,8 @@ def _memory(value: Any) -> str:
 
 
 def kubernetes_fields(service: dict[str, Any], where: str, warnings: list[str]) -> dict[str, Any]:
-    """Component fields from one raw compose service (everything but name, env and transient)."""
+    """Component fields from one interpolated compose service (`coral.local.compose.Service.fields`):
+    everything but name, env and transient."""
     if not service.get("image"):
         raise ConvertError(
             f"{where}.image: required on Kubernetes (the cluster runs images, it does not build)"

@@ -56,7 +56,6 @@ def convert(
         project = coral_compose.parse_compose(compose_file, None if environ is None else dict(environ))
     except coral_compose.ComposeError as error:
         raise ConvertError(str(error)) from error
-    raw = yaml.safe_load(compose_file.read_text())["services"]
     tree_file = tree or project.tree
     params_file = params or project.params
     if tree_file is None:
@@ -67,8 +66,9 @@ def convert(
     for service in project.services:
         where = f"{compose_file.name}:{service.line}: services.{service.name}"
         component = {"name": component_name(service.name)}
-        component |= kubernetes_fields(raw[service.name], where, warnings)
-        if service.role != "executor" and "command" not in raw[service.name] and params_file is not None:
+        # `fields` is interpolated as `coral run` reads the file, so both run the same images and paths.
+        component |= kubernetes_fields(service.fields, where, warnings)
+        if service.role != "executor" and "command" not in service.fields and params_file is not None:
             # Coral's component CLI (coral.sdk) takes the parameters file as --params; the operator
             # mounts the validated file there.
             component["args"] = ["--params", PARAMS_IN_CONTAINER]

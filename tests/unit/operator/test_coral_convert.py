@@ -143,3 +143,75 @@ def test_a_namespace_or_robot_label_kubernetes_refuses_is_named_before_conversio
     result = CliRunner().invoke(convert_command, [str(_folder(tmp_path)), *arguments])
     assert result.exit_code == 2
     assert message in result.output and "errors.pydantic.dev" not in result.output
+
+
+# Issue 52: convert read image, command and volumes from the file before interpolation, so a
+# mission converted from a compose file with `${VARIABLES}` ran other images and mounts than
+# `coral run` of the same folder. Every case sets one variable in the environment and one in `.env`.
+INTERPOLATED = """services:
+  lidar:
+    image: ${REGISTRY}/lidar:${TAG:-1}
+    profiles: [drivers]
+    entrypoint: ${PYTHON} -m lidar
+    command: ["--port", "${PORT}"]
+    privileged: ${PRIVILEGED}
+    devices: ["${DEVICE}:/dev/lidar"]
+    volumes: ["${BAGS}:/bags:ro", "$${NOT_A_VARIABLE}:/x"]
+    environment:
+      FRAME: ${FRAME}
+  executor:
+    image: ${REGISTRY}/executor:1
+    profiles: [executors]
+"""
+ENVIRONMENT = {"REGISTRY": "registry.site", "PYTHON": "python3", "PRIVILEGED": "true", "FRAME": "laser"}
+DOTENV = "PORT=7000\nDEVICE=/dev/ttyUSB0\nBAGS=/var/lib/coral/bags\nTAG=2\n"
+
+
+def _converted_interpolated(tmp_path: Path) -> CoralSystemSpec:
+    folder = _folder(tmp_path, INTERPOLATED)
+    (folder / ".env").write_text(DOTENV)
+    result = CliRunner().invoke(convert_command, [str(folder)], env=ENVIRONMENT)
+    assert result.exit_code == 0, result.output
+    return CoralSystemSpec.model_validate(yaml.safe_load(result.stdout)["spec"])
+
+
+def test_images_are_interpolated_as_coral_run_reads_them(tmp_path: Path) -> None:
+    from coral.local.compose import parse_compose
+
+    spec = _converted_interpolated(tmp_path)
+    converted = [spec.drivers[0].image, spec.executors[0].image]
+    assert converted == ["registry.site/lidar:2", "registry.site/executor:1"]
+    ran = parse_compose(tmp_path / "compose.yaml", {**ENVIRONMENT})
+    assert [service.image for service in ran.services] == converted
+
+
+def test_entrypoint_and_command_are_interpolated(tmp_path: Path) -> None:
+    driver = _converted_interpolated(tmp_path).drivers[0]
+    assert driver.command == ["python3", "-m", "lidar"]
+    assert driver.args == ["--port", "7000"]
+
+
+def test_volumes_and_devices_are_interpolated_and_dollar_dollar_stays_a_dollar(tmp_path: Path) -> None:
+    folder = _folder(tmp_path, INTERPOLATED)
+    (folder / ".env").write_text(DOTENV)
+    result = CliRunner().invoke(convert_command, [str(folder)], env=ENVIRONMENT)
+    assert result.exit_code == 0, result.output
+    driver = CoralSystemSpec.model_validate(yaml.safe_load(result.stdout)["spec"]).drivers[0]
+    assert [(m.host_path, m.mount_path, m.read_only) for m in driver.host_paths] == [
+        ("/var/lib/coral/bags", "/bags", True)
+    ]
+    assert "${NOT_A_VARIABLE}:/x is not a host bind mount" in result.stderr
+    assert [(d.host_path, d.container_path) for d in driver.devices] == [("/dev/ttyUSB0", "/dev/lidar")]
+
+
+def test_an_interpolated_boolean_and_environment_are_typed_as_compose_casts_them(tmp_path: Path) -> None:
+    driver = _converted_interpolated(tmp_path).drivers[0]
+    assert driver.privileged is True
+    assert [(e.name, e.value) for e in driver.env] == [("FRAME", "laser")]
+
+
+def test_a_required_variable_in_a_volume_is_named_with_its_line(tmp_path: Path) -> None:
+    compose = COMPOSE.replace('["plugins:/plugins"]', '["${MAPS:?set MAPS to the maps folder}:/maps"]')
+    result = CliRunner().invoke(convert_command, [str(_folder(tmp_path, compose))], env={"MAPS": None})
+    assert result.exit_code != 0
+    assert "compose.yaml:19: variable MAPS is required: set MAPS to the maps folder" in result.output
