@@ -2,7 +2,7 @@
 
 Every record is a flat JSON-able dict with `ts` (Unix seconds) and `event`; sinks
 (`coral.executor.sinks`) write them out. The record format is documented in docs/skillsets.md
-("Executor status records") and read by the local runtime and the operator's Kubernetes sink.
+("Status records") and read by the local runtime and the operator's Kubernetes sink.
 """
 
 from __future__ import annotations
