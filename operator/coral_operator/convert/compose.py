@@ -39,6 +39,14 @@ def _words(value: Any, where: str) -> list[str]:
     raise ConvertError(f"{where}: expected a string or a list")
 
 
+def _entries(service: dict[str, Any], key: str, where: str) -> list[str | dict[str, Any]]:
+    """The list under `key`, each entry a string (short syntax) or a mapping (long syntax)."""
+    entries = service.get(key) or []
+    if not isinstance(entries, list) or not all(isinstance(e, str | dict) for e in entries):
+        raise ConvertError(f"{where}.{key}: expected a list of strings or mappings")
+    return entries
+
+
 def _readiness(check: Any, where: str) -> dict[str, Any] | None:
     if not isinstance(check, dict) or check.get("disable"):
         return None
@@ -75,13 +83,13 @@ def kubernetes_fields(service: dict[str, Any], where: str, warnings: list[str]) 
     if service.get("privileged"):
         fields["privileged"] = True
     devices = []
-    for entry in service.get("devices") or []:
+    for entry in _entries(service, "devices", where):
         host, _, rest = str(entry).partition(":")
         devices.append({"hostPath": host, **({"containerPath": rest.split(":")[0]} if rest else {})})
     if devices:
         fields["devices"] = devices
     host_paths = []
-    for entry in service.get("volumes") or []:
+    for entry in _entries(service, "volumes", where):
         text = entry if isinstance(entry, str) else f"{entry.get('source')}:{entry.get('target')}"
         parts = str(text).split(":")
         if len(parts) >= 2 and parts[0].startswith("/"):

@@ -215,3 +215,10 @@ def test_a_required_variable_in_a_volume_is_named_with_its_line(tmp_path: Path) 
     result = CliRunner().invoke(convert_command, [str(_folder(tmp_path, compose))], env={"MAPS": None})
     assert result.exit_code != 0
     assert "compose.yaml:19: variable MAPS is required: set MAPS to the maps folder" in result.output
+
+
+def test_a_volume_that_is_neither_a_string_nor_a_mapping_is_named(tmp_path: Path) -> None:
+    compose = COMPOSE.replace('["plugins:/plugins"]', "[[/srv/maps, /maps]]")
+    result = CliRunner().invoke(convert_command, [str(_folder(tmp_path, compose))])
+    assert result.exit_code == 1
+    assert "services.executor.volumes: expected a list of strings or mappings" in result.output
