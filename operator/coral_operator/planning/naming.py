@@ -11,8 +11,8 @@ import json
 import re
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.components import Role
+from coral_core import names
+from coral_core.instance_status import Role
 
 ROBOT_POD = "robot"
 

@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from coral_operator.api import names
+from coral_core import names
+
 from coral_operator.planning import naming
 
 ROBOT_SPEC_FIELDS = ("robot", "nodeName", "revision")

@@ -14,7 +14,8 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import common, names
+from coral_core import names
+from coral_operator.api import common
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
