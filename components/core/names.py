@@ -2,7 +2,7 @@
 
 Defined here once; the operator's builders and handlers, `coral rollout`, the CRD generator and
 the executor's status sink all import them from here. The wire names of status fields are not
-here: `api.keys` derives them from the models.
+here: `coral_core.keys` and `coral_operator.api.keys` derive them from the models.
 """
 
 from __future__ import annotations

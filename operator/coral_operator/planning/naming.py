@@ -1,7 +1,7 @@
 """Names, label sets and content hashes of everything the operator creates.
 
 One module so the handlers, the planners and the tests agree on every name; the API's own names
-(group, labels, annotations) are `api.names`. Pure.
+(group, labels, annotations) are `coral_core.names`. Pure.
 """
 
 from __future__ import annotations
