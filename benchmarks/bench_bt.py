@@ -1,4 +1,4 @@
-"""Tick time of 100-node all-synchronous trees in coral.bt, stock py_trees (same shape) and BT.CPP
+"""Tick time of 100-node all-synchronous trees in coral_core.bt, stock py_trees (same shape) and BT.CPP
 (behaviortreepy); prints BENCH lines including coral's ratio to py_trees against the 0.3 target.
 
 Two trees: one of constant leaves, and a blackboard-heavy one whose every leaf reads or writes an
@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable
 
 import behaviortreepy as btpy
-import coral.bt as bt
+import coral_core.bt as bt
 import py_trees
 
 GROUPS = 9
@@ -51,7 +51,7 @@ def host_entries() -> dict[str, int]:
 def coral_tick(board_heavy: bool = False) -> Callable[[], object]:
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(tree_xml(board_heavy), registry)
-    tree = doc.build(registry, blackboard=host_entries())
+    tree = bt.build_tree(doc, registry, blackboard=host_entries())
     assert len(tree.nodes) == 100
     return tree.tick_exactly_once
 
@@ -138,11 +138,11 @@ def report_groot2() -> None:
     import sys
 
     import zmq
-    from coral.bt.groot2 import Groot2Publisher
+    from coral_core.bt.groot2 import Groot2Publisher
 
     plain = coral_tick()
     registry = bt.NodeRegistry.with_builtins()
-    tree = bt.load_tree_text(tree_xml(), registry).build(registry, blackboard=host_entries())
+    tree = bt.build_tree(bt.load_tree_text(tree_xml(), registry), registry, blackboard=host_entries())
     port = 21667
     while True:
         try:

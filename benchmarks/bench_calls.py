@@ -67,17 +67,18 @@ def _raw_round(context: Any, calls: int) -> list[float]:
 
 
 def _behavior_round(context: Any, plugins: Path, calls: int) -> list[float]:
-    from coral import bt, coordination
+    from coral import coordination
     from coral.executor import plugins_phase, sinks
     from coral.executor.ticking import TickLoop
     from coral.plugins import compat
+    from coral_core import bt
 
     document = bt.load_tree_text(TREE.format(cycles=calls + 1))
     registry = bt.NodeRegistry.with_builtins()
     coordination.register(registry)
     state = plugins_phase.PluginState(used=document.node_types_used(), builtin_ids=set(registry.node_ids()))
     plugins_phase.refresh(state, registry, plugins, compat.current_ros_distro())
-    tree = document.build(registry, context=context)
+    tree = bt.build_tree(document, registry, context=context)
     context.wake_up = tree.wake_up
     starts: list[float] = []
 

@@ -1,5 +1,5 @@
 """Allows `python -m coral`, the same as the `coral` console script."""
 
-from coral.cli import main
+from coral_core.command import main
 
 main()

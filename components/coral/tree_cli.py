@@ -31,11 +31,10 @@ def watch_command(
     host: str, port: int, once: bool, as_json: bool, blackboards: bool, interval: float, timeout: float
 ) -> None:
     """Draw the live tree of a Groot2 publisher in the terminal (rich)."""
+    from coral_core.bt.groot2.client import Groot2Client, Groot2Error
+    from coral_core.bt.groot2.watching import Watcher, render
     from rich.console import Console
     from rich.live import Live
-
-    from coral.bt.groot2.client import Groot2Client, Groot2Error
-    from coral.bt.groot2.watching import Watcher, render
 
     if as_json and not once:
         raise click.UsageError("--json needs --once")

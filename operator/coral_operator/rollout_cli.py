@@ -2,7 +2,7 @@
 
 Thin verbs over `rollout_control`, which reads `status.rollout` and writes what the operator
 reads: `spec.rollout.paused` (pause, resume), the removal of a recorded health-gate failure
-(resume) and the `coral.dev/rollout-undo` annotation (undo). Loaded lazily by `coral.cli`.
+(resume) and the `coral.dev/rollout-undo` annotation (undo). Loaded lazily by `coral_core.command`.
 """
 
 from __future__ import annotations
@@ -13,8 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 import click
-from coral import terminal
-from coral.local import polling
+from coral_core import polling, terminal
 from rich.console import Group, RenderableType
 from rich.padding import Padding
 from rich.text import Text

@@ -14,11 +14,12 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
+from coral_core import names
 from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 from kubernetes.client.exceptions import ApiException
 
-from coral_operator.api import keys, names
+from coral_operator.api import keys
 
 
 class RolloutError(Exception):

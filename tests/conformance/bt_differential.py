@@ -1,4 +1,4 @@
-"""Runs seeded random trees in real BT.CPP (behaviortreepy) and in coral.bt and compares their whole
+"""Runs seeded random trees in real BT.CPP (behaviortreepy) and in coral_core.bt and compares their whole
 traces: per tick the root status (a runtime error counts as a status), the leaf calls with the
 blackboard each leaf sees, the root blackboard's values as `std::to_string` prints them, the node
 transitions as BT.CPP's FileLogger records them; then haltTree() with its halts and final board,

@@ -1,5 +1,5 @@
-"""Runs the same trees in real BT.CPP's Groot2Publisher (behaviortreepy) and in coral.bt's, and
-reads both through one pyzmq client (`coral.bt.groot2.client`): the FULLTREE parsed as a tree,
+"""Runs the same trees in real BT.CPP's Groot2Publisher (behaviortreepy) and in coral_core.bt's, and
+reads both through one pyzmq client (`coral_core.bt.groot2.client`): the FULLTREE parsed as a tree,
 STATUS after every tick, every subtree's blackboard after every tick (MessagePack decoded), and the
 recorded transitions (uid and status in order; times ignored). `bt_groot2_hooks` adds hooks.
 
@@ -19,8 +19,8 @@ from typing import Any
 
 from bt_groot2_engines import BTCPP, CORAL, EngineHost, LoadRequest
 from bt_random_trees import VARS, generate
-from coral.bt.builder import literal_value
-from coral.bt.groot2.client import Groot2Client
+from coral_core.bt.builder import literal_value
+from coral_core.bt.groot2.client import Groot2Client
 
 TICKS = 15
 ROOT = "ROOT"

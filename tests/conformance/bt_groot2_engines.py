@@ -1,7 +1,7 @@
 """Engine hosts for the Groot2 differential tests: a child process that loads trees with scripted
-stubs into real BT.CPP (behaviortreepy's `Groot2Publisher`) or into coral.bt (its own publisher),
+stubs into real BT.CPP (behaviortreepy's `Groot2Publisher`) or into coral_core.bt (its own publisher),
 publishes each on a free port pair and ticks it on command, while the test process talks to the
-publisher through one pyzmq client (`coral.bt.groot2.client`).
+publisher through one pyzmq client (`coral_core.bt.groot2.client`).
 
 Why a process per engine: a breakpoint in behaviortreepy holds the GIL while it waits, so its
 client must live elsewhere; and BT.CPP 4.8.2's publisher takes 100 ms to destroy (its server
@@ -91,10 +91,10 @@ class _CoralHost:
         self.publisher: Any = None
 
     def load(self, req: LoadRequest, port: int) -> tuple[str, Any]:
-        import coral.bt as bt
+        import coral_core.bt as bt
         import zmq
         from bt_harness import Outcomes, stub_registry
-        from coral.bt.groot2 import Groot2Publisher
+        from coral_core.bt.groot2 import Groot2Publisher
 
         outcomes = Outcomes(req.outcomes)
         registry = stub_registry(outcomes, req.leaf_ids, req.cond_ids, req.deco_ids)
@@ -103,7 +103,7 @@ class _CoralHost:
                 doc = bt.load_tree_file(req.file, registry, main_tree=req.main_tree)
             else:
                 doc = bt.load_tree_text(req.xml, registry, main_tree=req.main_tree)
-            tree = doc.build(registry, blackboard=dict(req.host_vars))
+            tree = bt.build_tree(doc, registry, blackboard=dict(req.host_vars))
         except bt.BTLoadError as err:
             return "REJECT", str(err)
         while True:
@@ -126,7 +126,7 @@ class _CoralHost:
         return "LOADED", port
 
     def tick_tree(self) -> tuple[str, Any]:
-        import coral.bt as bt
+        import coral_core.bt as bt
 
         try:
             return "status", int(self.tick())

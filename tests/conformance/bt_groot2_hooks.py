@@ -1,4 +1,4 @@
-"""Hooks compared between real BT.CPP's Groot2Publisher and coral.bt's through one pyzmq client:
+"""Hooks compared between real BT.CPP's Groot2Publisher and coral_core.bt's through one pyzmq client:
 replace hooks, breakpoints unlocked with SUCCESS, FAILURE or SKIPPED (some with `once` or
 `remove_when_done`), the hooks dump, and the heartbeat release (a breakpoint whose client went
 silent lets the tick go on). Each engine runs the same script; the traces must be equal.
@@ -16,8 +16,8 @@ from typing import Any
 
 from bt_groot2_differential import fulltree_shape
 from bt_groot2_engines import BTCPP, CORAL, EngineHost, LoadRequest
-from coral.bt.groot2 import protocol as p
-from coral.bt.groot2.client import Groot2Client
+from coral_core.bt.groot2 import protocol as p
+from coral_core.bt.groot2.client import Groot2Client
 
 UNLOCKS = ("SUCCESS", "FAILURE", "SKIPPED")
 SUB_SETTLE_S = 0.1

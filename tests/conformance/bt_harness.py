@@ -1,5 +1,5 @@
 """Differential harness: runs the same XML with scripted stubs in real BT.CPP (behaviortreepy) and in
-coral.bt, returning per-tick root statuses and the per-node transition stream of each engine.
+coral_core.bt, returning per-tick root statuses and the per-node transition stream of each engine.
 
 BT.CPP's transitions come from its own FileLogger (.btlog, format "BTCPP4-FileLogger2": header, uint32
 XML length, the instantiated tree as XML with `_uid`s, uint64 start time, then 9-byte records of
@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import behaviortreepy as btpy
-import coral.bt as bt
-from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
-from coral.bt.nodes.base import DecoratorNode
+import coral_core.bt as bt
+from coral_core.bt.leaves import ConditionNode, StatefulAction, SyncAction
+from coral_core.bt.nodes.base import DecoratorNode
 
 BTCPP_STATUS = {
     btpy.NodeStatus.IDLE: 0,
@@ -195,7 +195,7 @@ def btcpp_board_text(board: btpy.Blackboard) -> dict[str, str]:
 
 
 def coral_board_text(board: bt.Blackboard) -> dict[str, str]:
-    from coral.bt.anyvalue import EMPTY, std_to_string
+    from coral_core.bt.anyvalue import EMPTY, std_to_string
 
     out = {}
     for key in board.keys():
@@ -391,7 +391,7 @@ def finish_batch(batch: list[_Pending], settle_s: float = 0.03, deadline_s: floa
     batch.clear()
 
 
-# ----------------------------------------------------------------------------------------- coral.bt
+# ----------------------------------------------------------------------------------------- coral_core.bt
 def stub_registry(
     outcomes: Outcomes,
     leaf_ids: tuple[str, ...] = ("Leaf",),
@@ -461,7 +461,7 @@ def run_coral(
             doc = bt.load_tree_file(file, registry, main_tree=main_tree)
         else:
             doc = bt.load_tree_text(xml_text or "", registry, main_tree=main_tree)
-        tree = doc.build(registry, blackboard=dict(host_vars or {}))
+        tree = bt.build_tree(doc, registry, blackboard=dict(host_vars or {}))
     except bt.BTLoadError as err:
         return Run("REJECT", [], [], str(err))
     tree.add_transition_listener(lambda t: transitions.append((t.uid, int(t.status))))

@@ -1,6 +1,6 @@
 """One small tree per blackboard/script/SubTree/halt rule where the engine once differed from BT.CPP.
 
-Each tree runs in real BT.CPP (behaviortreepy) and in coral.bt with the same scripted leaves; the
+Each tree runs in real BT.CPP (behaviortreepy) and in coral_core.bt with the same scripted leaves; the
 whole trace must agree (per tick: root status, leaf calls with the blackboard each leaf sees, the root
 blackboard as `std::to_string` prints it; then haltTree()), and each test also pins what BT.CPP did,
 so a change in either engine shows up.

@@ -1,12 +1,12 @@
 """Every corpus file, with generic port-less stubs, gets the same load verdict and the same root status
-over 200 tickExactlyOnce calls in real BT.CPP (behaviortreepy) and in coral.bt, except the differences
+over 200 tickExactlyOnce calls in real BT.CPP (behaviortreepy) and in coral_core.bt, except the differences
 listed in KNOWN with their reason."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import coral.bt as bt
+import coral_core.bt as bt
 import pytest
 from bt_corpus import CORPUS, read_sources, stubbed_copy
 from bt_harness import Outcomes, run_btcpp, run_coral, stub_registry
@@ -56,7 +56,7 @@ def test_t09_scripting_with_its_enums_registered_succeeds_like_bt_cpp_4_10(stubb
     registry = stub_registry(Outcomes({}), **STUBS)
     for name, value in {"THE_ANSWER": 42, "RED": 1, "BLUE": 2, "GREEN": 3}.items():
         registry.register_enum(name, value)
-    tree = bt.load_tree_file(dest / "btcpp/extracted/t09_scripting.xml", registry).build(registry)
+    tree = bt.build_tree(bt.load_tree_file(dest / "btcpp/extracted/t09_scripting.xml", registry), registry)
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("A") == 42
 
@@ -66,7 +66,7 @@ def test_t16_runs_once_the_host_sets_the_global_value(stubbed: tuple) -> None:
     registry = stub_registry(Outcomes({}), **STUBS)
     path = dest / "btcpp/extracted/t16_global_blackboard.xml"
     doc = bt.load_tree_file(path, registry, main_tree="MainTree")
-    tree = doc.build(registry, blackboard={"value": 3})
+    tree = bt.build_tree(doc, registry, blackboard={"value": 3})
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("value_sqr") == 9
 
@@ -76,7 +76,7 @@ def test_moveit_pro_tree_ids_with_spaces_are_accepted_with_a_warning(stubbed: tu
     registry = stub_registry(Outcomes({}), **STUBS)
     doc = bt.load_tree_file(dest / "moveit_pro/lab_sim_plan_to_pose.xml", registry)
     assert any("contains spaces" in w for w in doc.warnings)
-    assert doc.build(registry).tick_exactly_once() == bt.Status.SUCCESS
+    assert bt.build_tree(doc, registry).tick_exactly_once() == bt.Status.SUCCESS
 
 
 # Where the 4.10 oracle in SOURCES.md ran a differently stubbed file: its MoveBase stub kept the

@@ -1,5 +1,5 @@
 """Acceptance 1 of issue 49: real BT.CPP's Groot2Publisher (behaviortreepy, BT.CPP 4.8.2) and
-coral.bt's publisher, read through one pyzmq client, give the same FULLTREE (parsed as a tree),
+coral_core.bt's publisher, read through one pyzmq client, give the same FULLTREE (parsed as a tree),
 STATUS after every tick, blackboards, recorded transitions and hook behaviour, for the
 conformance corpus and random trees.
 
@@ -18,7 +18,7 @@ from bt_corpus import CORPUS, read_sources, stubbed_copy
 from bt_groot2_differential import Report, compare, random_requests
 from bt_groot2_engines import LoadRequest
 from bt_groot2_hooks import HookReport, HookScript, compare_hooks, random_script
-from coral.bt.groot2 import protocol as p
+from coral_core.bt.groot2 import protocol as p
 
 TREES = int(os.environ.get("CORAL_GROOT2_DIFF_TREES", "150"))
 HOOKED_TREES = int(os.environ.get("CORAL_GROOT2_HOOKED_TREES", "15"))

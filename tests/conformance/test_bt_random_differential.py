@@ -1,4 +1,4 @@
-"""Seeded random trees run in real BT.CPP (behaviortreepy) and in coral.bt must leave identical traces:
+"""Seeded random trees run in real BT.CPP (behaviortreepy) and in coral_core.bt must leave identical traces:
 per tick the root status (a runtime error counts, located by its script and cause), the leaf calls
 with the blackboard each leaf sees, the root blackboard's values, the node transitions as BT.CPP's
 FileLogger records them; then haltTree() and three ticks that must start the tree over. A share of

@@ -1,4 +1,4 @@
-"""Seeded random trees about values, run in real BT.CPP (behaviortreepy) and in coral.bt, must leave
+"""Seeded random trees about values, run in real BT.CPP (behaviortreepy) and in coral_core.bt, must leave
 identical traces:
 
 - scripts (`bt_random_scripts`): every operator on every kind of value, text read as a number, and

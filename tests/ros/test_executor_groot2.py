@@ -10,8 +10,8 @@ import time
 from pathlib import Path
 
 import pytest
-from coral.bt.groot2 import protocol as p
-from coral.bt.groot2.client import Groot2Client, Groot2Error
+from coral_core.bt.groot2 import protocol as p
+from coral_core.bt.groot2.client import Groot2Client, Groot2Error
 from fixtures.ports import free_port_pair
 from fixtures.processes import Spawn
 

@@ -1,9 +1,18 @@
-"""The installed project keeps its import packages apart from the standard library."""
+"""The installed project keeps its import packages apart from the standard library, and the `coral`
+command offers the verbs of the parts that are installed, registered where they live."""
 
 import importlib
 import operator
+import runpy
 import subprocess
 import sys
+from pathlib import Path
+
+import click
+from coral_core import command
+
+ROOT = Path(__file__).resolve().parents[2]
+SETUP = runpy.run_path(str(ROOT / "setup.py"), run_name="setup_for_tests")
 
 
 def test_the_operator_folder_does_not_shadow_the_standard_library_operator_module() -> None:
@@ -13,7 +22,7 @@ def test_the_operator_folder_does_not_shadow_the_standard_library_operator_modul
 
 
 def test_every_role_package_imports() -> None:
-    for name in ("coral", "coral_operator", "coral_testbed", "coral_skillsets", "coral_drivers"):
+    for name in SETUP["PACKAGE_ROOTS"]:
         assert importlib.import_module(name).__doc__
 
 
@@ -21,4 +30,38 @@ def test_the_coral_command_lists_its_verbs() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "coral", "--help"], capture_output=True, text=True, check=True
     )
-    assert "dev-cluster" in result.stdout
+    for verb in ("run", "executor", "operator", "rollout", "dev-cluster"):
+        assert f"  {verb} " in result.stdout, result.stdout
+
+
+def test_every_installed_verb_is_a_click_command_of_its_own_part() -> None:
+    verbs = command.installed_verbs()
+    # This checkout has every root, so every registered verb is installed.
+    registered = SETUP["entry_points"](list(SETUP["PACKAGE_ROOTS"]))["coral.verbs"]
+    assert sorted(verbs) == sorted(verb.split(" = ")[0] for verb in registered)
+    for name, entry in verbs.items():
+        assert isinstance(entry.load(), click.Command), name
+
+
+def test_a_copy_without_the_testbed_registers_none_of_its_verbs() -> None:
+    """What an image installs: its roots only (the operator image has no testbed, no robot side)."""
+    roots = ["coral_core", "coral_operator"]
+    verbs = SETUP["entry_points"](roots)["coral.verbs"]
+    assert {verb.split(" = ")[0] for verb in verbs} == {"operator", "convert", "crds", "rollout"}
+    assert "coral.components" not in SETUP["entry_points"](roots)
+    assert SETUP["entry_points"](roots)["console_scripts"] == ["coral = coral_core.command:main"]
+
+
+def test_each_entry_point_names_a_module_of_the_root_that_registers_it() -> None:
+    for root, groups in SETUP["ENTRY_POINTS"].items():
+        for entries in groups.values():
+            for entry in entries:
+                target = entry.split(" = ")[1]
+                assert target.split(".")[0] == root, entry
+
+
+def test_an_unknown_verb_is_refused() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "coral", "no-such-verb"], capture_output=True, text=True
+    )
+    assert result.returncode == 2 and "No such command 'no-such-verb'" in result.stderr

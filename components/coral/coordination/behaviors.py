@@ -9,8 +9,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from coral.bt import PortDirection, PortSpec, Status
-from coral.bt.leaves import StatefulAction, SyncAction
+from coral_core.bt import PortDirection, PortSpec, Status
+from coral_core.bt.leaves import StatefulAction, SyncAction
+
 from coral.coordination import messages
 
 # Resend an unacknowledged trigger this often: DDS is reliable once matched, but a peer that is

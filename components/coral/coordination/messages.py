@@ -10,7 +10,7 @@ import json
 import uuid
 from dataclasses import asdict, dataclass
 
-from coral import parsing
+from coral_core import parsing
 
 TRIGGER_TOPIC = "/coral/coordination/triggers"
 ACK_TOPIC = "/coral/coordination/acks"

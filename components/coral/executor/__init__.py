@@ -2,7 +2,3 @@
 
 Entry points: `python -m coral.executor` / `coral executor` (`cli`), `running.run_executor`.
 """
-
-# The fastest tick rate an executor accepts, wherever a rate is given: `coral executor --rate`, a
-# compose file's `x-coral.rate`, a CoralSystem's `tree.tickRateHz`.
-MAX_TICK_RATE_HZ = 1000

@@ -9,8 +9,7 @@ from pathlib import Path
 
 import click
 from click.decorators import FC
-
-from coral.executor import MAX_TICK_RATE_HZ
+from coral_core.limits import MAX_TICK_RATE_HZ
 
 
 def groot2_options(port_help: str) -> Callable[[FC], FC]:

@@ -1,6 +1,6 @@
 """The executor's ROS side: one node spun on a background thread, shared by every behavior.
 
-Built by `coral.executor.running`; passed to `TreeDocument.build(context=...)` so behaviors reach
+Built by `coral.executor.running`; passed to `bt.build_tree(context=...)` so behaviors reach
 it as `self.context` (see `coral.sdk.calls.CallContext`). ROS callbacks only record results and
 wake the tree; the tick thread never waits on ROS I/O.
 """

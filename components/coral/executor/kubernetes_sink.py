@@ -28,7 +28,7 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
-from coral_operator.api import keys, names
+from coral_core import keys, names
 
 LOG = logging.getLogger(__name__)
 Patcher = Callable[[dict[str, Any]], None]
@@ -62,7 +62,7 @@ def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
     """The status summary after one executor record (pure; unknown events change nothing).
 
     `state` and the result hold `tree` and `plugins` in the CoralInstance's wire format, keyed by
-    the wire names of `api.instance.TreeState` and `PluginState`.
+    the wire names of `coral_core.instance_status.TreeState` and `PluginState`.
     """
     tree = dict(state.get(keys.INSTANCE_STATUS.tree) or {})
     plugins = dict(state.get(keys.INSTANCE_STATUS.plugins) or {})

@@ -94,9 +94,9 @@ def _check_ros_names(options: ExecutorOptions) -> None:
 
 
 def run_executor(options: ExecutorOptions) -> int:
+    from coral_core import bt
     from rclpy.exceptions import NameValidationException
 
-    from coral import bt
     from coral.sdk import params
 
     try:
@@ -137,7 +137,9 @@ def run_executor(options: ExecutorOptions) -> int:
 
 
 def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFanout, stop: _Stop) -> int:
-    from coral import bt, coordination
+    from coral_core import bt
+
+    from coral import coordination
     from coral.coordination.hub import CoordinationHub
     from coral.executor.context import ExecutorContext
     from coral.plugins import compat
@@ -180,14 +182,14 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             )
             _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_WAIT_TIMEOUT, tick_count=0)
             return EXIT_WAIT_TIMEOUT
-        problems = document.validate(registry)
+        problems = bt.validate_document(document, registry)
         if problems:
             for problem in problems:
                 _emit(fanout, "error", message=str(problem))
             _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
             return EXIT_BAD_INPUT
         try:
-            tree = document.build(registry, context=context)
+            tree = bt.build_tree(document, registry, context=context)
         except bt.BTError as err:
             _emit(fanout, "error", message=str(err))
             _emit(fanout, "finished", root_status="IDLE", exit_code=EXIT_BAD_INPUT, tick_count=0)
@@ -226,8 +228,7 @@ def _start_groot2(options: ExecutorOptions, tree: Any, fanout: sinks.SinkFanout)
     import struct
 
     import zmq
-
-    from coral.bt.groot2 import Groot2Publisher
+    from coral_core.bt.groot2 import Groot2Publisher
 
     try:
         publisher = Groot2Publisher(

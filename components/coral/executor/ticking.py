@@ -149,7 +149,7 @@ class TickLoop:
             self._last_status_at = now
 
     def run(self, stop: threading.Event, stop_code: Callable[[], int]) -> int:
-        from coral import bt
+        from coral_core import bt
 
         root: Any = bt.Status.IDLE
         try:

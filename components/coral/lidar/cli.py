@@ -6,8 +6,8 @@ import sys
 from pathlib import Path
 
 import click
+from coral_core import terminal
 
-from coral import terminal
 from coral.lidar import generating
 from coral.local.cli import TREE_PNG, output_option
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from coral_core import terminal
 
-from coral import terminal
 from coral.lidar import generating, mapfile, picture, trajectory
 
 EXAMPLE_MAP_NAME = "slam_map.ply"

@@ -15,9 +15,10 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from coral_core.compose import ComposeError, Project, Service, find_compose_file, parse_compose
+
 import coral
 from coral.local import components
-from coral.local.compose import ComposeError, Project, Service, find_compose_file, parse_compose
 
 
 @dataclass
@@ -115,8 +116,10 @@ def project_manifests(project: Project) -> tuple[dict[str, object], list[str]]:
 def registry_for(manifests: dict[str, object]) -> object:
     """The executor's built-ins (the engine's and the coordination behaviors) plus placeholder
     node types for every manifest behavior."""
-    from coral import bt, coordination
-    from coral.bt import leaves
+    from coral_core import bt
+    from coral_core.bt import leaves
+
+    from coral import coordination
 
     registry = bt.NodeRegistry.with_builtins()
     coordination.register(registry)
@@ -151,7 +154,8 @@ def validate(target: Path) -> Report:
 
     Unset required variables are warnings: they are for the run, and the files can still be checked.
     """
-    from coral import bt
+    from coral_core import bt
+
     from coral.sdk import params
 
     try:
@@ -170,7 +174,7 @@ def validate(target: Path) -> Report:
         registry = registry_for(manifests)
         try:
             document = bt.load_tree_file(project.tree, registry, main_tree=project.main_tree)
-            problems += [str(error) for error in document.validate(registry)]
+            problems += [str(error) for error in bt.validate_document(document, registry)]
         except bt.BTError as err:
             problems.append(str(err))
     return Report(problems=problems, warnings=project.warnings)
@@ -178,7 +182,8 @@ def validate(target: Path) -> Report:
 
 def nodes_model(target: Path | None, references: list[str]) -> tuple[str, list[str]]:
     """The `<TreeNodesModel>` XML for a project's components or for named components."""
-    from coral.bt import treenodesmodel
+    from coral_core.bt import treenodesmodel
+
     from coral.plugins import manifest as plugin_manifests
 
     manifests: dict[str, object] = {}

@@ -1,7 +1,7 @@
 """Thin `coral` verbs of the local runtime: run, ps, stop, logs, validate, verify, nodes-model.
 
 Each verb parses its options and calls one function of `coral.local.running`, `coral.local.state`
-or `coral.local.checking`; registered in `coral.cli.VERBS`.
+or `coral.local.checking`; registered as `coral.verbs` entry points (setup.py).
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import click
+from coral_core import parsing, polling
 from rich.text import Text
 
-from coral import parsing
 from coral.executor.cli import check_groot2_options, groot2_options
-from coral.local import polling, state
+from coral.local import state
 
 # How `coral ps` colours run and component states on a terminal.
 RUN_STATE_STYLE = {
@@ -99,7 +99,9 @@ def run_command(
     groot2_wait_s: float,
 ) -> None:
     """Run a Coral project (compose file, tree, parameters) as local processes."""
-    from coral.local import compose, running
+    from coral_core import compose
+
+    from coral.local import running
 
     check_groot2_options(groot2_port, groot2_allow_hooks, groot2_wait_s)
     groot2 = running.Groot2Settings(groot2_port, groot2_allow_hooks, groot2_wait_s)
@@ -140,7 +142,7 @@ def run_command(
 @click.option("--all", "-a", "everything", is_flag=True, help="Include finished runs.")
 def ps_command(everything: bool) -> None:
     """List Coral runs on this machine and their components."""
-    from coral import terminal
+    from coral_core import terminal
 
     runs = [r for r in state.load_runs() if everything or r.state != "finished"]
     if not runs:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
-from coral.local.compose import Project, Service
+from coral_core.compose import Project, Service
 
 ENTRY_POINT_GROUP = "coral.components"
 REFERENCE_COMPONENTS = {

@@ -16,12 +16,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from coral_core import terminal
 from rich.console import Group
 from rich.live import Live
 from rich.table import Table
 from rich.text import Text
-
-from coral import terminal
 
 PREFIX_STYLES = ["cyan", "yellow", "magenta", "green", "blue", "bright_red", "bright_cyan", "bright_yellow"]
 MAX_VIEW_LINES = 18

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
+from coral_core import parsing
 
-from coral import parsing
 from coral.local import checking
 
 _ROLES = ("drivers", "skillsets")
@@ -90,7 +90,8 @@ def _file_text(
 
 
 def _check_system(system: dict[str, Any], inputs: _Inputs, source: str) -> list[str]:
-    from coral import bt
+    from coral_core import bt
+
     from coral.sdk import params
 
     name = (system.get("metadata") or {}).get("name", "?")
@@ -119,7 +120,7 @@ def _check_system(system: dict[str, Any], inputs: _Inputs, source: str) -> list[
         main_tree = (spec.get("tree") or {}).get("mainTreeId")
         try:
             document = bt.load_tree_text(tree, registry, filename=f"{where}: spec.tree", main_tree=main_tree)
-            problems += [str(error) for error in document.validate(registry)]
+            problems += [str(error) for error in bt.validate_document(document, registry)]
         except bt.BTError as err:
             problems.append(str(err))
     return problems

@@ -14,7 +14,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from coral.local import compose, console, polling, state, supervising
+from coral_core import compose, polling
+
+from coral.local import console, state, supervising
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from coral_core.compose import Project, Service
+
 from coral.local import components, console, state
-from coral.local.compose import Project, Service
 from coral.stop_signals import relay_stop_signals
 
 EXIT_COMPONENT_FAILED = 3

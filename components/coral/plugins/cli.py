@@ -42,7 +42,8 @@ def list_plugins(plugins_dir: Path) -> None:
 @click.argument("plugins_dir", type=click.Path(path_type=Path, file_okay=False, exists=True))
 def model(plugins_dir: Path) -> None:
     """Print the loadable behaviors as a BT.CPP <TreeNodesModel> (Groot2 palette)."""
-    from coral.bt import treenodesmodel
+    from coral_core.bt import treenodesmodel
+
     from coral.plugins import manifest
 
     report = _report(plugins_dir)

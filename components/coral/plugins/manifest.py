@@ -13,8 +13,7 @@ from pathlib import Path
 from typing import Literal
 
 import pydantic
-
-from coral import parsing
+from coral_core import parsing
 
 SCHEMA_VERSION = 1
 MANIFEST_NAME = "manifest.json"
@@ -126,7 +125,7 @@ class PluginManifest(pydantic.BaseModel):
 
 def palette_behaviors(plugins: Iterable[PluginManifest]) -> list[BehaviorEntry]:
     """Every behavior the plugins export, by ID and then by component name: the order of a Groot2
-    palette (`coral.bt.treenodesmodel`)."""
+    palette (`coral_core.bt.treenodesmodel`)."""
     owned = [(behavior, plugin.component.name) for plugin in plugins for behavior in plugin.behaviors]
     return [behavior for behavior, _owner in sorted(owned, key=lambda pair: (pair[0].id, pair[1]))]
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from coral.bt import Status
-from coral.bt.leaves import StatefulAction
+from coral_core.bt import Status
+from coral_core.bt.leaves import StatefulAction
+
 from coral.sdk import calls
 
 

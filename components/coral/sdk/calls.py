@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any, Protocol
 
-from coral.bt import Status
+from coral_core.bt import Status
 
 
 class CallContext(Protocol):

@@ -55,7 +55,7 @@ class Component(Node):
 
     Class attributes to set in subclasses:
         NAME: component name (also the node name); defaults to the class name in snake case.
-        BEHAVIORS: behavior classes (`coral.bt.leaves` subclasses) this component exports.
+        BEHAVIORS: behavior classes (`coral_core.bt.leaves` subclasses) this component exports.
         EXPORT_MODULES: extra modules (dotted names) the behavior modules import relatively.
         INTERFACE_PACKAGES: interface packages (import names or folders) for the executor's path.
         LARGE_MESSAGES: the component publishes bursts of messages of hundreds of kilobytes

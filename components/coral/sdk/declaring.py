@@ -1,6 +1,6 @@
 """Declaring the behaviors a skillset provides, and turning the declarations into manifest entries.
 
-Behavior classes are ordinary `coral.bt.leaves` subclasses with class-level `PORTS`; a skillset
+Behavior classes are ordinary `coral_core.bt.leaves` subclasses with class-level `PORTS`; a skillset
 lists them in `Skillset.BEHAVIORS`. `behavior(...)` optionally sets the node ID and description.
 `describe_behavior` is called by `coral.sdk.exporting` when the component exports its plugin.
 """
@@ -35,7 +35,7 @@ def behavior(node_id: str | None = None, *, description: str = "") -> Callable[[
 
 
 def _port(name: str, direction: str, type: str, default: Any, description: str) -> Any:
-    from coral.bt import PortDirection, PortSpec
+    from coral_core.bt import PortDirection, PortSpec
 
     return PortSpec(
         name=name,
@@ -47,17 +47,17 @@ def _port(name: str, direction: str, type: str, default: Any, description: str) 
 
 
 def input_port(name: str, type: str = "any", default: Any = None, description: str = "") -> Any:
-    """A `coral.bt.PortSpec` the node reads, like BT.CPP's `InputPort<T>(name, default, description)`."""
+    """A `coral_core.bt.PortSpec` the node reads, like BT.CPP's `InputPort<T>(name, default, description)`."""
     return _port(name, "input", type, default, description)
 
 
 def output_port(name: str, type: str = "any", description: str = "") -> Any:
-    """A `coral.bt.PortSpec` the node writes."""
+    """A `coral_core.bt.PortSpec` the node writes."""
     return _port(name, "output", type, None, description)
 
 
 def inout_port(name: str, type: str = "any", default: Any = None, description: str = "") -> Any:
-    """A `coral.bt.PortSpec` the node reads and writes."""
+    """A `coral_core.bt.PortSpec` the node reads and writes."""
     return _port(name, "inout", type, default, description)
 
 
@@ -77,7 +77,7 @@ def kind_of(cls: type) -> str:
     for base in cls.__mro__:
         if base.__name__ in _KIND_BY_BASE_NAME:
             return _KIND_BY_BASE_NAME[base.__name__]
-    raise TypeError(f"behavior class {cls.__qualname__} has no KIND and no coral.bt.leaves base class")
+    raise TypeError(f"behavior class {cls.__qualname__} has no KIND and no coral_core.bt.leaves base class")
 
 
 # BT.CPP reads these attributes itself (instance name, node type), so no port may use them.

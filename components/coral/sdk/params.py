@@ -13,8 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
-from coral import parsing
+from coral_core import parsing
 
 PARAMS_KEY = "ros__parameters"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 
-from coral import parsing
+from coral_core import parsing
 
 # Every component publishes `Heartbeat` records here; executors watch it to detect dead skillsets.
 HEARTBEAT_TOPIC = "/coral/heartbeat"

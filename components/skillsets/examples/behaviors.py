@@ -6,11 +6,11 @@ executors that do not have the skillset's package installed.
 
 from __future__ import annotations
 
-from coral.bt import Status
-from coral.bt.leaves import ConditionNode, StatefulAction, SyncAction
 from coral.sdk import calls
 from coral.sdk.behaviors import ServiceBehavior
 from coral.sdk.declaring import behavior, input_port, output_port
+from coral_core.bt import Status
+from coral_core.bt.leaves import ConditionNode, StatefulAction, SyncAction
 from std_msgs.msg import Int64
 from std_srvs.srv import Trigger
 

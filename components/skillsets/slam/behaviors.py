@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral import parsing
-from coral.bt import Status
-from coral.bt.leaves import ConditionNode, StatefulAction
 from coral.sdk.behaviors import ServiceBehavior
 from coral.sdk.calls import LatestMessage, ServiceCall
 from coral.sdk.declaring import behavior, input_port, output_port
+from coral_core import parsing
+from coral_core.bt import Status
+from coral_core.bt.leaves import ConditionNode, StatefulAction
 from nav_msgs.srv import LoadMap as LoadMapSrv
 from std_msgs.msg import Empty, String
 from std_srvs.srv import SetBool, Trigger

@@ -33,10 +33,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from coral import parsing
 from coral.lidar import clouds
 from coral.sdk import CancelToken, Skillset
 from coral.sdk.streams import RawStream
+from coral_core import parsing
 from coral_skillsets.slam import behaviors
 from coral_skillsets.slam.core import MapFileError, ScanRejected, SlamConfig, SlamCore
 from nav_msgs.srv import LoadMap

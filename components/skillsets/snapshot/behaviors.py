@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral import parsing
-from coral.bt import Status
-from coral.bt.leaves import StatefulAction
 from coral.sdk.calls import ServiceCall
 from coral.sdk.declaring import behavior, input_port, output_port
+from coral_core import parsing
+from coral_core.bt import Status
+from coral_core.bt.leaves import StatefulAction
 from std_srvs.srv import Trigger
 
 SERVICES = {"latest": "~/latest", "synchronized": "~/synchronized"}

@@ -1,21 +1,25 @@
 """The coral.dev/v1alpha1 API: pydantic models of CoralSystem and CoralInstance (the contract, the
-CRD schema and its documentation). Other packages import the models from here."""
+CRD schema and its documentation). Other packages import the models from here.
 
-from coral_operator.api.base import CamelModel
-from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector, LabelSelectorRequirement
-from coral_operator.api.components import Component, DeviceMount, EnvVar, HostPathMount, Readiness, Resources
-from coral_operator.api.instance import (
+The CoralInstance's status, the condition shape, the model base and the API's names belong to the
+contract with the robot side and are defined in `coral_core`; they are re-exported here so the
+operator's API is one surface.
+"""
+
+from coral_core.instance_status import (
     ComponentState,
-    ConfigRef,
-    CoralInstanceSpec,
     CoralInstanceStatus,
-    InstanceTree,
     PluginState,
     RobotState,
     TreeFailure,
     TreeState,
 )
-from coral_operator.api.names import API_VERSION, GROUP, VERSION
+from coral_core.names import API_VERSION, GROUP, VERSION
+from coral_core.wire import CamelModel, Condition
+
+from coral_operator.api.common import ConfigMapKeyRef, LabelSelector, LabelSelectorRequirement
+from coral_operator.api.components import Component, DeviceMount, EnvVar, HostPathMount, Readiness, Resources
+from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
 from coral_operator.api.rollout import (
     CanaryStatus,
     RolledBack,

@@ -8,9 +8,8 @@ from __future__ import annotations
 import re
 from typing import Annotated, Any, Literal
 
+from coral_core.wire import CamelModel, Condition
 from pydantic import Field, field_validator, model_validator
-
-from coral_operator.api.base import CamelModel
 
 # Kubernetes label syntax: an optional DNS-subdomain prefix and `/`, then a name of at most 63
 # characters; values are empty or such a name.
@@ -116,23 +115,6 @@ class ConfigMapKeyRef(CamelModel):
     """ConfigMap name; the ConfigMap must carry the label `coral.dev/source: "true"`."""
     key: str = Field(min_length=1, max_length=253, pattern=CONFIG_MAP_KEY)
     """Key holding the file's content."""
-
-
-class Condition(CamelModel):
-    """A `metav1.Condition`: one aspect of the resource's state."""
-
-    type: str = Field(max_length=316)
-    """Condition type, for example `Ready`."""
-    status: Literal["True", "False", "Unknown"]
-    """Whether the condition holds."""
-    reason: str = Field(max_length=1024)
-    """CamelCase reason for the last transition."""
-    message: str = Field(default="", max_length=32768)
-    """Human-readable details."""
-    observed_generation: int | None = Field(default=None, ge=0)
-    """The resource generation the condition was computed from."""
-    last_transition_time: str
-    """When the status last changed (RFC 3339)."""
 
 
 READY = "Ready"

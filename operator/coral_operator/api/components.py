@@ -9,13 +9,10 @@ from __future__ import annotations
 import re
 from typing import Annotated, Literal
 
+from coral_core.wire import CamelModel
 from pydantic import Field, field_validator
 
-from coral_operator.api.base import CamelModel
-
 DNS_LABEL = r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"
-Role = Literal["driver", "skillset", "executor"]
-ROLES: tuple[Role, ...] = ("driver", "skillset", "executor")
 Quantity = int | Annotated[str, Field(max_length=64)]
 # Everything in a component is copied into every robot's CoralInstance and pods, so each string is
 # bounded at admission; what the strings add up to across robots is the operator's to bound

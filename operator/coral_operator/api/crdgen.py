@@ -11,9 +11,10 @@ from __future__ import annotations
 from typing import Any
 
 import yaml
+from coral_core import instance_status, names
 from pydantic import BaseModel
 
-from coral_operator.api import common, instance, keys, names, system
+from coral_operator.api import common, instance, keys, system
 
 _KEEP = {
     "type",
@@ -246,7 +247,7 @@ def build_crds() -> dict[str, dict[str, Any]]:
         short_names=["cinst", "coralinst"],
         description="One robot's share of a CoralSystem: its component pods and its behavior-tree status.",
         spec_model=instance.CoralInstanceSpec,
-        status_model=instance.CoralInstanceStatus,
+        status_model=instance_status.CoralInstanceStatus,
         keyed_lists=False,
         columns=[
             {"name": "Robot", "type": "string", "jsonPath": ".spec.robot"},

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 from typing import Literal
 
+from coral_core.wire import CamelModel
 from pydantic import Field
-
-from coral_operator.api.base import CamelModel
 
 MAX_NAMED = 10
 """At most this many robot names appear in any list of the rollout status."""

@@ -11,11 +11,11 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
-from coral.executor import MAX_TICK_RATE_HZ
+from coral_core.limits import MAX_TICK_RATE_HZ
+from coral_core.wire import CamelModel, Condition
 from pydantic import Field, field_validator, model_validator
 
-from coral_operator.api.base import CamelModel
-from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector
+from coral_operator.api.common import ConfigMapKeyRef, LabelSelector
 from coral_operator.api.components import Component
 from coral_operator.api.rollout import RolloutStatus
 

@@ -71,7 +71,8 @@ def convert_command(
     output: Path | None,
 ) -> None:
     """Turn a folder of Coral files (compose, tree XML, parameters YAML) into a CoralSystem."""
-    from coral_operator.api import names
+    from coral_core import names
+
     from coral_operator.convert import converting
     from coral_operator.convert.compose import ConvertError
 

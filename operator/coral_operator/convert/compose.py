@@ -2,7 +2,7 @@
 
 Coral's own semantics of the file (roles from profiles, `x-coral` options, environment
 interpolation, tree and parameters paths) come from the local runtime's parser
-(`coral.local.compose`), so `coral run` and `coral convert` read a folder the same way; this module
+(`coral_core.compose`), so `coral run` and `coral convert` read a folder the same way; this module
 adds what only matters on a cluster. Entries Kubernetes cannot express are warnings; malformed ones
 are errors naming the file and the service. Called by `convert.converting`.
 """
@@ -69,7 +69,7 @@ def _memory(value: Any) -> str:
 
 
 def kubernetes_fields(service: dict[str, Any], where: str, warnings: list[str]) -> dict[str, Any]:
-    """Component fields from one interpolated compose service (`coral.local.compose.Service.fields`):
+    """Component fields from one interpolated compose service (`coral_core.compose.Service.fields`):
     everything but name, env and transient."""
     if not service.get("image"):
         raise ConvertError(

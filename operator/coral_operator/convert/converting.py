@@ -11,11 +11,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from coral import bt, parsing
+from coral_core import bt, names, parsing
+from coral_core.names import API_VERSION
 from pydantic import ValidationError
 
-from coral_operator.api import names
-from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.convert.compose import ConvertError, component_name, kubernetes_fields
 from coral_operator.planning import naming, system_pass, validation
@@ -49,7 +48,7 @@ def convert(
     environ: Mapping[str, str] | None = None,
 ) -> tuple[dict[str, Any], list[str]]:
     """The CoralSystem manifest and the conversion warnings; raises ConvertError naming file and field."""
-    from coral.local import compose as coral_compose
+    from coral_core import compose as coral_compose
 
     try:
         compose_file = coral_compose.find_compose_file(folder)

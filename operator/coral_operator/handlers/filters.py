@@ -12,8 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import kopf
-
-from coral_operator.api import names
+from coral_core import names
 
 CORAL_POD_LABELS: dict[str, Any] = {names.LABEL_MANAGED_BY: names.MANAGER, names.LABEL_INSTANCE: kopf.PRESENT}
 ROBOT_NODE_LABELS: dict[str, Any] = {names.LABEL_ROBOT: kopf.PRESENT}

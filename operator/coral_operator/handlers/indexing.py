@@ -14,8 +14,8 @@ from __future__ import annotations
 from typing import Any
 
 import kopf
+from coral_core import names
 
-from coral_operator.api import names
 from coral_operator.handlers.filters import CORAL_POD_LABELS, REVISION_CONFIG_MAP_LABELS, ROBOT_NODE_LABELS
 from coral_operator.kube import observing
 from coral_operator.reconcile.indexes import (

@@ -11,9 +11,9 @@ import logging
 from typing import Any
 
 import kopf
+from coral_core import names
 
 from coral_operator import config
-from coral_operator.api import names
 from coral_operator.handlers.filters import watch_selectors
 from coral_operator.kube import applying, client
 from coral_operator.planning import pods, rbac

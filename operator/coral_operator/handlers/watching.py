@@ -10,8 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 import kopf
+from coral_core import names
 
-from coral_operator.api import names
 from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
 from coral_operator.reconcile.controller import Controller
 

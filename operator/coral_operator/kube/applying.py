@@ -12,10 +12,10 @@ from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+from coral_core import names
+from coral_core.names import GROUP, VERSION
 from kubernetes.client.exceptions import ApiException
 
-from coral_operator.api import names
-from coral_operator.api.names import GROUP, VERSION
 from coral_operator.kube import client
 
 T = TypeVar("T")

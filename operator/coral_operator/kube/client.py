@@ -8,11 +8,10 @@ from __future__ import annotations
 import functools
 from typing import Any
 
+from coral_core import names
 from kubernetes import client, config
 from kubernetes.client.exceptions import ApiException
 from kubernetes.config.config_exception import ConfigException
-
-from coral_operator.api import names
 
 CONNECTIONS = 64
 """Pooled connections to the API server: more than the handler threads plus the parallel writers."""

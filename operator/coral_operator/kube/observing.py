@@ -13,7 +13,9 @@ from collections.abc import Mapping
 from datetime import datetime
 from typing import Any
 
-from coral_operator.api import keys, names
+from coral_core import names
+
+from coral_operator.api import keys
 from coral_operator.planning import budgets, naming, provenance
 from coral_operator.planning.observed import (
     ROBOT_SPEC_FIELDS,

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from coral_core import names
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
-from coral_operator.api import names
 from coral_operator.kube import client
 from coral_operator.kube.applying import create_owned, owned_by
 from coral_operator.planning import naming

@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.names import API_VERSION
+from coral_core import names
+from coral_core.names import API_VERSION
+
 from coral_operator.planning import naming
 
 TREE_KEY = "tree.xml"

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from coral_core import names
 from pydantic import ValidationError
 
-from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming, pods, startup
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode

@@ -10,9 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from coral_operator.api import names
+from coral_core import names
+from coral_core.names import API_VERSION
+
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
-from coral_operator.api.names import API_VERSION
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ROBOT_SPEC_FIELDS, ObservedInstance, RobotNode, shared_spec_key

@@ -1,7 +1,7 @@
 """Names, label sets and content hashes of everything the operator creates.
 
 One module so the handlers, the planners and the tests agree on every name; the API's own names
-(group, labels, annotations) are `api.names`. Pure.
+(group, labels, annotations) are `coral_core.names`. Pure.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import json
 import re
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.components import Role
+from coral_core import names
+from coral_core.instance_status import Role
 
 ROBOT_POD = "robot"
 

@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from coral_operator.api import names
+from coral_core import names
+
 from coral_operator.planning import naming
 
 ROBOT_SPEC_FIELDS = ("robot", "nodeName", "revision")
@@ -60,7 +61,8 @@ class ObservedPod:
     unschedulable: str | None = None
     """Why the robot cannot run the pod (the scheduler's or the kubelet's admission message)."""
     shape_hash: str = ""
-    """A robot pod's hash without images (`api.names.ANNOTATION_SHAPE_HASH`); empty for component pods."""
+    """A robot pod's hash without images (`coral_core.names.ANNOTATION_SHAPE_HASH`); empty for component
+    pods."""
     images: tuple[tuple[str, str], ...] = ()
     """A robot pod's (container, image) pairs, so an image-only change can be patched in place."""
 

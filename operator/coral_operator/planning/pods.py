@@ -19,10 +19,13 @@ import posixpath
 from dataclasses import dataclass, field
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.components import Component, Role
+from coral_core import names
+from coral_core.component_image import COMPONENT_UID
+from coral_core.instance_status import Role
+from coral_core.names import API_VERSION
+
+from coral_operator.api.components import Component
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.api.names import API_VERSION
 from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
 from coral_operator.planning.policy import Policy, data_subtree, host_path_volume, is_under
@@ -30,8 +33,6 @@ from coral_operator.planning.policy import Policy, data_subtree, host_path_volum
 CONFIG_DIR = "/etc/coral"
 SERVICE_ACCOUNT_DIR = "/var/run/secrets/kubernetes.io/serviceaccount"
 READY_MARKER = "ready"
-COMPONENT_UID = 10001
-"""The user Coral's component images run as (`coral`, USER 10001:10001 in their Dockerfiles)."""
 FOLDERS_OWNER = "folders-owner"
 OWNED_DIR = "/coral-owned"
 """Where the ownership step sees the folders it hands over (its own paths, whatever the component's)."""

@@ -22,9 +22,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from coral_core import names
 from pydantic import ValidationError
 
-from coral_operator.api import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming, policy
 from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord

@@ -22,9 +22,9 @@ from __future__ import annotations
 from typing import Any
 
 import yaml
+from coral_core import names
+from coral_core.names import API_VERSION, GROUP
 
-from coral_operator.api import names
-from coral_operator.api.names import API_VERSION, GROUP
 from coral_operator.planning import naming
 
 POLICY_NAME = f"coral-executor-own-instance.{names.GROUP}"

@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.names import API_VERSION
+from coral_core import names
+from coral_core.names import API_VERSION
+
 from coral_operator.planning import naming
 
 HISTORY_LIMIT = 10

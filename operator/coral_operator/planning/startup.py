@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Any
 
-from coral_operator.api import names
+from coral_core import names
+
 from coral_operator.api.system import StartupSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedPod

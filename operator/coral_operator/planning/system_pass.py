@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from coral_core import names
 from pydantic import ValidationError
 
-from coral_operator.api import names
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import (

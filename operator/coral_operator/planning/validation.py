@@ -1,12 +1,12 @@
 """Validates the tree XML and the parameters YAML before anything reaches a robot (docs/architecture.md).
 
-Errors read `file:line: message`. The tree goes through the BT engine (`coral.bt`), the same
+Errors read `file:line: message`. The tree goes through the BT engine (`coral_core.bt`), the same
 loader the executors use, with two differences that keep one namespace's bad input from costing
 the operator anything: the text is first checked against `TreeLimits` (size, element count, depth,
 entity declarations) by a scan that holds only counters, and `<include>`s resolve only among the
 files the CoralSystem carries (`spec.tree.files`), never from the operator's filesystem. Any other
 exception is turned into a problem, never raised. The parameters are measured on the parser's
-event stream (`coral.parsing.check_yaml`) and never built: the operator only copies them into a
+event stream (`coral_core.parsing.check_yaml`) and never built: the operator only copies them into a
 ConfigMap. Given a `Verdicts` table, results are remembered by content hash, since every system
 pass validates again what rarely changes. Called by the system handler and `coral convert`; pure.
 """
@@ -21,9 +21,9 @@ from collections import OrderedDict
 from collections.abc import Callable, Mapping
 
 import yaml
-from coral import bt, parsing
-from coral.bt.limits import IncludeBudget, TreeLimits, check_document
-from coral.bt.loader import IncludeResolver
+from coral_core import bt, parsing
+from coral_core.bt.limits import IncludeBudget, TreeLimits, check_document
+from coral_core.bt.loader import IncludeResolver
 
 LIMITS = TreeLimits()
 VERDICTS_KEPT = 2048
@@ -153,7 +153,7 @@ def _static_problems(document: bt.TreeDocument, filename: str) -> list[str]:
     plugin_nodes = set(document.missing_node_types(registry))
     return [
         _located(error, filename)
-        for error in document.validate(registry)
+        for error in bt.validate_document(document, registry)
         if not any(re.search(rf"\b{re.escape(node)}\b", str(error)) for node in plugin_nodes)
     ]
 

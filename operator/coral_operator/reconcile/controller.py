@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from coral_operator.api import names
+from coral_core import names
+
 from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.planning.pods import PodSettings

@@ -302,7 +302,11 @@ class InstanceReconciler:
             return
         after = {key: value for key, value in {**current, **changed}.items() if value is not None}
         self.memory.remember_status(
-            record.uid, version, ownership.operator_part(after), deferred=since is not None
+            record.uid,
+            version,
+            ownership.operator_part(after),
+            replaced=record.resource_version,
+            deferred=since is not None,
         )
         system = record.spec.get("system")
         if system and _system_reads_a_change(record, current, after):

@@ -31,7 +31,6 @@ from coral_operator.kube.observing import SpecTable
 from coral_operator.planning.observed import InstanceRecord, ObservedPod
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.planning.validation import Verdicts
-from coral_operator.status import ownership
 
 # A rollout move not seen in the index after this long is forgotten (the write failed or was replaced).
 EXPECTATION_SECONDS = 60.0
@@ -50,6 +49,8 @@ class Memory:
     verdicts: Verdicts = field(default_factory=Verdicts)
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _status_written: dict[str, tuple[str, dict[str, Any], float]] = field(default_factory=dict)
+    _status_predating: dict[str, frozenset[str | None]] = field(default_factory=dict)
+    """Uid -> the resourceVersions the object had before the last status write (see `status_unseen`)."""
     _deferred_writes: dict[str, int] = field(default_factory=dict)
     _desired_pods: dict[str, tuple[int | None, list[dict[str, Any]]]] = field(default_factory=dict)
     _history: dict[tuple[str, str, str], list[StoredRevision]] = field(default_factory=dict)
@@ -59,8 +60,11 @@ class Memory:
     _writes: dict[str, dict[str, tuple[bool, float]]] = field(default_factory=dict)
     """Owner uid -> name -> (created, not deleted; when): an instance's pods, a system's instances."""
     _generation_seen: dict[str, tuple[int | None, float]] = field(default_factory=dict)
-    _records_written: dict[tuple[str, str], tuple[InstanceRecord, float]] = field(default_factory=dict)
-    """(namespace, name) -> (the instance as a system pass moved it, when)."""
+    _records_written: dict[tuple[str, str], tuple[InstanceRecord, float, frozenset[str | None]]] = field(
+        default_factory=dict
+    )
+    """(namespace, name) -> (the instance as a system pass moved it, when, the resourceVersions it
+    had before)."""
     _spec_vetted: dict[str, tuple[int | None, str]] = field(default_factory=dict)
     """Instance uid -> (generation, system uid) whose spec matched a stored revision and the policy."""
 
@@ -82,9 +86,19 @@ class Memory:
 
     def status_unseen(self, uid: str, resource_version: str | None) -> dict[str, Any] | None:
         """The operator's status fields this process last wrote on the object, if the object at
-        `resource_version` does not include that write yet; else None."""
+        `resource_version` does not include that write yet; else None.
+
+        resourceVersions are opaque: they may be compared for equality only (Kubernetes API
+        conventions). So the write is missing only while the index holds a version the object had
+        before it (the one the writing pass read, and the ones before writes the index has not
+        caught up with either); any other version is the write's or a later one, and the object as
+        observed is the truth. A version between the pass's read and its write counts as later: the
+        cost is one more write, never a status someone else wrote hidden behind this process's own.
+        """
         version, written, _ = self.status_written(uid)
-        if version is None or ownership.at_or_after(resource_version, version):
+        with self._lock:
+            predating = self._status_predating.get(uid, frozenset())
+        if version is None or resource_version not in predating:
             return None
         return written
 
@@ -95,11 +109,22 @@ class Memory:
         return bool(version) and version == resource_version
 
     def remember_status(
-        self, uid: str, version: str, status: dict[str, Any], *, deferred: bool = False
+        self,
+        uid: str,
+        version: str,
+        status: dict[str, Any],
+        *,
+        replaced: str | None = None,
+        deferred: bool = False,
     ) -> None:
-        """`deferred`: the write could wait (progress, not a verdict); such writes are counted until
-        the next verdict, so that a long start is reported less and less often."""
+        """`version`: the object's resourceVersion the write returned; `replaced`: the one the
+        writing pass read. `deferred`: the write could wait (progress, not a verdict); such writes
+        are counted until the next verdict, so that a long start is reported less and less often."""
         with self._lock:
+            last = self._status_written.get(uid)
+            self._status_predating[uid] = _predating(
+                last[0] if last else None, self._status_predating.get(uid, frozenset()), replaced
+            )
             self._status_written[uid] = (version, status, self.clock())
             self._deferred_writes[uid] = self._deferred_writes.get(uid, 0) + 1 if deferred else 0
 
@@ -174,12 +199,18 @@ class Memory:
             writes.update({name: (True, now) for name in created})
             writes.update({name: (False, now) for name in deleted})
 
-    def remember_record(self, record: InstanceRecord) -> None:
+    def remember_record(self, record: InstanceRecord, *, replaced: str | None = None) -> None:
         """An instance as the API server answered a system pass's update (a move) of it: its own
         pass can start from it before the watch brings it (`latest_record`). Not a create: a new
-        instance's pass waits for the watch (`reconcile.systems`, `SystemReconciler._move`)."""
+        instance's pass waits for the watch (`reconcile.systems`, `SystemReconciler._move`).
+        `replaced`: the resourceVersion the index held when the pass moved it."""
+        key = (record.namespace, record.name)
         with self._lock:
-            self._records_written[(record.namespace, record.name)] = (record, self.clock())
+            last = self._records_written.get(key)
+            predating = _predating(
+                last[0].resource_version if last else None, last[2] if last else frozenset(), replaced
+            )
+            self._records_written[key] = (record, self.clock(), predating)
 
     def latest_record(self, key: tuple[str, str], indexed: InstanceRecord | None) -> InstanceRecord | None:
         """The newer of the instance as the index holds it and as this process last wrote it. A
@@ -191,10 +222,11 @@ class Memory:
             entry = self._records_written.get(key)
             if entry is None:
                 return indexed
-            written, since = entry
+            written, since, predating = entry
+            # Equality only, as in `status_unseen`: any version but one from before the move is the
+            # move's or a later one.
             caught_up = indexed is not None and (
-                indexed.uid != written.uid
-                or ownership.at_or_after(indexed.resource_version, written.resource_version)
+                indexed.uid != written.uid or indexed.resource_version not in predating
             )
             if caught_up or now - since > WRITE_EXPECTATION_SECONDS:
                 del self._records_written[key]
@@ -215,6 +247,7 @@ class Memory:
     def forget_instance(self, uid: str) -> None:
         with self._lock:
             self._status_written.pop(uid, None)
+            self._status_predating.pop(uid, None)
             self._deferred_writes.pop(uid, None)
             self._desired_pods.pop(uid, None)
             self._writes.pop(uid, None)
@@ -293,6 +326,7 @@ class Memory:
     def forget_system(self, uid: str, namespace: str, name: str) -> None:
         with self._lock:
             self._status_written.pop(uid, None)
+            self._status_predating.pop(uid, None)
             self._deferred_writes.pop(uid, None)
             self._history.pop((namespace, name, uid), None)
             self._expected.pop((namespace, uid), None)
@@ -312,3 +346,15 @@ class Memory:
     def forget_seen(self, key: Hashable) -> None:
         with self._lock:
             self._last_seen.pop(key, None)
+
+
+def _predating(
+    last_written: str | None, last_predating: frozenset[str | None], replaced: str | None
+) -> frozenset[str | None]:
+    """The resourceVersions an object had before a write that replaced version `replaced`: that
+    one, and, when the writing pass read a version from before the last write too (the index had
+    caught up with neither), the last write's own and those before it."""
+    if last_written is not None and replaced in last_predating:
+        return last_predating | {last_written}
+    return frozenset({replaced})
+

@@ -28,7 +28,13 @@ from coral_operator.planning import budgets, configmaps, instances, naming, prov
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, config_maps_of_system, instances_of_system
+from coral_operator.reconcile.indexes import (
+    ALL_ROBOTS,
+    Indexes,
+    config_maps_of_system,
+    instance_named,
+    instances_of_system,
+)
 from coral_operator.reconcile.memory import Memory
 from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
@@ -175,10 +181,12 @@ class SystemReconciler:
         watch lags its pod watch, and a 1000-robot deployment that created pods from the answer
         cost the API server up to 990 GETs of each (docs/architecture.md, "What is remembered
         between passes")."""
+        named = instance_named(manifest["metadata"]["namespace"], manifest["metadata"]["name"])
+        before = next(iter(self.indexes.read("coral_instances", named)), None)
         body = applying.update_instance(manifest)
         if body is not None:
             record = observing.instance_record(body, self.memory.specs.share(body))
-            self.memory.remember_record(record)
+            self.memory.remember_record(record, replaced=before.resource_version if before else None)
             self.wake_instance((record.namespace, record.name))
         return body
 
@@ -349,7 +357,7 @@ class SystemReconciler:
         after = {
             key: _without_nulls(value) for key, value in {**status, **changes}.items() if value is not None
         }
-        self.memory.remember_status(system.uid, version, after)
+        self.memory.remember_status(system.uid, version, after, replaced=system.resource_version)
         for kind, reason, message in events.condition_events(old_conditions, new["conditions"]):
             self.post(system.reference, kind, reason, message)
 

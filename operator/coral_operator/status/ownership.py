@@ -24,14 +24,3 @@ def operator_part(status: Mapping[str, Any]) -> dict[str, Any]:
 def executor_part(status: Mapping[str, Any]) -> dict[str, Any]:
     """The fields of `status` the executor reports."""
     return {key: value for key, value in status.items() if key in EXECUTOR_KEYS}
-
-
-def at_or_after(observed: str | None, written: str | None) -> bool:
-    """Whether an object at resourceVersion `observed` already includes the write that returned
-    `written`. etcd-backed API servers hand out increasing integers; anything else is trusted
-    only when equal."""
-    if observed is None or written is None:
-        return False
-    if observed == written:
-        return True
-    return observed.isdigit() and written.isdigit() and int(observed) > int(written)

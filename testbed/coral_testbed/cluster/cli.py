@@ -1,7 +1,8 @@
 """`coral dev-cluster`: run the local control plane by hand (up, down, status, robots, demo).
 
-Thin verbs over `controlplane` and `client.Cluster`; registered in `coral.cli.VERBS`. Progress goes
-to stderr and the kubeconfig path to stdout, so `export KUBECONFIG=$(coral dev-cluster up)` works.
+Thin verbs over `controlplane` and `client.Cluster`; registered as a `coral.verbs` entry point
+(setup.py). Progress goes to stderr and the kubeconfig path to stdout, so
+`export KUBECONFIG=$(coral dev-cluster up)` works.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import click
-from coral import terminal
+from coral_core import terminal
 
 from coral_testbed import clierrors, images
 from coral_testbed.cluster import binaries, controlplane, demo, operatorchart, realrobots

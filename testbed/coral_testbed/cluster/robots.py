@@ -13,7 +13,7 @@ import re
 from importlib import resources
 from typing import Any
 
-from coral_operator.api.names import LABEL_ROBOT as ROBOT_LABEL
+from coral_core.names import LABEL_ROBOT as ROBOT_LABEL
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 

@@ -1,7 +1,8 @@
 """`coral images`: build the project's images and run the local registry they are pushed to.
 
-Thin verbs over `building` and `registry`; registered in `coral.cli.VERBS`. Progress goes to
-stderr; `build` prints one line per image on stdout (name, reference, image ID, size, outcome).
+Thin verbs over `building` and `registry`; registered as a `coral.verbs` entry point (setup.py).
+Progress goes to stderr; `build` prints one line per image on stdout (name, reference, image ID,
+size, outcome).
 """
 
 from __future__ import annotations

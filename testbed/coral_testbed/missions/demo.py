@@ -19,10 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from coral import terminal, tree_picture
+from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
 from coral.local.console import outline_of
+from coral_core import terminal
 from rich.live import Live
 
 from coral_testbed.cluster import binaries, controlplane, realrobots

@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from coral import terminal
+from coral_core import terminal
 from rich.table import Table
 from rich.text import Text
 

@@ -20,9 +20,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from coral_operator.api import names
-from coral_operator.api.names import GROUP, VERSION
-from coral_operator.planning.pods import COMPONENT_UID
+from coral_core import names
+from coral_core.component_image import COMPONENT_UID
+from coral_core.names import GROUP, VERSION
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 

@@ -129,6 +129,47 @@ def test_the_operator_image_runs_coral(built_images: dict[str, images.Built]) ->
     assert user.split(":")[0].isdigit() and user.split(":")[0] != "0", f"operator runs as {user!r}"
 
 
+# What each side's image must not hold (issue 52): the operator no robot runtime or ROS, the
+# components no operator; neither the testbed.
+ROBOT_SIDE = {"coral", "coral_skillsets", "coral_drivers", "rclpy", "rosbags", "kiss_icp"}
+OPERATOR_SIDE = {"coral_operator"}
+# Every top-level module and package the image's Python can import, one a line.
+LIST_PACKAGES = "python -c 'import pkgutil; [print(m.name) for m in pkgutil.iter_modules()]'"
+
+
+@pytest.mark.parametrize(
+    ("name", "holds", "holds_not", "verbs"),
+    [
+        (
+            "operator",
+            {"coral_core", "coral_operator"},
+            ROBOT_SIDE | {"coral_testbed"},
+            {"operator", "convert", "crds", "rollout"},
+        ),
+        (
+            "runtime",
+            {"coral_core", "coral", "coral_skillsets", "coral_drivers", "rclpy"},
+            OPERATOR_SIDE | {"coral_testbed"},
+            {"run", "executor", "skillset", "generate-bag"},
+        ),
+    ],
+)
+def test_each_image_holds_its_own_side_and_offers_its_verbs(
+    built_images: dict[str, images.Built], name: str, holds: set[str], holds_not: set[str], verbs: set[str]
+) -> None:
+    """Every component image starts from the runtime's layers and adds none of Python
+    (`test_component_images_run_as_coral_and_share_the_runtime_layers`), so the runtime speaks for them."""
+    packages = set(_run(built_images[name], LIST_PACKAGES).split())
+    assert holds <= packages, f"{name} lacks {sorted(holds - packages)}"
+    assert not holds_not & packages, f"{name} holds {sorted(holds_not & packages)}"
+    listed = _run(built_images[name], "coral --help").split("Commands:")[1]
+    offered = {line.split()[0] for line in listed.splitlines() if line.strip()}
+    assert verbs <= offered, f"{name} offers {sorted(offered)}"
+    assert not {"dev-cluster", "images", "demo"} & offered, f"{name} offers the testbed's verbs"
+    other = {"operator", "crds"} if name == "runtime" else {"run", "executor"}
+    assert not other & offered, f"{name} offers the other side's verbs: {sorted(other & offered)}"
+
+
 def test_an_unchanged_tree_rebuilds_nothing(
     built_images: dict[str, images.Built], image_registry: str
 ) -> None:

@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from coral_operator.api import names
-from coral_operator.api.names import GROUP, VERSION
+from coral_core import names
+from coral_core.names import GROUP, VERSION
 from coral_operator.planning.naming import EXECUTOR_ACCOUNT_PREFIX
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException

@@ -15,7 +15,7 @@ from typing import Any, Self
 
 import pytest
 from coral_api import Coral, condition, fleet_mission, is_current_and_true
-from coral_operator.api.names import GROUP, VERSION
+from coral_core.names import GROUP, VERSION
 from coral_testbed.cluster import memorycgroup
 from coral_testbed.waiting import wait_for
 from fixtures.confined import ConfinedOperator

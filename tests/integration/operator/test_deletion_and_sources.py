@@ -8,7 +8,7 @@ import signal
 
 import pytest
 from coral_api import condition, is_current_and_true
-from coral_operator.api import names
+from coral_core import names
 from coral_operator.planning import naming
 from coral_testbed.cluster import controlplane
 from coral_testbed.waiting import holds_for

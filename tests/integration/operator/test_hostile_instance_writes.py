@@ -23,8 +23,8 @@ from typing import Any
 
 import pytest
 from coral_api import client_as, condition, executor_client, fleet_mission, is_current_and_true
-from coral_operator.api import names
-from coral_operator.api.names import GROUP, VERSION
+from coral_core import names
+from coral_core.names import GROUP, VERSION
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.cluster import create_test_namespace
 from hostile import NEEDS_A_MEMORY_CGROUP, HostileStage, forge_ready

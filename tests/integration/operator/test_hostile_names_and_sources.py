@@ -13,7 +13,7 @@ from typing import Any
 import psutil
 import pytest
 from coral_api import condition, is_current_and_true
-from coral_operator.api import names
+from coral_core import names
 from coral_operator.planning import naming
 from coral_testbed.waiting import holds_for
 from kubernetes import client as k8s

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import coral.bt as bt
-from coral.bt.leaves import StatefulAction
+import coral_core.bt as bt
+from coral_core.bt.leaves import StatefulAction
 
 S, F, R, K = bt.Status.SUCCESS, bt.Status.FAILURE, bt.Status.RUNNING, bt.Status.SKIPPED
 
@@ -45,4 +45,4 @@ def make_tree(
         f'<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">{body}'
         f"</BehaviorTree>{trees}</root>"
     )
-    return bt.load_tree_text(xml, registry).build(registry, blackboard=blackboard), queues
+    return bt.build_tree(bt.load_tree_text(xml, registry), registry, blackboard=blackboard), queues

@@ -5,9 +5,9 @@ from __future__ import annotations
 import random
 from typing import Any
 
-import coral.bt as bt
+import coral_core.bt as bt
 import zmq
-from coral.bt.groot2 import Groot2Publisher
+from coral_core.bt.groot2 import Groot2Publisher
 
 
 def publish(tree: bt.Tree, **options: Any) -> Groot2Publisher:
@@ -30,4 +30,4 @@ def hundred_node_tree() -> bt.Tree:
         f"<Sequence>{groups}</Sequence></BehaviorTree></root>"
     )
     registry = bt.NodeRegistry.with_builtins()
-    return bt.load_tree_text(xml, registry).build(registry)
+    return bt.build_tree(bt.load_tree_text(xml, registry), registry)

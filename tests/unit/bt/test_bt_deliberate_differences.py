@@ -3,11 +3,11 @@ one test each; docs/bt-engine.md lists them with their reasons."""
 
 from __future__ import annotations
 
-import coral.bt as bt
+import coral_core.bt as bt
 from bt_stubs import S, make_tree
-from coral.bt.blackboard import Blackboard
-from coral.bt.builder import literal_value
-from coral.bt.scripting import ScriptEnv, compile_script
+from coral_core.bt.blackboard import Blackboard
+from coral_core.bt.builder import literal_value
+from coral_core.bt.scripting import ScriptEnv, compile_script
 
 
 def run(code: str) -> object:
@@ -48,9 +48,9 @@ def test_static_validation_points_out_numeric_literals_with_trailing_text() -> N
     )
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(xml, registry)
-    assert any("trailing text" in str(e) for e in doc.validate(registry))
+    assert any("trailing text" in str(e) for e in bt.validate_document(doc, registry))
     # Building still does what BT.CPP does: the prefix 3 is used.
-    tree = doc.build(registry)
+    tree = bt.build_tree(doc, registry)
     statuses = [tree.tick_exactly_once() for _ in range(3)]  # Repeat yields between cycles
     assert statuses == [bt.Status.RUNNING, bt.Status.RUNNING, bt.Status.SUCCESS]
 

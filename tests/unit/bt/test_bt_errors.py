@@ -5,14 +5,14 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
-import coral.bt as bt
+import coral_core.bt as bt
 import pytest
-from coral.bt.leaves import SyncAction
+from coral_core.bt.leaves import SyncAction
 
 
 def load(xml: str, registry: bt.NodeRegistry | None = None) -> bt.Tree:
     registry = registry or bt.NodeRegistry.with_builtins()
-    return bt.load_tree_text(xml, registry, filename="t.xml").build(registry)
+    return bt.build_tree(bt.load_tree_text(xml, registry, filename="t.xml"), registry)
 
 
 def wrap(body: str, extra: str = "") -> str:
@@ -77,7 +77,8 @@ def test_includes_resolve_relative_to_the_including_file(tmp_path: Path) -> None
         '<BehaviorTree ID="M"><Inverter><SubTree ID="S"/></Inverter></BehaviorTree></root>'
     )
     registry = bt.NodeRegistry.with_builtins()
-    assert bt.load_tree_file(tmp_path / "main.xml").build(registry).tick_exactly_once() == bt.Status.SUCCESS
+    tree = bt.build_tree(bt.load_tree_file(tmp_path / "main.xml"), registry)
+    assert tree.tick_exactly_once() == bt.Status.SUCCESS
 
 
 def test_a_script_error_while_ticking_names_the_node_path() -> None:
@@ -104,7 +105,7 @@ def test_validate_lists_every_static_problem_with_its_line() -> None:
     doc = bt.load_tree_text(
         wrap('<Sequence>\n<Nope/>\n<AlwaysSuccess bad="1"/>\n<Inverter/>\n</Sequence>'), filename="t.xml"
     )
-    errors = [str(e) for e in doc.validate(bt.NodeRegistry.with_builtins())]
+    errors = [str(e) for e in bt.validate_document(doc, bt.NodeRegistry.with_builtins())]
     assert any(e.startswith("t.xml:4:") and "Nope" in e for e in errors)
     assert any(e.startswith("t.xml:5:") and "[bad]" in e for e in errors)
     assert any(e.startswith("t.xml:6:") and "exactly 1 child" in e for e in errors)
@@ -120,7 +121,7 @@ def test_lenient_xml_and_v3_names_load_with_warnings() -> None:
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(xml, registry)
     assert any("SequenceStar" in w for w in doc.warnings)
-    tree = doc.build(registry)
+    tree = bt.build_tree(doc, registry)
     assert tree.tick_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("a") == 1.0
 
@@ -164,7 +165,7 @@ def test_a_precondition_script_error_is_reported_at_load_with_its_line() -> None
 def test_transition_timestamps_come_from_the_injected_clock() -> None:
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(wrap("<AlwaysSuccess/>"), registry)
-    tree = doc.build(registry, clock=lambda: 1234.5)
+    tree = bt.build_tree(doc, registry, clock=lambda: 1234.5)
     seen: list[bt.Transition] = []
     tree.add_transition_listener(seen.append)
     tree.tick_exactly_once()
@@ -195,7 +196,7 @@ def test_a_format_3_file_loads_with_its_v3_constructs_converted() -> None:
     for expected in ("wrapped in {}", "__shared_blackboard", "success_threshold", "BlackboardCheckInt"):
         assert expected in warnings
     # A host-typed entry: BT.CPP gives a SetBlackboard string nothing to convert it with otherwise.
-    tree = doc.build(registry, blackboard={"goal": 0})
+    tree = bt.build_tree(doc, registry, blackboard={"goal": 0})
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("shared") == "yes"
 
@@ -208,11 +209,11 @@ def test_validation_reports_problems_in_trees_no_subtree_reaches() -> None:
     )
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(xml, registry, filename="t.xml")
-    messages = [str(e) for e in doc.validate(registry)]
+    messages = [str(e) for e in bt.validate_document(doc, registry)]
     assert any("t.xml:5" in m and "[typo]" in m for m in messages)
     assert any("t.xml:5" in m and "<Inverter> needs exactly 1 child" in m for m in messages)
     with pytest.raises(bt.BTLoadError, match=r"t.xml:5: .*<Inverter> needs exactly 1 child"):
-        doc.build(registry)
+        bt.build_tree(doc, registry)
 
 
 def test_a_tree_nested_too_deep_is_refused_before_it_is_built() -> None:
@@ -239,4 +240,4 @@ def test_subtrees_nested_too_deep_are_refused_with_their_chain() -> None:
     registry = bt.NodeRegistry.with_builtins()
     doc = bt.load_tree_text(xml, registry)
     with pytest.raises(bt.BTLoadError, match=r"more than 200 nodes deep through its SubTrees \(T0 -> T1 -> "):
-        doc.build(registry)
+        bt.build_tree(doc, registry)

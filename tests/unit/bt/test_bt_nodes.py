@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import coral.bt as bt
+import coral_core.bt as bt
 import pytest
 from bt_stubs import F, K, R, S, make_tree
 
@@ -322,7 +322,7 @@ def test_a_zero_delay_runs_its_child_at_the_next_tick() -> None:
 
 
 def test_plugin_controls_and_decorators_register_like_leaves() -> None:
-    from coral.bt.leaves import ControlNode, DecoratorNode
+    from coral_core.bt.leaves import ControlNode, DecoratorNode
 
     class FirstOnly(ControlNode):
         def tick(self) -> int:
@@ -347,7 +347,7 @@ def test_plugin_controls_and_decorators_register_like_leaves() -> None:
         '<root BTCPP_format="4"><BehaviorTree ID="M"><FirstOnly><Twice><Script code="n := n + 1"/></Twice>'
         "<AlwaysFailure/></FirstOnly></BehaviorTree></root>"
     )
-    tree = bt.load_tree_text(xml, registry).build(registry, blackboard={"n": 0})
+    tree = bt.build_tree(bt.load_tree_text(xml, registry), registry, blackboard={"n": 0})
     assert tree.tick_exactly_once() == S
     assert tree.root_blackboard.get("n") == 2
 

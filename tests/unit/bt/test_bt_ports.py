@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import re
 
-import coral.bt as bt
+import coral_core.bt as bt
 import py_trees
 import pytest
 from bt_stubs import make_tree
-from coral.bt.ports import convert_string, normalize_type
+from coral_core.bt.ports import convert_string, normalize_type
 
 
 @pytest.mark.parametrize(
@@ -53,11 +53,11 @@ def test_an_entry_keeps_the_type_of_the_first_port_that_created_it() -> None:
         match=r"port \[n\] was initially created with type \[int\] and, later type "
         r"\[NodeStatus\]",
     ):
-        bt.load_tree_text(xml, registry).build(registry)
+        bt.build_tree(bt.load_tree_text(xml, registry), registry)
 
 
 def test_plugin_ports_read_defaults_and_write_outputs() -> None:
-    from coral.bt.leaves import SyncAction
+    from coral_core.bt.leaves import SyncAction
 
     class Greet(SyncAction):
         PORTS = [
@@ -73,7 +73,7 @@ def test_plugin_ports_read_defaults_and_write_outputs() -> None:
     registry = bt.NodeRegistry.with_builtins()
     registry.register("Greet", Greet)
     xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Greet text="{out}" times="1"/></BehaviorTree></root>'
-    tree = bt.load_tree_text(xml, registry).build(registry, context="ros-node")
+    tree = bt.build_tree(bt.load_tree_text(xml, registry), registry, context="ros-node")
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert tree.root_blackboard.get("out") == "hello world"
     assert tree.nodes[0].context == "ros-node"
@@ -104,7 +104,7 @@ def test_an_output_the_tree_leaves_unwired_is_skipped_as_bt_cpp_does() -> None:
     registry = bt.NodeRegistry.with_builtins()
     registry.register("Measure", _Measure)
     xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Measure distance="{d}"/></BehaviorTree></root>'
-    tree = bt.load_tree_text(xml, registry).build(registry)
+    tree = bt.build_tree(bt.load_tree_text(xml, registry), registry)
     assert tree.tick_exactly_once() == bt.Status.SUCCESS
     assert _Measure.written == [True, False]
     assert tree.root_blackboard.get("d") == 2.5
@@ -124,6 +124,6 @@ def test_writing_a_port_the_node_never_declared_is_an_error_naming_the_node() ->
     xml = (
         '<root BTCPP_format="4"><BehaviorTree ID="M"><Typo name="typo" distance="{d}"/></BehaviorTree></root>'
     )
-    tree = bt.load_tree_text(xml, registry).build(registry)
+    tree = bt.build_tree(bt.load_tree_text(xml, registry), registry)
     with pytest.raises(bt.BTRuntimeError, match=r"typo.*distnce|distnce.*typo"):
         tree.tick_exactly_once()

@@ -5,10 +5,10 @@ from __future__ import annotations
 import re
 
 import pytest
-from coral.bt.anyvalue import text_to_double
-from coral.bt.blackboard import Blackboard
-from coral.bt.errors import ScriptError
-from coral.bt.scripting import ScriptEnv, compile_script
+from coral_core.bt.anyvalue import text_to_double
+from coral_core.bt.blackboard import Blackboard
+from coral_core.bt.errors import ScriptError
+from coral_core.bt.scripting import ScriptEnv, compile_script
 
 CASES = [
     ("arithmetic is done in double", "a:=5; b:=2; a/b", 2.5),
@@ -118,7 +118,7 @@ def test_a_long_chain_of_operators_costs_one_level_of_the_stack() -> None:
     ids=["parentheses", "prefix operators", "ternaries"],
 )
 def test_a_script_nested_past_the_limit_is_refused_when_it_compiles(nested: object) -> None:
-    from coral.bt.scripting.parser import MAX_NESTING
+    from coral_core.bt.scripting.parser import MAX_NESTING
 
     make = nested  # type: ignore[assignment]
     compile_script(f"x := {make(MAX_NESTING - 1)}")  # type: ignore[operator]

@@ -18,8 +18,8 @@ import psutil
 import pytest
 import zmq
 from bt_stubs import S, make_tree
-from coral.bt.groot2 import protocol as p
-from coral.bt.groot2.client import Groot2Client
+from coral_core.bt.groot2 import protocol as p
+from coral_core.bt.groot2.client import Groot2Client
 from fixtures.ports import free_port_pair
 from groot2_stubs import hundred_node_tree, publish
 
@@ -150,7 +150,7 @@ RESPONDER = """
 import sys, time
 sys.path.insert(0, sys.argv[2])
 from groot2_stubs import hundred_node_tree
-from coral.bt.groot2 import Groot2Publisher
+from coral_core.bt.groot2 import Groot2Publisher
 publisher = Groot2Publisher(hundred_node_tree(), int(sys.argv[1]))
 time.sleep(600)
 """

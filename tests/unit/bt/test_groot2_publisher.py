@@ -11,8 +11,8 @@ import time
 import pytest
 import zmq
 from bt_stubs import F, R, S, make_tree
-from coral.bt.groot2 import protocol as p
-from coral.bt.groot2.client import Groot2Client, Groot2Error
+from coral_core.bt.groot2 import protocol as p
+from coral_core.bt.groot2.client import Groot2Client, Groot2Error
 from groot2_stubs import publish
 
 BODY = '<Sequence name="top"><Q name="a"/><Q name="b"/></Sequence>'

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from coral import bt
-from coral.cli import main
+from coral_core import bt
+from coral_core.command import main
 from coral_operator.planning import validation
 
 EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
@@ -48,7 +48,7 @@ def _tree(node: str) -> str:
 @pytest.mark.parametrize(("node", "port", "xml"), CASES, ids=[c[0] for c in CASES])
 def test_a_missing_required_port_is_reported_with_its_line(node: str, port: str, xml: str) -> None:
     document = bt.load_tree_text(_tree(xml), filename="tree.xml")
-    problems = [str(e) for e in document.validate(bt.NodeRegistry.with_builtins())]
+    problems = [str(e) for e in bt.validate_document(document, bt.NodeRegistry.with_builtins())]
     assert problems == [f"tree.xml:4: <{node}> needs the port [{port}]; it has no default"]
     (operator_problem,) = validation.validate_tree(_tree(xml), "spec.tree.inline")
     assert (
@@ -59,7 +59,7 @@ def test_a_missing_required_port_is_reported_with_its_line(node: str, port: str,
 def test_a_port_given_or_remapped_satisfies_it() -> None:
     xml = '<Repeat num_cycles="{n}">\n        <Sleep msec="5"/>\n      </Repeat>'
     document = bt.load_tree_text(_tree(xml), filename="tree.xml")
-    assert document.validate(bt.NodeRegistry.with_builtins()) == []
+    assert bt.validate_document(document, bt.NodeRegistry.with_builtins()) == []
 
 
 def test_coral_validate_names_the_file_and_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from click.testing import CliRunner
-from coral.cli import main
+from coral_core.command import main
 from coral_testbed.images import catalog
 
 

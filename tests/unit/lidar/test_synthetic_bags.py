@@ -91,7 +91,7 @@ def test_a_sensor_no_lidar_has_is_refused_before_any_work(fields: dict[str, floa
 
 def test_generate_bag_names_a_speed_that_is_not_a_number(tmp_path: Path) -> None:
     from click.testing import CliRunner
-    from coral.cli import main
+    from coral_core.command import main
 
     result = CliRunner().invoke(main, ["generate-bag", "--speed", "nan", "--output", str(tmp_path / "bag")])
     assert result.exit_code == 2 and "speed must be a number of m/s of at least 0, not nan" in result.output

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from coral.local import components
-from coral.local.compose import Project, Service
+from coral_core.compose import Project, Service
 
 
 @pytest.mark.parametrize(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from coral.local.compose import ComposeError, find_compose_file, interpolate, parse_compose
+from coral_core.compose import ComposeError, find_compose_file, interpolate, parse_compose
 
 EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lidar-slam"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from coral.cli import main
+from coral_core.command import main
 from coral_operator.convert.cli import convert_command
 from coral_operator.planning import validation
 

@@ -6,8 +6,8 @@ import io
 import json
 from pathlib import Path
 
-from coral import terminal
 from coral.local.console import Console, StatusTail, TreeView, outline_of
+from coral_core import terminal
 
 
 def _rendered(view: TreeView) -> list[str]:

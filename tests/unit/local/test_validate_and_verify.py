@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from coral.cli import main
+from coral_core.command import main
 
 
 def _line_of(path: Path, text: str) -> int:

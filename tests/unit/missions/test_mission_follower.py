@@ -8,7 +8,7 @@ import subprocess
 import sys
 from typing import Any
 
-from coral import terminal
+from coral_core import terminal
 from coral_testbed.missions import following
 from fixtures.terminal import run_on_terminal
 
@@ -65,7 +65,7 @@ def test_follow_shows_every_poll_and_echoes_a_robot_only_when_its_tree_moved() -
 
 
 LIVE_FOLLOWER = """
-from coral import terminal
+from coral_core import terminal
 from coral_testbed.missions import following
 from rich.live import Live
 

@@ -176,7 +176,7 @@ def _converted_interpolated(tmp_path: Path) -> CoralSystemSpec:
 
 
 def test_images_are_interpolated_as_coral_run_reads_them(tmp_path: Path) -> None:
-    from coral.local.compose import parse_compose
+    from coral_core.compose import parse_compose
 
     spec = _converted_interpolated(tmp_path)
     converted = [spec.drivers[0].image, spec.executors[0].image]

@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from coral_operator.api import common, crdgen, instance, system
+from coral_core import instance_status
+from coral_operator.api import common, crdgen, system
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -115,7 +116,7 @@ def test_a_new_object_of_either_kind_reads_as_pending_until_the_operator_writes_
     """The API server fills in `status` from the schema's default on every read of a new object."""
     for kind_file, status_model in (
         ("coral.dev_coralsystems.yaml", system.CoralSystemStatus),
-        ("coral.dev_coralinstances.yaml", instance.CoralInstanceStatus),
+        ("coral.dev_coralinstances.yaml", instance_status.CoralInstanceStatus),
     ):
         default = _schema(kind_file)["properties"]["status"]["default"]
         assert default == common.pending_status()

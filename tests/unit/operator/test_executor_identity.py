@@ -3,7 +3,7 @@ admission policy that confines each executor to its own robot's instance is fail
 
 from __future__ import annotations
 
-from coral_operator.api.names import LABEL_SYSTEM
+from coral_core.names import LABEL_SYSTEM
 from coral_operator.planning import naming, rbac
 
 

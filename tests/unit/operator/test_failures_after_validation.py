@@ -88,14 +88,6 @@ def test_the_operator_part_of_the_status_excludes_only_what_the_executor_reports
     assert ownership.executor_part(status) == {"tree": {"rootStatus": "RUNNING"}, "plugins": {}}
 
 
-def test_an_observed_object_counts_once_it_holds_the_operators_last_write() -> None:
-    assert ownership.at_or_after("120", "120")
-    assert ownership.at_or_after("121", "120")  # someone (a forging executor) wrote after it
-    assert not ownership.at_or_after("119", "120")  # the index has not seen the write yet
-    assert not ownership.at_or_after(None, "120")
-    assert not ownership.at_or_after("abc", "abd")
-
-
 def test_a_forged_ready_is_recomputed_from_what_is_observed() -> None:
     forged = [
         {

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from coral.bt.limits import TreeLimits
+from coral_core.bt.limits import TreeLimits
 from coral_operator.planning import validation
 
 HEAD = '<root BTCPP_format="4" main_tree_to_execute="Main">\n'
@@ -112,7 +112,7 @@ def test_deeply_nested_parameters_are_a_problem_not_a_crash() -> None:
 
 
 def test_the_robot_still_reads_includes_from_its_folder(tmp_path: Path) -> None:
-    from coral import bt
+    from coral_core import bt
 
     (tmp_path / "nav.xml").write_text(NAV)
     (tmp_path / "tree.xml").write_text(_including("nav.xml"))

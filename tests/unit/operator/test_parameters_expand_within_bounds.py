@@ -13,8 +13,8 @@ import tracemalloc
 
 import pytest
 import yaml
-from coral import parsing
 from coral.sdk import params
+from coral_core import parsing
 from coral_operator.planning import validation
 from fixtures.yaml_bombs import merge_bomb
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 import yaml
-from coral_operator.api import names
+from coral_core import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import ROBOT_POD_BLOCKS, CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing

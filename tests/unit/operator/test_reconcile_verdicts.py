@@ -8,18 +8,20 @@ an admission controller would). Each test names the verdict a user would read wi
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from collections.abc import Callable, Iterator
 from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import common, names
+from coral_core import names
+from coral_operator.api import common
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import applying, leases, observing
 from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import instances, naming, revisions
-from coral_operator.planning.observed import InstanceRecord, RobotNode, SystemRecord
+from coral_operator.planning.observed import InstanceRecord, ObservedInstance, RobotNode, SystemRecord
 from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
@@ -247,6 +249,15 @@ class Harness:
                 resource_version=str(self.kube._version),
                 owners=(owner,) if by_hand is None else by_hand,
             )
+        ]
+        # One watch event updates every key of an instance, so its system's view of it is at the
+        # same resourceVersion (what it shows of the status stays as `instances_are` set it).
+        views = self.tables["coral_instances"].get(instances_of_system(NS, system), [])
+        self.tables["coral_instances"][instances_of_system(NS, system)] = [
+            dataclasses.replace(view, resource_version=str(self.kube._version))
+            if isinstance(view, ObservedInstance) and view.name == name
+            else view
+            for view in views
         ]
 
     def pods_are(self, ready: set[str], **overrides: dict[str, Any]) -> None:

@@ -17,8 +17,10 @@ from typing import Any
 import coral_operator
 import pytest
 from coral.executor import kubernetes_sink as sink
-from coral_operator.api import keys, names
-from coral_operator.api.instance import CoralInstanceSpec, CoralInstanceStatus
+from coral_core import names
+from coral_core.instance_status import CoralInstanceStatus
+from coral_operator.api import keys
+from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, CoralSystemStatus, StartupSpec
 from coral_operator.planning import instances, pods
 from coral_operator.planning.observed import ObservedInstance, ObservedPod

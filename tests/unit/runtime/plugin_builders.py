@@ -11,8 +11,8 @@ from coral.plugins import compat, hashing
 from coral.plugins import manifest as manifests
 
 GREETER_SOURCE = """
-from coral.bt import PortDirection, PortSpec, Status
-from coral.bt.leaves import SyncAction
+from coral_core.bt import PortDirection, PortSpec, Status
+from coral_core.bt.leaves import SyncAction
 
 
 class {cls}(SyncAction):

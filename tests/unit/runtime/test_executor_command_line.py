@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from coral.cli import main
-from coral.executor import MAX_TICK_RATE_HZ
+from coral_core.command import main
+from coral_core.limits import MAX_TICK_RATE_HZ
 
 TREE = '<root BTCPP_format="4"><BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree></root>'
 

@@ -5,10 +5,10 @@ than the json module can follow, instead of raising RecursionError on a ROS thre
 from __future__ import annotations
 
 import pytest
-from coral.bt.ports import convert_string
 from coral.coordination import messages
 from coral.plugins import manifest as manifests
 from coral.sdk.topics import CancelRequest, Heartbeat
+from coral_core.bt.ports import convert_string
 
 DEEP = "[" * 100_000 + "]" * 100_000
 

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import coral
 import pytest
-from coral.bt import PortDirection, PortSpec, Status
-from coral.bt.leaves import SyncAction
 from coral.plugins import compat, discovery, exporting
 from coral.plugins import manifest as manifests
+from coral_core.bt import PortDirection, PortSpec, Status
+from coral_core.bt.leaves import SyncAction
 from coral_skillsets.examples import behaviors
 
 COMPONENT = manifests.ComponentRef(name="examples", kind="skillset", node_name="examples", namespace="/")

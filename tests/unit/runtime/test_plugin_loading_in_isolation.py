@@ -6,8 +6,8 @@ from pathlib import Path
 
 import coral
 import pytest
-from coral.bt import NodeRegistry, load_tree_text
 from coral.plugins import compat, discovery, loading
+from coral_core.bt import NodeRegistry, build_tree, load_tree_text
 
 from .plugin_builders import greeter_plugin, write_plugin
 
@@ -39,7 +39,7 @@ def test_two_components_with_the_same_module_name_load_side_by_side(tmp_path: Pa
     # Both files are behaviors/behaviors.py, yet each has its own module object.
     assert len(module_names) == 2
     assert all(name.startswith("coral_plugin_") and name.endswith(".behaviors") for name in module_names)
-    tree = load_tree_text(TREE).build(registry)
+    tree = build_tree(load_tree_text(TREE), registry)
     assert tree.tick_once().name == "SUCCESS"
     assert (tree.root_blackboard.get("a"), tree.root_blackboard.get("b")) == ("from first", "from second")
 
@@ -70,8 +70,8 @@ def test_a_module_that_fails_to_import_is_reported_with_component_and_module(tmp
 
 
 INTERFACE_USER = """
-from coral.bt import PortDirection, PortSpec, Status
-from coral.bt.leaves import SyncAction
+from coral_core.bt import PortDirection, PortSpec, Status
+from coral_core.bt.leaves import SyncAction
 from coral_test_exported_msgs import GREETING
 
 
@@ -99,9 +99,10 @@ def test_exported_interface_packages_are_importable_by_the_behaviors(tmp_path: P
     registry = NodeRegistry.with_builtins()
     for node_id, cls in loading.load_classes(plugin, {"UsesInterface"}).items():
         registry.register(node_id, cls, source=plugin.name)
-    tree = load_tree_text(
+    document = load_tree_text(
         '<root BTCPP_format="4"><BehaviorTree ID="M"><UsesInterface greeting="{g}"/></BehaviorTree></root>'
-    ).build(registry)
+    )
+    tree = build_tree(document, registry)
     assert tree.tick_once().name == "SUCCESS"
     assert tree.root_blackboard.get("g") == "from an exported package"
 

@@ -7,8 +7,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
-from coral.bt import treenodesmodel
 from coral.plugins import manifest as manifests
+from coral_core.bt import treenodesmodel
 
 from .plugin_builders import greeter_plugin
 

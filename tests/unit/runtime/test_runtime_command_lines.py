@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from coral.cli import main
 from coral.plugins import exporting
 from coral.plugins import manifest as manifests
 from coral.sdk import running
+from coral_core.command import main
 from coral_skillsets.examples import behaviors
 from coral_skillsets.examples.skillset import ExampleSkillset
 

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from coral.bt.status import Status
 from coral.executor import kubernetes_sink
-from coral_operator.api.instance import CoralInstanceStatus
-from coral_operator.api.names import GROUP, VERSION
+from coral_core.bt.status import Status
+from coral_core.instance_status import CoralInstanceStatus
+from coral_core.names import GROUP, VERSION
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

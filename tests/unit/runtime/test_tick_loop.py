@@ -9,12 +9,12 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
-from coral.bt import NodeRegistry, Status, load_tree_text
-from coral.bt.leaves import StatefulAction
 from coral.executor import plugins_phase, sinks
 from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
 from coral.executor.wakeups import WakeSchedule
+from coral_core.bt import NodeRegistry, Status, build_tree, load_tree_text
+from coral_core.bt.leaves import StatefulAction
 from coral_testbed.waiting import wait_for
 
 HALTED: list[str] = []
@@ -67,7 +67,7 @@ def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
     registry.register("WokenWithinItsTick", WokenWithinItsTick)
     registry.register("FailsFirstRun", FailsFirstRun)
     context = SimpleNamespace(health=HealthMonitor(time.monotonic), failure_message=lambda path: "")
-    tree = load_tree_text(xml).build(registry, context=context)
+    tree = build_tree(load_tree_text(xml), registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
     return TickLoop(tree, context, sinks.SinkFanout([collect]), state, rate_hz=rate_hz)
 
@@ -305,7 +305,7 @@ def test_the_failure_that_says_why_is_reported_over_a_condition_that_said_no_fir
         "<Fallback><AlwaysFailure/><Refused/></Fallback>"
         "</BehaviorTree></root>"
     )
-    tree = load_tree_text(xml).build(registry, context=context)
+    tree = build_tree(load_tree_text(xml), registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
     loop = TickLoop(tree, context, sinks.SinkFanout([Collect()]), state, rate_hz=50.0)
     assert loop.run(threading.Event(), lambda: 143) != 0

@@ -1,0 +1,113 @@
+"""The CoralInstance's status as it travels: the contract between the operator and the executor.
+
+The operator writes the conditions, `robot` and `components`; the robot's executor writes `tree` and
+`plugins` through its status sink (`coral.executor.kubernetes_sink`), with an identity that may
+write nothing else. Both sides read and write these fields by their wire names (`coral_core.keys`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from coral_core.wire import CamelModel, Condition
+from pydantic import Field
+
+Role = Literal["driver", "skillset", "executor"]
+RootStatus = Literal["IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED"]
+"""What a tree's root can report, BT.CPP's node statuses."""
+
+
+class RobotState(CamelModel):
+    """Whether the robot's Node is reachable and Ready."""
+
+    node_name: str | None = None
+    """The robot's Node."""
+    reachable: bool | None = None
+    """The robot's kubelet reports in: the Node's Ready condition is True or False, not Unknown, and
+    the Node carries no `node.kubernetes.io/unreachable` taint."""
+    node_ready: bool | None = None
+    """The Node's Ready condition is True (a reachable robot can be not Ready; its kubelet says why)."""
+    last_seen: str | None = None
+    """While the robot is unreachable: when its kubelet last renewed its Node Lease (RFC 3339)."""
+
+
+class ComponentState(CamelModel):
+    """One component's pod as last observed."""
+
+    name: str
+    """Component name."""
+    role: Role
+    """driver, skillset or executor."""
+    pod: str | None = None
+    """Pod name; empty while the component waits for its startup stage."""
+    phase: str = "Waiting"
+    """Pod phase, or `Waiting` before the pod exists."""
+    ready: bool = False
+    """The pod is Ready (or, for a transient component, Succeeded)."""
+    restarts: int = 0
+    """Container restarts."""
+    revision: str | None = None
+    """Revision the pod was built from."""
+
+
+class TreeFailure(CamelModel):
+    """The last failure seen in the tree."""
+
+    path: str = ""
+    """Path of the node that failed, for example `Root/Sequence/Navigate`."""
+    message: str = ""
+    """What failed."""
+    time: str | None = None
+    """When it failed (RFC 3339)."""
+
+
+class TreeState(CamelModel):
+    """Behavior-tree status, written by the robot's executor."""
+
+    root_status: RootStatus = "IDLE"
+    """Status of the root node."""
+    active_path: str = ""
+    """Path of the deepest RUNNING node."""
+    tick_count: int = 0
+    """Ticks since the executor started."""
+    last_transition_time: str | None = None
+    """When a node last changed status (RFC 3339)."""
+    last_failure: TreeFailure | None = None
+    """The last node failure."""
+    message: str = ""
+    """Executor message, for example which node types are missing."""
+    updated_at: str | None = None
+    """When the executor wrote this (RFC 3339)."""
+
+
+class PluginState(CamelModel):
+    """Behaviors exported by the robot's skillsets, as the executor sees them."""
+
+    loaded: list[str] = Field(default_factory=list)
+    """Loaded plugin components."""
+    missing: list[str] = Field(default_factory=list)
+    """Node types the tree uses that no plugin provides."""
+    conflicts: list[str] = Field(default_factory=list)
+    """Name clashes and refused manifests, one sentence each."""
+    degraded: list[str] = Field(default_factory=list)
+    """Components whose process died under a loaded behavior."""
+
+
+class CoralInstanceStatus(CamelModel):
+    """Observed state of one robot."""
+
+    observed_generation: int | None = None
+    """The generation this status was computed from."""
+    conditions: list[Condition] = Field(default_factory=list)
+    """Ready, Reconciling, Stalled, RobotReachable, ComponentsReady, PluginsReady, LibraryDegraded,
+    TreeHealthy."""
+    revision: str | None = None
+    """Revision every component pod runs; empty while pods of several revisions coexist."""
+    robot: RobotState = Field(default_factory=RobotState)
+    """Reachability of the robot."""
+    components: list[ComponentState] = Field(default_factory=list)
+    """One entry per component, in startup order."""
+    plugins: PluginState | None = None
+    """Exported behaviors, written by the executor."""
+    tree: TreeState | None = None
+    """Tree status, written by the executor."""
