@@ -26,6 +26,7 @@ VERBS: dict[str, str] = {
     "images": "coral_testbed.images.cli:images",
     "executor": "coral.executor.cli:executor_command",
     "tree": "coral.tree_cli:tree_group",
+    "groot2": "coral_operator.groot2_cli:groot2_command",
     "skillset": "coral.sdk.cli:skillset_command",
     "plugins": "coral.plugins.cli:plugins_command",
     "operator": "coral_operator.cli:operator_command",

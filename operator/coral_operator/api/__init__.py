@@ -3,7 +3,16 @@ CRD schema and its documentation). Other packages import the models from here.""
 
 from coral_operator.api.base import CamelModel
 from coral_operator.api.common import Condition, ConfigMapKeyRef, LabelSelector, LabelSelectorRequirement
-from coral_operator.api.components import Component, DeviceMount, EnvVar, HostPathMount, Readiness, Resources
+from coral_operator.api.components import (
+    Component,
+    DeviceMount,
+    EnvVar,
+    ExecutorComponent,
+    Groot2Spec,
+    HostPathMount,
+    Readiness,
+    Resources,
+)
 from coral_operator.api.instance import (
     ComponentState,
     ConfigRef,
@@ -59,6 +68,8 @@ __all__ = [
     "CoralSystemStatus",
     "DeviceMount",
     "EnvVar",
+    "ExecutorComponent",
+    "Groot2Spec",
     "HostPathMount",
     "InstanceTree",
     "LabelSelector",

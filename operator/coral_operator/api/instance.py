@@ -13,7 +13,7 @@ from pydantic import Field
 
 from coral_operator.api.base import CamelModel
 from coral_operator.api.common import Condition
-from coral_operator.api.components import Component, Role
+from coral_operator.api.components import Component, ExecutorComponent, Role
 from coral_operator.api.system import MAX_COMPONENTS, Layout, PluginsSpec, RosSpec, StartupSpec
 
 
@@ -54,7 +54,7 @@ class CoralInstanceSpec(CamelModel):
     """Driver components."""
     skillsets: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Skillset components."""
-    executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    executors: list[ExecutorComponent] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Executor components."""
     layout: Layout = "PodPerComponent"
     """One pod per component (`PodPerComponent`) or one pod for the robot (`PodPerRobot`)."""
@@ -98,6 +98,9 @@ class ComponentState(CamelModel):
     """Container restarts."""
     revision: str | None = None
     """Revision the pod was built from."""
+    groot2_port: int | None = None
+    """Executors with `groot2` set: the port their Groot2 publisher listens on, on 127.0.0.1 inside
+    the pod (the next one publishes breakpoints); `coral groot2 SYSTEM ROBOT` forwards both."""
 
 
 class TreeFailure(CamelModel):
