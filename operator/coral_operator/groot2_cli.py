@@ -43,18 +43,6 @@ def forwarded(
         forward.close()
 
 
-def _first_answer(port: int) -> str:
-    """One STATUS request through the forward: whether the executor's publisher answers yet."""
-    from coral.bt.groot2.client import Groot2Client, Groot2Error
-
-    with Groot2Client("127.0.0.1", port, timeout_s=5.0) as client:
-        try:
-            client.status()
-        except Groot2Error as error:
-            return f"The publisher does not answer yet ({error}); it starts once the tree is loaded."
-        return f"The publisher answers: tree {client.tree_uuid.hex()}."
-
-
 @click.command("groot2")
 @click.argument("system")
 @click.argument("robot")
@@ -73,6 +61,9 @@ def groot2_command(system: str, robot: str, namespace: str, port: int, executor:
     Forwards the executor's Groot2 ports (its `groot2.port` and the next) from its pod, as
     `kubectl port-forward` does: your credentials, RBAC (`create` on `pods/portforward`) and the
     audit log apply. Connect Groot2's Monitor to localhost and PORT. Ctrl-C stops.
+
+    Forwarding sends no request of its own: an executor holding its first tick for a debugger
+    (`groot2.waitForClientSeconds`) goes on waiting until Groot2 connects.
     """
     with forwarded(
         namespace=namespace, system=system, robot=robot, executor=executor, local_ports=[port, port + 1]
@@ -81,7 +72,6 @@ def groot2_command(system: str, robot: str, namespace: str, port: int, executor:
             f"Forwarding {target.executor} of robot {robot} (pod {target.pod}, ports {target.port} and "
             f"{target.port + 1}) to 127.0.0.1:{port} and {port + 1}."
         )
-        click.echo(_first_answer(port))
         click.echo(f"Connect Groot2 (Monitor) to localhost, port {port}. Ctrl-C stops.")
         try:
             threading.Event().wait()
