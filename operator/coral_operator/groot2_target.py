@@ -41,7 +41,7 @@ class Target:
 
 
 def _robot_of(instance: Mapping[str, Any]) -> str:
-    return str(instance.get("spec", {}).get("robot", ""))
+    return str((instance.get("spec") or {}).get("robot", ""))
 
 
 def find_target(
@@ -65,9 +65,9 @@ def find_target(
             f"robot {robot} is not matched by coralsystem/{system} in namespace {namespace} "
             f"(its robots: {robots})"
         )
-    components = instance.get("status", {}).get(keys.INSTANCE_STATUS.components) or []
+    components = (instance.get("status") or {}).get(keys.INSTANCE_STATUS.components) or []
     served = [c for c in components if c.get(keys.COMPONENT.groot2_port)]
-    declared = [e for e in instance.get("spec", {}).get("executors", []) if e.get("groot2")]
+    declared = [e for e in (instance.get("spec") or {}).get("executors", []) if e.get("groot2")]
     if not served:
         if declared:
             raise TargetError(

@@ -110,6 +110,13 @@ def _snapshot(cluster: Cluster, namespace: str, robot: str) -> dict[str, Any]:
     return json.loads(done.stdout)
 
 
+def _refusal(cluster: Cluster, *args: str) -> str:
+    """What a `coral` verb that cannot start says; it must exit 1."""
+    done = subprocess.run(_coral(*args), env=cluster.env(), capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1, (done.stdout, done.stderr)
+    return done.stderr
+
+
 def _nodes(node: dict[str, Any]) -> Iterator[dict[str, Any]]:
     yield node
     for child in node["children"]:
@@ -257,6 +264,11 @@ def test_where_hooks_are_closed_they_are_refused_and_the_tree_runs_untouched(
         f"spec.executors[0] (executor): groot2.allowHooks is not allowed in namespace {namespace}" in message
     )
     assert not rs.instance(custom, namespace, SYSTEM), "nothing is deployed for a refused system"
+    # Nothing to forward yet, and the verbs say why.
+    unknown = _refusal(cluster, "groot2", "nosuch", robot, "-n", namespace)
+    assert f"coralsystem/nosuch not found in namespace {namespace}" in unknown
+    unmatched = _refusal(cluster, "tree", "watch", SYSTEM, robot, "-n", namespace, "--once")
+    assert f"robot {robot} is not matched by coralsystem/{SYSTEM}" in unmatched
 
     watching = {"port": PORT, "waitForClientSeconds": 300}
     custom.patch_namespaced_custom_object(
