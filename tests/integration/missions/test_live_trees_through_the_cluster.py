@@ -40,13 +40,7 @@ from kubernetes import client as k8s
 from . import realsystems as rs
 from .conftest import first_real_robot
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(420),
-]
+pytestmark = [*rs.REAL_ROBOT_MARKS, pytest.mark.timeout(420)]
 
 SYSTEM = "inspection"
 PORT = 1667
