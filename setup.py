@@ -37,7 +37,6 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "generate-bag = coral.lidar.cli:generate_bag_command",
             "slam-demo = coral.lidar.cli:slam_demo_command",
             "executor = coral.executor.cli:executor_command",
-            "tree = coral.tree_cli:tree_group",
             "skillset = coral.sdk.cli:skillset_command",
             "plugins = coral.plugins.cli:plugins_command",
         ],
@@ -57,6 +56,8 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "convert = coral_operator.convert.cli:convert_command",
             "crds = coral_operator.crds_cli:crds_command",
             "rollout = coral_operator.rollout_cli:rollout",
+            "groot2 = coral_operator.groot2_cli:groot2_command",
+            "tree = coral_operator.tree_cli:tree_group",
         ],
     },
     "coral_testbed": {

@@ -48,6 +48,9 @@ class ComponentState(CamelModel):
     """Container restarts."""
     revision: str | None = None
     """Revision the pod was built from."""
+    groot2_port: int | None = None
+    """Executors with `groot2` set: the port their Groot2 publisher listens on, on 127.0.0.1 inside
+    the pod (the next one publishes breakpoints); `coral groot2 SYSTEM ROBOT` forwards both."""
 
 
 class TreeFailure(CamelModel):

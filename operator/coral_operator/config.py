@@ -9,6 +9,7 @@ comma separated; unset means the restrictive default, empty means none. Host pat
 | CORAL_POLICY_PRIVILEGED_NAMESPACES | namespaces whose drivers may be privileged | none |
 | CORAL_POLICY_ROOT_NAMESPACES | namespaces whose components may run as root | none |
 | CORAL_POLICY_HOST_NETWORK_NAMESPACES | namespaces whose systems may use the host network and IPC | none |
+| CORAL_POLICY_GROOT2_HOOKS_NAMESPACES | namespaces whose executors may take Groot2 hooks | none |
 | CORAL_POLICY_DATA_ROOT | robot folder of the data subtrees, `<root>/<namespace>` | /var/lib/coral/data |
 | CORAL_POLICY_HOST_PATHS | further folders a namespace may mount, `namespace=/folder` | none |
 | CORAL_POLICY_DEVICES | device paths (globs) devices may use | /dev/ttyUSB*, /dev/ttyACM*, /dev/video* |
@@ -102,6 +103,7 @@ def from_environment(environ: Mapping[str, str] | None = None) -> OperatorConfig
         privileged_namespaces=_namespaces(env.get("CORAL_POLICY_PRIVILEGED_NAMESPACES")),
         root_namespaces=_namespaces(env.get("CORAL_POLICY_ROOT_NAMESPACES")),
         host_network_namespaces=_namespaces(env.get("CORAL_POLICY_HOST_NETWORK_NAMESPACES")),
+        groot2_hooks_namespaces=_namespaces(env.get("CORAL_POLICY_GROOT2_HOOKS_NAMESPACES")),
         data_root=normalise(env.get("CORAL_POLICY_DATA_ROOT") or defaults.data_root),
         host_paths=_host_paths(env.get("CORAL_POLICY_HOST_PATHS")),
         device_patterns=_paths(env.get("CORAL_POLICY_DEVICES"), defaults.device_patterns),

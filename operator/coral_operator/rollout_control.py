@@ -10,15 +10,14 @@ the revision before it until the spec makes a newer one. `report` reads `status.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Any
 
 from coral_core import names
 from kubernetes import client as k8s
-from kubernetes import config as k8s_config
 from kubernetes.client.exceptions import ApiException
 
+from coral_operator import user_client
 from coral_operator.api import keys
 
 
@@ -35,12 +34,7 @@ class RolloutControl:
 
     @classmethod
     def from_kubeconfig(cls, namespace: str) -> RolloutControl:
-        try:
-            k8s_config.load_incluster_config()
-        except k8s_config.ConfigException:
-            # Read $KUBECONFIG now: the client's default location is fixed when it is imported.
-            k8s_config.load_kube_config(config_file=os.environ.get("KUBECONFIG"))
-        return cls(k8s.ApiClient(), namespace)
+        return cls(user_client.user_api_client(), namespace)
 
     def read(self, name: str) -> dict[str, Any]:
         try:

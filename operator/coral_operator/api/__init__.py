@@ -18,7 +18,16 @@ from coral_core.names import API_VERSION, GROUP, VERSION
 from coral_core.wire import CamelModel, Condition
 
 from coral_operator.api.common import ConfigMapKeyRef, LabelSelector, LabelSelectorRequirement
-from coral_operator.api.components import Component, DeviceMount, EnvVar, HostPathMount, Readiness, Resources
+from coral_operator.api.components import (
+    Component,
+    DeviceMount,
+    EnvVar,
+    ExecutorComponent,
+    Groot2Spec,
+    HostPathMount,
+    Readiness,
+    Resources,
+)
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
 from coral_operator.api.rollout import (
     CanaryStatus,
@@ -62,7 +71,11 @@ __all__ = [
     "CoralSystemSpec",
     "CoralSystemStatus",
     "DeviceMount",
+    "ExecutorComponent",
+    "Groot2Spec",
     "EnvVar",
+    "ExecutorComponent",
+    "Groot2Spec",
     "HostPathMount",
     "InstanceTree",
     "LabelSelector",

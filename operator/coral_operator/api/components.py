@@ -129,3 +129,40 @@ class Component(CamelModel):
     """The component may exit 0 and then counts as done (for example a one-shot calibration)."""
     readiness: Readiness | None = None
     """When the component counts as ready; running is enough when omitted (skillsets: plugin marker)."""
+
+
+GROOT2_DEFAULT_PORT = 1667
+"""Groot2's own default; BT.CPP's examples publish there too."""
+
+
+class Groot2Spec(CamelModel):
+    """Publish the executor's live tree over BehaviorTree.CPP's Groot2 protocol, so Groot2 or
+    `coral tree watch` can follow it through `coral groot2 SYSTEM ROBOT` (docs/groot2.md)."""
+
+    port: int = Field(default=GROOT2_DEFAULT_PORT, ge=1024, le=65534)
+    """Request port; reached breakpoints are published on the next one. Bound on 127.0.0.1 inside
+    the pod, which with `ros.network: Host` is the robot's own loopback: executors of every system on
+    one robot need ports of their own. 1024 and up, as components run as non-root."""
+    allow_hooks: bool = False
+    """Let clients set breakpoints and force node results, which change how the tree runs (a forced
+    SUCCESS on a safety check). Only in namespaces the operator's policy opens
+    (`policy.groot2HooksNamespaces`); watching needs no permission."""
+    wait_for_client_seconds: int = Field(default=0, ge=0, le=3600)
+    """Hold the mission's first tick until a client sets a hook (or has watched for 3 s), at most
+    this long, so a breakpoint can be set before the mission starts; 0 starts at once."""
+
+    def executor_args(self) -> list[str]:
+        """The executor's command-line flags for these settings."""
+        return [
+            "--groot2-port",
+            str(self.port),
+            *(["--groot2-allow-hooks"] if self.allow_hooks else []),
+            *(["--groot2-wait", str(self.wait_for_client_seconds)] if self.wait_for_client_seconds else []),
+        ]
+
+
+class ExecutorComponent(Component):
+    """An executor: a component that runs the system's tree."""
+
+    groot2: Groot2Spec | None = None
+    """Serve the live tree over Groot2's protocol; off when omitted."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 from coral_core.wire import CamelModel
 from pydantic import Field
 
-from coral_operator.api.components import Component
+from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.system import MAX_COMPONENTS, Layout, PluginsSpec, RosSpec, StartupSpec
 
 
@@ -51,7 +51,7 @@ class CoralInstanceSpec(CamelModel):
     """Driver components."""
     skillsets: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Skillset components."""
-    executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    executors: list[ExecutorComponent] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Executor components."""
     layout: Layout = "PodPerComponent"
     """One pod per component (`PodPerComponent`) or one pod for the robot (`PodPerRobot`)."""

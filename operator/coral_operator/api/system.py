@@ -16,7 +16,7 @@ from coral_core.wire import CamelModel, Condition
 from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.common import ConfigMapKeyRef, LabelSelector
-from coral_operator.api.components import Component
+from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.rollout import RolloutStatus
 
 MAX_COMPONENTS = 32
@@ -46,6 +46,10 @@ TREE_FILE_NAMES = (
 )
 MAX_UNAVAILABLE_SYNTAX = "rollout.maxUnavailable must be a count of at least 0 or a percentage like '10%'"
 MAX_UNAVAILABLE_FIELD = "spec.rollout.maxUnavailable"
+GROOT2_PORTS_APART = (
+    "executors' groot2 ports must be at least 2 apart: each publisher uses its port and the next, and "
+    "executors of one robot share its loopback"
+)
 
 
 def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
@@ -263,6 +267,18 @@ class RolloutSpec(CamelModel):
     """How robots that are offline count during a rollout."""
 
 
+# Two executors' Groot2 publishers clash when their port pairs (N, N+1) overlap.
+_GROOT2_APART = (
+    "self.executors.all(a, !has(a.groot2) || self.executors.all(b, b.name == a.name || !has(b.groot2) "
+    "|| b.groot2.port - a.groot2.port > 1 || a.groot2.port - b.groot2.port > 1))"
+)
+
+
+def groot2_ports_overlap(executors: list[ExecutorComponent]) -> bool:
+    ports = sorted(e.groot2.port for e in executors if e.groot2)
+    return any(later - earlier < 2 for earlier, later in zip(ports, ports[1:], strict=False))
+
+
 _ALL_NAMES = "(self.drivers.map(c, c.name) + self.skillsets.map(c, c.name) + self.executors.map(c, c.name))"
 
 
@@ -283,6 +299,7 @@ class CoralSystemSpec(CamelModel):
                 ),
                 _cel(f"{_ALL_NAMES}.all(n, {_ALL_NAMES}.exists_one(m, m == n))", UNIQUE_NAMES),
                 _cel("size(self.executors) > 0", NEEDS_EXECUTOR, ".executors"),
+                _cel(_GROOT2_APART, GROOT2_PORTS_APART, ".executors"),
                 _cel(
                     "!has(self.layout) || self.layout != 'PodPerRobot' || !has(self.startup) "
                     "|| !has(self.startup.onTimeout) || self.startup.onTimeout != 'Proceed'",
@@ -305,7 +322,7 @@ class CoralSystemSpec(CamelModel):
     """Hardware (or bag player) components; started first."""
     skillsets: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Components that export behaviors; started when the drivers are ready."""
-    executors: list[Component] = Field(default_factory=list, max_length=MAX_COMPONENTS)
+    executors: list[ExecutorComponent] = Field(default_factory=list, max_length=MAX_COMPONENTS)
     """Components that run the tree; started when the skillsets are ready."""
     layout: Layout = "PodPerComponent"
     """`PodPerComponent` (default): one pod per component per robot, each restarted and updated on
@@ -332,6 +349,8 @@ class CoralSystemSpec(CamelModel):
             raise ValueError(UNIQUE_NAMES)
         if not self.executors:
             raise ValueError(NEEDS_EXECUTOR)
+        if groot2_ports_overlap(self.executors):
+            raise ValueError(GROOT2_PORTS_APART)
         if self.layout == "PodPerRobot" and self.startup.on_timeout == "Proceed":
             raise ValueError(ROBOT_POD_BLOCKS)
         return self

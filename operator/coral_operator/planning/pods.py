@@ -24,7 +24,7 @@ from coral_core.component_image import COMPONENT_UID
 from coral_core.instance_status import Role
 from coral_core.names import API_VERSION
 
-from coral_operator.api.components import Component
+from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
@@ -259,13 +259,19 @@ def _container(
         "volumeMounts": mounts,
         "securityContext": _security(component),
     }
-    command = component.command or (
+    command = list(component.command) or (
         executor_command(spec) if role == "executor" and not component.args else []
     )
+    args = list(component.args)
+    groot2 = component.groot2 if isinstance(component, ExecutorComponent) else None
+    if groot2:
+        # Our own command takes the flags; otherwise they follow the user's arguments, which the
+        # image's entrypoint (`python -m coral.executor ...`) or the user's command receives.
+        (command if command and not component.command else args).extend(groot2.executor_args())
     if command:
         container["command"] = command
-    if component.args:
-        container["args"] = list(component.args)
+    if args:
+        container["args"] = args
     if component.image_pull_policy:
         container["imagePullPolicy"] = component.image_pull_policy
     if component.resources:

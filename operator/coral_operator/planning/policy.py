@@ -2,9 +2,11 @@
 
 Whoever may create a CoralSystem in a namespace may start processes on robots. The policy decides
 which of the spec's fields that reach a pod may grant more than an unprivileged container:
-`privileged`, `runAsRoot`, devices, host paths, `plugins.hostPathRoot` and the host network (with
-host IPC). Pods the operator builds never ask for hostPID or added capabilities, and non-root
-containers drop every capability. The shipped default (`Policy()`) is restrictive; administrators
+`privileged`, `runAsRoot`, devices, host paths, `plugins.hostPathRoot`, the host network (with
+host IPC) and Groot2 hooks on an executor (breakpoints and forced node results, which change how
+the tree runs: a forced SUCCESS on a safety check is as good as root; watching is always allowed).
+Pods the operator builds never ask for hostPID or added capabilities, and non-root containers drop
+every capability. The shipped default (`Policy()`) is restrictive; administrators
 open it per namespace (`coral_operator.config`). A CoralSystem asking for more is refused as a
 whole (Stalled, nothing deployed). Paths are normalised before they are compared, so `..` cannot
 climb out of an allowed folder. Pure.
@@ -22,7 +24,7 @@ import posixpath
 from dataclasses import dataclass
 from pathlib import PurePosixPath
 
-from coral_operator.api.components import Component
+from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 
@@ -52,6 +54,9 @@ class Policy:
     for `*`, is shared between them (read-only data such as maps and bags)."""
     device_patterns: tuple[str, ...] = DEFAULT_DEVICE_PATTERNS
     """Robot device paths `devices` may pass in, as glob patterns (`*` stays within one name)."""
+    groot2_hooks_namespaces: frozenset[str] = frozenset()
+    """Namespaces whose executors may let Groot2 clients set breakpoints and force node results
+    (`groot2.allowHooks`)."""
     plugin_roots: tuple[str, ...] = (DEFAULT_PLUGIN_ROOT,)
     """Values `plugins.hostPathRoot` may take: the operator creates `<root>/<namespace>/<system>`
     read-write on every robot, so any other root could reach another namespace's plugins."""
@@ -118,8 +123,26 @@ def _device_allowed(path: str, patterns: tuple[str, ...]) -> bool:
     )
 
 
+ALLOW_HOOKS_FLAG = "--groot2-allow-hooks"
+
+
+def _groot2_problems(where: str, component: Component, namespace: str, policy: Policy) -> list[str]:
+    if allows(policy.groot2_hooks_namespaces, namespace):
+        return []
+    problems = []
+    if isinstance(component, ExecutorComponent) and component.groot2 and component.groot2.allow_hooks:
+        problems.append(f"{where}: groot2.allowHooks is not allowed in namespace {namespace}")
+    # The flag written by hand would be the same permission without the field.
+    for field, values in (("command", component.command), ("args", component.args)):
+        if any(value.strip() == ALLOW_HOOKS_FLAG for value in values):
+            problems.append(
+                f"{where}: {field} holds {ALLOW_HOOKS_FLAG}, which is not allowed in namespace {namespace}"
+            )
+    return problems
+
+
 def _component_problems(where: str, component: Component, namespace: str, policy: Policy) -> list[str]:
-    problems: list[str] = []
+    problems = _groot2_problems(where, component, namespace, policy)
     if component.privileged and not allows(policy.privileged_namespaces, namespace):
         problems.append(f"{where}: privileged is not allowed in namespace {namespace}")
     if component.run_as_root and not allows(policy.root_namespaces, namespace):

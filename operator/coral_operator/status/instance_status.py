@@ -245,6 +245,7 @@ def evaluate_ready(view: InstanceView) -> Verdict:
 def build_components(view: InstanceView) -> list[dict[str, Any]]:
     """One entry per component in startup order."""
     entries = []
+    groot2_ports = {e.name: e.groot2.port for e in view.spec.executors if e.groot2}
     for slot in component_slots(view.desired):
         # The pod of this content, else the older one still stopping to make way for it.
         pod = current_record(slot, view.pods) or next(
@@ -265,6 +266,8 @@ def build_components(view: InstanceView) -> list[dict[str, Any]]:
                 keys.COMPONENT.ready: False,
                 keys.COMPONENT.restarts: 0,
             }
+        if slot.component in groot2_ports and slot.role == "executor":
+            entry[keys.COMPONENT.groot2_port] = groot2_ports[slot.component]
         entries.append(entry)
     return entries
 

@@ -77,6 +77,21 @@ REJECTIONS = [
         "rollout.maxUnavailable must be a count of at least 0 or a percentage like '10%'",
     ),
     (
+        "two executors' Groot2 port pairs overlapping",
+        lambda s: s.update(
+            executors=[
+                {**s["executors"][0], "groot2": {"port": 1667}},
+                {**s["executors"][0], "name": "second", "groot2": {"port": 1668}},
+            ]
+        ),
+        "executors' groot2 ports must be at least 2 apart",
+    ),
+    (
+        "a Groot2 port only root may bind",
+        lambda s: s["executors"][0].update(groot2={"port": 80}),
+        "spec.executors[0].groot2.port",
+    ),
+    (
         "an include file under the tree's own name",
         lambda s: s["tree"].update(files={"tree.xml": "<root/>"}),
         "tree.files names must be file names",

@@ -10,7 +10,7 @@ import sys
 import pytest
 from bt_stubs import R, S, make_tree
 from click.testing import CliRunner
-from coral.tree_cli import tree_group
+from coral_operator.tree_cli import tree_group
 from groot2_stubs import publish
 
 BODY = '<Sequence name="top"><Q name="a"/><SubTree ID="Sub" name="sub"/></Sequence>'

@@ -11,7 +11,7 @@ PROJECT_RULES = ".git\n.venv\n**/__pycache__\n**/*.pyc\nout\ntests\n"
 @pytest.mark.parametrize(
     ("rules", "path", "excluded"),
     [
-        pytest.param(PROJECT_RULES, "components/coral/tree_cli.py", False, id="keep a source file"),
+        pytest.param(PROJECT_RULES, "components/coral/executor/cli.py", False, id="keep a source file"),
         pytest.param(PROJECT_RULES, ".venv/bin/python", True, id="leave out everything under a named folder"),
         pytest.param(
             PROJECT_RULES,

@@ -1,5 +1,5 @@
 """Snapshots of a live tree read over Groot2's protocol, and their rich rendering: the library
-behind `coral tree watch` (`coral.tree_cli`). One snapshot is the FULLTREE (read once per tree
+behind `coral tree watch` (`coral_operator.tree_cli`). One snapshot is the FULLTREE (read once per tree
 UUID) joined with a STATUS reply, and optionally the blackboards.
 """
 
