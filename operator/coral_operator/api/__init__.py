@@ -74,8 +74,6 @@ __all__ = [
     "ExecutorComponent",
     "Groot2Spec",
     "EnvVar",
-    "ExecutorComponent",
-    "Groot2Spec",
     "HostPathMount",
     "InstanceTree",
     "LabelSelector",
