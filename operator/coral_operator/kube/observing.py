@@ -76,6 +76,9 @@ def robot_node(
         reachable=bool(ready and ready.get("status") in ("True", "False"))
         and UNREACHABLE_TAINT not in taints,
         ready_message=str((ready or {}).get("message") or ""),
+        ready_since=parse_time((ready or {}).get(keys.CONDITION.last_transition_time))
+        if (ready or {}).get("status") == "True"
+        else None,
     )
 
 
@@ -91,6 +94,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     every = [*(status.get("initContainerStatuses") or []), *statuses]
     waiting = [((s.get("state") or {}).get("waiting") or {}) for s in every]
     waiting_reasons = {w.get("reason") for w in waiting}
+    unready_since = _unready_since(ready)
     return ObservedPod(
         name=metadata.get("name", ""),
         component=labels.get(names.LABEL_COMPONENT, ""),
@@ -101,6 +105,8 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
         ready=bool(ready and ready.get("status") == "True"),
         created=parse_time(metadata.get("creationTimestamp")),
         deleting=bool(metadata.get("deletionTimestamp")),
+        unready_since=unready_since,
+        settled=any(_settled(s, unready_since) for s in statuses),
         restarts=sum(int(s.get("restartCount") or 0) for s in statuses),
         crash_looping="CrashLoopBackOff" in waiting_reasons,
         image_problem=next(
@@ -147,6 +153,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
         for c in [*(spec.get("initContainers") or []), *(spec.get("containers") or [])]
     )
     created = parse_time(metadata.get("creationTimestamp"))
+    unready_since = _unready_since(_condition(status.get("conditions"), "Ready"))
     unschedulable = _unschedulable(status)
     members = {component for component, _ in naming.pod_members({"metadata": metadata})}
     # A container that is no component's (the ownership step) holds every component back.
@@ -172,6 +179,8 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 ready=ready,
                 created=_waiting_since(container, created),
                 deleting=bool(metadata.get("deletionTimestamp")),
+                unready_since=unready_since,
+                settled=_settled(container, unready_since),
                 restarts=int(container.get("restartCount") or 0),
                 crash_looping=waiting.get("reason") == "CrashLoopBackOff",
                 image_problem=_reason_and_message(waiting)
@@ -195,6 +204,27 @@ def _waiting_since(container: Mapping[str, Any], pod_created: datetime | None) -
     if started and not container.get("restartCount"):
         return parse_time(started)
     return pod_created
+
+
+def _unready_since(ready: Mapping[str, Any] | None) -> datetime | None:
+    """When a pod that is not Ready last stopped being Ready; None for a Ready pod."""
+    if ready is None or ready.get("status") == "True":
+        return None
+    return parse_time(ready.get(keys.CONDITION.last_transition_time))
+
+
+def _settled(container: Mapping[str, Any], unready_since: datetime | None) -> bool:
+    """Whether the container was ready since it last started: its pod turned unready after the start.
+
+    A pod is Ready only when all its containers are, and it turns unready when its first status is
+    written (before any container starts) or when it loses readiness; so a pod that turned unready
+    after this container started had it ready in between. The node-lifecycle controller also turns
+    the pods of a robot it lost unready: their containers did not restart, so they are settled too.
+    """
+    state = container.get("state") or {}
+    life = state.get("running") or state.get("terminated") or {}
+    started = parse_time(life.get("startedAt"))
+    return started is not None and unready_since is not None and unready_since > started
 
 
 _IMAGE_PROBLEMS = frozenset(
