@@ -109,9 +109,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
         settled=any(_settled(s, unready_since) for s in statuses),
         restarts=sum(int(s.get("restartCount") or 0) for s in statuses),
         crash_looping="CrashLoopBackOff" in waiting_reasons,
-        image_problem=next(
-            (_reason_and_message(w) for w in waiting if w.get("reason") in _IMAGE_PROBLEMS), None
-        ),
+        image_problem=_image_problem(every, labels.get(names.LABEL_COMPONENT, "")),
         container_refused=_container_refused(every),
         unschedulable=_unschedulable(status),
     )
@@ -157,7 +155,9 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
     unschedulable = _unschedulable(status)
     members = {component for component, _ in naming.pod_members({"metadata": metadata})}
     # A container that is no component's (the ownership step) holds every component back.
-    shared_refusal = _container_refused([s for name, s in by_name.items() if name not in members])
+    helpers = [s for name, s in by_name.items() if name not in members]
+    shared_refusal = _container_refused(helpers)
+    shared_image_problem = _image_problem(helpers, "")
     records = []
     for component, role in naming.pod_members({"metadata": metadata}):
         container = by_name.get(component) or {}
@@ -183,9 +183,7 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 settled=_settled(container, unready_since),
                 restarts=int(container.get("restartCount") or 0),
                 crash_looping=waiting.get("reason") == "CrashLoopBackOff",
-                image_problem=_reason_and_message(waiting)
-                if waiting.get("reason") in _IMAGE_PROBLEMS
-                else None,
+                image_problem=_image_problem([container], component) or shared_image_problem,
                 container_refused=_container_refused([container]) or shared_refusal,
                 unschedulable=unschedulable,
                 shape_hash=annotations.get(names.ANNOTATION_SHAPE_HASH, ""),
@@ -240,12 +238,29 @@ _IMAGE_PROBLEMS = frozenset(
 _CONTAINER_REFUSALS = frozenset({"CreateContainerConfigError"})
 
 
-def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
+def _first_waiting(statuses: list[Mapping[str, Any]], reasons: frozenset[str]) -> tuple[str, str] | None:
+    """(container, the kubelet's reason and message) of the first container waiting for one of `reasons`."""
     for container in statuses:
         waiting = (container.get("state") or {}).get("waiting") or {}
-        if waiting.get("reason") in _CONTAINER_REFUSALS:
-            return _reason_and_message(waiting)
+        if waiting.get("reason") in reasons:
+            return str(container.get("name") or ""), _reason_and_message(waiting)
     return None
+
+
+def _image_problem(statuses: list[Mapping[str, Any]], own: str) -> str | None:
+    """The first image the kubelet cannot pull, in its words, naming the container unless it is the
+    component's own `own`: an init step's or a sidecar's failed pull holds the component back as
+    surely as its own image would."""
+    found = _first_waiting(statuses, _IMAGE_PROBLEMS)
+    if found is None:
+        return None
+    name, told = found
+    return told if name == own else f"container {name}: {told}"
+
+
+def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
+    found = _first_waiting(statuses, _CONTAINER_REFUSALS)
+    return found[1] if found else None
 
 
 def _reason_and_message(state: Mapping[str, Any]) -> str:
