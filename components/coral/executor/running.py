@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from coral.executor import plugins_phase, records, sinks
+from coral.executor import DEFAULT_NO_PROGRESS_S, plugins_phase, records, sinks
 from coral.executor.ticking import TickLoop
 from coral.sdk.heap import freeze_startup_heap
 from coral.stop_signals import relay_stop_signals
@@ -36,6 +36,7 @@ class ExecutorOptions:
     plugins: Path
     params: Path | None = None
     rate_hz: float = 10.0
+    no_progress_s: float = DEFAULT_NO_PROGRESS_S
     status_jsonl: Path | None = None
     main_tree: str | None = None
     hostname: str = field(default_factory=lambda: os.environ.get("CORAL_HOSTNAME") or socket.gethostname())
@@ -194,7 +195,9 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             return EXIT_BAD_INPUT
         calls.open_clients(tree.nodes)
         waker["tree"] = tree
-        loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
+        loop = TickLoop(
+            tree, context, fanout, state, rate_hz=options.rate_hz, no_progress_s=options.no_progress_s
+        )
         publisher = _start_groot2(options, tree, fanout)
         if publisher is not None:
 

@@ -31,6 +31,8 @@ class InstanceTree(ConfigRef):
     """ID of the tree to run."""
     tick_rate_hz: float = 10.0
     """How often the executor ticks the tree."""
+    no_progress_seconds: int | None = Field(default=None, ge=0, le=86400)
+    """How long one node may fail the same way before the tree counts as making no progress."""
 
 
 class CoralInstanceSpec(CamelModel):
@@ -111,6 +113,17 @@ class TreeFailure(CamelModel):
     """When it failed (RFC 3339)."""
 
 
+class NoProgress(CamelModel):
+    """One node failing the same way again and again: the tree makes no progress."""
+
+    path: str = ""
+    """Path of the node that keeps failing."""
+    message: str = ""
+    """How it fails (its first failure's message)."""
+    since: str | None = None
+    """When it started failing so (RFC 3339)."""
+
+
 class TreeState(CamelModel):
     """Behavior-tree status, written by the robot's executor."""
 
@@ -124,6 +137,8 @@ class TreeState(CamelModel):
     """When a node last changed status (RFC 3339)."""
     last_failure: TreeFailure | None = None
     """The last node failure."""
+    no_progress: NoProgress | None = None
+    """Set while one node keeps failing the same way (`tree.noProgressSeconds`)."""
     message: str = ""
     """Executor message, for example which node types are missing."""
     updated_at: str | None = None

@@ -17,6 +17,7 @@ from coral_operator.api.common import Condition
 from coral_operator.api.instance import (
     ComponentState,
     CoralInstanceStatus,
+    NoProgress,
     PluginState,
     RobotState,
     TreeFailure,
@@ -48,6 +49,7 @@ class WireNames:
 INSTANCE_STATUS = WireNames(CoralInstanceStatus)
 TREE = WireNames(TreeState)
 TREE_FAILURE = WireNames(TreeFailure)
+NO_PROGRESS = WireNames(NoProgress)
 PLUGINS = WireNames(PluginState)
 ROBOT = WireNames(RobotState)
 COMPONENT = WireNames(ComponentState)
