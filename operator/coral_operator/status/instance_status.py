@@ -318,7 +318,8 @@ def build_instance_status(
             C.RECONCILING,
             reconciling,
             R.PROGRESSING if reconciling else (stalled.reason if stalled else R.READY),
-            components.message if reconciling else "",
+            # What keeps it from Ready: its components, or a tree that makes no progress.
+            ready.message if reconciling else "",
         ),
         Verdict(
             C.STALLED,

@@ -41,6 +41,7 @@ def test_a_tree_that_makes_no_progress_is_not_ready_and_names_the_node(
     assert "2026-01-01T11:50:00Z" in tree["message"]
     assert (conditions["Ready"]["status"], conditions["Ready"]["reason"]) == ("False", "NoProgress")
     assert conditions["Stalled"]["status"] == "False", "the loop may end by itself"
+    assert conditions["Reconciling"]["message"] == conditions["Ready"]["message"], "not 'components ready'"
 
 
 def test_the_loop_ending_makes_the_robot_ready_again(spec_dict: Callable[..., dict[str, Any]]) -> None:
