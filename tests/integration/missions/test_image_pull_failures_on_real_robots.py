@@ -22,18 +22,13 @@ from coral_operator.planning.pods import FOLDERS_OWNER
 from coral_testbed.cluster import Cluster, operatorchart, realrobots, uplink
 from coral_testbed.waiting import wait_for
 from fixtures.operator import OperatorProcess
+from fixtures.robots import REAL_ROBOT_MARKS
 from kubernetes import client as k8s
 
 from . import realsystems as rs
 from .conftest import first_real_robot
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(480),
-]
+pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
 
 SYSTEM = "unpulled"
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">

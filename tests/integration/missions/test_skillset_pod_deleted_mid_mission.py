@@ -18,38 +18,22 @@ import pytest
 from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.waiting import wait_for
 from fixtures.operator import OperatorProcess
+from fixtures.robots import REAL_ROBOT_MARKS
 from kubernetes import client as k8s
 
 from . import realsystems as rs
 from .conftest import first_real_robot
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(480),
-]
+pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
 
 SYSTEM = "evicted"
 RATE_HZ = 10.0
-TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence>
-      <Fallback>
-        <Sequence name="Inspect">
-          <Count count="{count}"/>
-          <WaitForCount threshold="1000" timeout_ms="180000"/>
-        </Sequence>
-        <Greet name="ReportLostSkillset" who="inspection abandoned" greeting="{report}"/>
-      </Fallback>
-      <RetryUntilSuccessful num_attempts="-1">
+TREE = rs.mission_tree(
+    rs.INSPECT_OR_REPORT,
+    """<RetryUntilSuccessful num_attempts="-1">
         <Count name="CountAgain" count="{count}"/>
-      </RetryUntilSuccessful>
-    </Sequence>
-  </BehaviorTree>
-</root>
-"""
+      </RetryUntilSuccessful>""",
+)
 
 
 def _degraded(item: dict) -> bool:

@@ -19,16 +19,10 @@ from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.images import catalog
 from coral_testbed.waiting import wait_for
 from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOTS, pull_images
+from fixtures.robots import REAL_ROBOT_MARKS, REAL_ROBOTS, pull_images
 from kubernetes import client as k8s
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(480),
-]
+pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
 
 GROUP, VERSION = "coral.dev", "v1alpha1"
 SYSTEM = "long-mission"
