@@ -64,6 +64,17 @@ class TreeFailure(CamelModel):
     """When it failed (RFC 3339)."""
 
 
+class NoProgress(CamelModel):
+    """One node failing the same way again and again: the tree makes no progress."""
+
+    path: str = ""
+    """Path of the node that keeps failing."""
+    message: str = ""
+    """How it fails (its first failure's message)."""
+    since: str | None = None
+    """When it started failing so (RFC 3339)."""
+
+
 class TreeState(CamelModel):
     """Behavior-tree status, written by the robot's executor."""
 
@@ -77,6 +88,8 @@ class TreeState(CamelModel):
     """When a node last changed status (RFC 3339)."""
     last_failure: TreeFailure | None = None
     """The last node failure."""
+    no_progress: NoProgress | None = None
+    """Set while one node keeps failing the same way (`tree.noProgressSeconds`)."""
     message: str = ""
     """Executor message, for example which node types are missing."""
     updated_at: str | None = None

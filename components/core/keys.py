@@ -38,6 +38,7 @@ class WireNames:
 INSTANCE_STATUS = WireNames(instance_status.CoralInstanceStatus)
 TREE = WireNames(instance_status.TreeState)
 TREE_FAILURE = WireNames(instance_status.TreeFailure)
+NO_PROGRESS = WireNames(instance_status.NoProgress)
 PLUGINS = WireNames(instance_status.PluginState)
 ROBOT = WireNames(instance_status.RobotState)
 COMPONENT = WireNames(instance_status.ComponentState)

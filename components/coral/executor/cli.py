@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 from click.decorators import FC
-from coral_core.limits import MAX_TICK_RATE_HZ
+from coral_core.limits import DEFAULT_NO_PROGRESS_S, MAX_TICK_RATE_HZ
 
 
 def groot2_options(port_help: str) -> Callable[[FC], FC]:
@@ -46,7 +46,7 @@ def check_groot2_options(groot2_port: int | None, groot2_allow_hooks: bool, groo
 def _finite(_context: click.Context, _parameter: click.Parameter, value: float) -> float:
     # A range passes NaN: every comparison with it is false.
     if not math.isfinite(value):
-        raise click.BadParameter(f"{value} is not a number of Hz")
+        raise click.BadParameter(f"{value} is not a finite number")
     return value
 
 
@@ -78,7 +78,16 @@ def _finite(_context: click.Context, _parameter: click.Parameter, value: float) 
     callback=_finite,
     default=10.0,
     show_default=True,
-    help="Tick rate in Hz (wake-ups tick at once in between).",
+    help="Tick rate in Hz, and the most the tree is ticked (a wake-up ticks at once after a period).",
+)
+@click.option(
+    "--no-progress",
+    "no_progress_s",
+    type=click.FloatRange(min=0.0),
+    callback=_finite,
+    default=DEFAULT_NO_PROGRESS_S,
+    show_default=True,
+    help="Report no progress once one node has failed the same way for this many seconds (0: never).",
 )
 @click.option(
     "--status-jsonl",
@@ -126,6 +135,7 @@ def executor_command(
     plugins: Path,
     params: Path | None,
     rate_hz: float,
+    no_progress_s: float,
     status_jsonl: Path | None,
     main_tree: str | None,
     hostname: str | None,
@@ -148,6 +158,7 @@ def executor_command(
         plugins=plugins,
         params=params,
         rate_hz=rate_hz,
+        no_progress_s=no_progress_s,
         status_jsonl=status_jsonl,
         main_tree=main_tree,
         node_name=node_name,

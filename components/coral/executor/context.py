@@ -135,7 +135,7 @@ class ExecutorContext:
             return publisher
 
     def component_failure(self, component: str) -> str | None:
-        return self.health.failure(component)
+        return self.health.refuse_call(component)
 
     def publish_cancel(self, service: str) -> None:
         request = topics.CancelRequest(service, self.node.get_fully_qualified_name())

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 from coral.sdk import topics
 
+RESTARTED = "it restarted (a new process; its state is lost)"
+
 
 @dataclass
 class _Seen:
@@ -19,13 +21,18 @@ class _Seen:
     stopping: bool
     instance: str
     restarted_at: float | None = None
+    told: bool = False
+    """A call into the restarted component has failed for it: the tree has been told."""
 
 
 class HealthMonitor:
     """Remembers each component's last heartbeat; a component is degraded once it was seen alive
-    and then fell silent for `timeout_s`, announced it is stopping, or came back as a new process
-    (for `restart_s` after the new one's first beat). Never-seen components are not degraded:
-    their calls wait for the service within their own timeout instead.
+    and then fell silent for `timeout_s`, announced it is stopping, or came back as a new process.
+    A new process stays degraded for `restart_s` after its first beat and until a call into it
+    failed for it (`refuse_call`): the new process lost the old one's state, and the tree must
+    learn it through a failed behavior, which its fallback can handle, however long it takes the
+    tree to call that component again. Never-seen components are not degraded: their calls wait
+    for the service within their own timeout instead.
     """
 
     def __init__(
@@ -47,10 +54,11 @@ class HealthMonitor:
             restarted_at = before.restarted_at if before else None
             # A kubelet restarts a killed container within about a second, sooner than the
             # silence would be noticed; the new instance says the old one is gone.
+            told = before.told if before else False
             if before and before.instance and heartbeat.instance and before.instance != heartbeat.instance:
-                restarted_at = now
+                restarted_at, told = now, False
             self._seen[heartbeat.component] = _Seen(
-                now, heartbeat.state == "stopping", heartbeat.instance, restarted_at
+                now, heartbeat.state == "stopping", heartbeat.instance, restarted_at, told
             )
 
     def failure(self, component: str) -> str | None:
@@ -68,9 +76,20 @@ class HealthMonitor:
             # message, and a message that changed every tick would rewrite the condition (and
             # patch the CoralInstance) every tick for as long as the component stays away.
             return f"no heartbeat for over {self._timeout_s:g} s"
-        if seen.restarted_at is not None and now - seen.restarted_at < self._restart_s:
-            return "it restarted (a new process; its state is lost)"
+        if seen.restarted_at is not None and (not seen.told or now - seen.restarted_at < self._restart_s):
+            return RESTARTED
         return None
+
+    def refuse_call(self, component: str) -> str | None:
+        """`failure`, for a behavior about to call `component`: the call fails with this reason. A
+        restart's reason, once given, counts as told to the tree."""
+        reason = self.failure(component)
+        if reason == RESTARTED:
+            with self._lock:
+                seen = self._seen.get(component)
+                if seen is not None:
+                    seen.told = True
+        return reason
 
     def state(self, component: str) -> str:
         """`unknown` (no heartbeat yet), `alive`, or `degraded`."""

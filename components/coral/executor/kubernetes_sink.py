@@ -82,6 +82,15 @@ def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
             if failure.get("time") is not None:
                 last_failure[keys.TREE_FAILURE.time] = _rfc3339(failure["time"])
             tree[keys.TREE.last_failure] = last_failure
+        stuck = record.get("no_progress") or {}
+        if stuck:
+            tree[keys.TREE.no_progress] = {
+                keys.NO_PROGRESS.path: str(stuck.get("path", "")),
+                keys.NO_PROGRESS.message: str(stuck.get("message", "")),
+                keys.NO_PROGRESS.since: _rfc3339(stuck.get("since")),
+            }
+        elif tree.get(keys.TREE.no_progress):
+            tree[keys.TREE.no_progress] = None  # a merge patch's null clears the field
         for condition in record.get("conditions") or []:
             if condition.get("type") == "LibraryDegraded":
                 plugins[keys.PLUGINS.degraded] = (

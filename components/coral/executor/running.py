@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from coral_core.limits import DEFAULT_NO_PROGRESS_S
+
 from coral.executor import plugins_phase, records, sinks
 from coral.executor.ticking import TickLoop
 from coral.sdk.heap import freeze_startup_heap
@@ -36,6 +38,7 @@ class ExecutorOptions:
     plugins: Path
     params: Path | None = None
     rate_hz: float = 10.0
+    no_progress_s: float = DEFAULT_NO_PROGRESS_S
     status_jsonl: Path | None = None
     main_tree: str | None = None
     hostname: str = field(default_factory=lambda: os.environ.get("CORAL_HOSTNAME") or socket.gethostname())
@@ -196,7 +199,9 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             return EXIT_BAD_INPUT
         calls.open_clients(tree.nodes)
         waker["tree"] = tree
-        loop = TickLoop(tree, context, fanout, state, rate_hz=options.rate_hz)
+        loop = TickLoop(
+            tree, context, fanout, state, rate_hz=options.rate_hz, no_progress_s=options.no_progress_s
+        )
         publisher = _start_groot2(options, tree, fanout)
         if publisher is not None:
 

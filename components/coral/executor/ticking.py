@@ -6,10 +6,18 @@ contract (`Tree.needs_polling()` is False) the loop sleeps until a wake-up, a be
 deadline (`ExecutorContext.wakeups`), the moment a component would turn silent, or the status
 heartbeat, whichever comes first; otherwise it ticks at the configured rate as well.
 
+The configured rate is also the most the loop ticks, wake-ups included: a tick starts no sooner
+than one period after the one before. A wake-up that comes later than that ticks at once; an
+earlier one waits for the period to end. Without the bound, a behavior that fails at once inside
+a retry wakes the tree again from its own tick, and a robot whose skillset lost its state spun at
+400 ticks a second with its rate set to 20 (issue 50).
+
 Used by `coral.executor.running` once the tree is built. Status records go to the sinks:
 every node transition, `component` records when a loaded component's liveness changes
 (`unknown`, `alive`, `degraded`), a `status` record when the root status or active node changes (at most
 5 per second, plus one per second as a heartbeat), and `condition` records for `LibraryDegraded`.
+A `status` record's `no_progress` names the node that keeps failing the same way
+(`coral.executor.progress`), or is null.
 """
 
 from __future__ import annotations
@@ -19,7 +27,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from coral_core.limits import DEFAULT_NO_PROGRESS_S
+
 from coral.executor import plugins_phase, records, sinks
+from coral.executor.progress import ProgressWatch
 
 STATUS_MIN_INTERVAL_S = 0.2
 STATUS_HEARTBEAT_S = 1.0
@@ -34,6 +45,7 @@ class TickLoop:
         plugins: plugins_phase.PluginState,
         *,
         rate_hz: float,
+        no_progress_s: float = DEFAULT_NO_PROGRESS_S,
     ) -> None:
         self.tree = tree
         self.context = context
@@ -47,6 +59,7 @@ class TickLoop:
         self._component_states: dict[str, str] = {}
         self._last_status: dict[str, Any] | None = None
         self._last_status_at = 0.0
+        self.progress = ProgressWatch(no_progress_s)
         tree.add_transition_listener(self._on_transition)
 
     def _emit(self, event: str, **fields: Any) -> None:
@@ -64,9 +77,14 @@ class TickLoop:
             status=status,
             tick=self.tree.tick_count,
         )
+        if status == "SUCCESS":
+            self.progress.succeeded(transition.path)
         if status != "FAILURE":
             return
         message = self.context.failure_message(transition.path)
+        self.progress.failed(
+            transition.path, transition.node_id, message, time.monotonic(), self.last_transition_time
+        )
         # Transitions propagate leaf-first, so the first FAILURE of a tick is where it started;
         # but a condition that said no before a Fallback went on to its next child explains
         # nothing, so a later failure of the same tick that says why it failed (a behavior whose
@@ -124,6 +142,7 @@ class TickLoop:
             "active_path": records.active_path(snapshot.nodes),
             "last_transition_time": self.last_transition_time,
             "last_failure": self.last_failure,
+            "no_progress": self.progress.stuck(time.monotonic()),
             "conditions": conditions,
         }
 
@@ -162,6 +181,8 @@ class TickLoop:
                     break
                 self._report(root)
                 self.tree.wait_for_wake_up(self._sleep_s(started))
+                # Never sooner than a period after this tick began, however early the wake-up.
+                stop.wait(max(0.0, started + self.period_s - time.monotonic()))
         except bt.BTRuntimeError as err:
             self._emit("error", message=str(err))
             self._halt()

@@ -9,6 +9,7 @@ operator's API is one surface.
 from coral_core.instance_status import (
     ComponentState,
     CoralInstanceStatus,
+    NoProgress,
     PluginState,
     RobotState,
     TreeFailure,
@@ -78,6 +79,7 @@ __all__ = [
     "InstanceTree",
     "LabelSelector",
     "LabelSelectorRequirement",
+    "NoProgress",
     "PluginState",
     "PluginsSpec",
     "Readiness",

@@ -28,6 +28,8 @@ class InstanceTree(ConfigRef):
     """ID of the tree to run."""
     tick_rate_hz: float = 10.0
     """How often the executor ticks the tree."""
+    no_progress_seconds: int | None = Field(default=None, ge=0, le=86400)
+    """How long one node may fail the same way before the tree counts as making no progress."""
 
 
 class CoralInstanceSpec(CamelModel):

@@ -147,7 +147,12 @@ class TreeSpec(SourceSpec):
     main_tree_id: str | None = Field(default=None, max_length=253)
     """ID of the tree to run; the document's `main_tree_to_execute` when omitted."""
     tick_rate_hz: float = Field(default=10.0, gt=0, le=MAX_TICK_RATE_HZ)
-    """How often the executor ticks the tree."""
+    """How often the executor ticks the tree, and the most it ticks it: a wake-up (a service's
+    answer, a timer) ticks at once when a period has passed since the last tick."""
+    no_progress_seconds: int | None = Field(default=None, ge=0, le=86400)
+    """How long one node may fail the same way, again and again, before the robot reports that its
+    tree makes no progress (`TreeHealthy=False`, reason `NoProgress`, so it is not Ready); 0 never
+    reports it. Default: 60."""
 
 
 class StartupSpec(CamelModel):

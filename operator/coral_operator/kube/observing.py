@@ -78,6 +78,9 @@ def robot_node(
         reachable=bool(ready and ready.get("status") in ("True", "False"))
         and UNREACHABLE_TAINT not in taints,
         ready_message=str((ready or {}).get("message") or ""),
+        ready_since=parse_time((ready or {}).get(keys.CONDITION.last_transition_time))
+        if (ready or {}).get("status") == "True"
+        else None,
     )
 
 
@@ -93,6 +96,7 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
     every = [*(status.get("initContainerStatuses") or []), *statuses]
     waiting = [((s.get("state") or {}).get("waiting") or {}) for s in every]
     waiting_reasons = {w.get("reason") for w in waiting}
+    unready_since = _unready_since(ready)
     return ObservedPod(
         name=metadata.get("name", ""),
         component=labels.get(names.LABEL_COMPONENT, ""),
@@ -103,11 +107,11 @@ def observed_pod(body: Mapping[str, Any]) -> ObservedPod:
         ready=bool(ready and ready.get("status") == "True"),
         created=parse_time(metadata.get("creationTimestamp")),
         deleting=bool(metadata.get("deletionTimestamp")),
+        unready_since=unready_since,
+        settled=any(_settled(s, unready_since) for s in statuses),
         restarts=sum(int(s.get("restartCount") or 0) for s in statuses),
         crash_looping="CrashLoopBackOff" in waiting_reasons,
-        image_problem=next(
-            (_reason_and_message(w) for w in waiting if w.get("reason") in _IMAGE_PROBLEMS), None
-        ),
+        image_problem=_image_problem(every, labels.get(names.LABEL_COMPONENT, "")),
         container_refused=_container_refused(every),
         unschedulable=_unschedulable(status),
     )
@@ -149,10 +153,13 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
         for c in [*(spec.get("initContainers") or []), *(spec.get("containers") or [])]
     )
     created = parse_time(metadata.get("creationTimestamp"))
+    unready_since = _unready_since(_condition(status.get("conditions"), "Ready"))
     unschedulable = _unschedulable(status)
     members = {component for component, _ in naming.pod_members({"metadata": metadata})}
     # A container that is no component's (the ownership step) holds every component back.
-    shared_refusal = _container_refused([s for name, s in by_name.items() if name not in members])
+    helpers = [s for name, s in by_name.items() if name not in members]
+    shared_refusal = _container_refused(helpers)
+    shared_image_problem = _image_problem(helpers, "")
     records = []
     for component, role in naming.pod_members({"metadata": metadata}):
         container = by_name.get(component) or {}
@@ -174,11 +181,11 @@ def _robot_pod_members(body: Mapping[str, Any]) -> list[ObservedPod]:
                 ready=ready,
                 created=_waiting_since(container, created),
                 deleting=bool(metadata.get("deletionTimestamp")),
+                unready_since=unready_since,
+                settled=_settled(container, unready_since),
                 restarts=int(container.get("restartCount") or 0),
                 crash_looping=waiting.get("reason") == "CrashLoopBackOff",
-                image_problem=_reason_and_message(waiting)
-                if waiting.get("reason") in _IMAGE_PROBLEMS
-                else None,
+                image_problem=_image_problem([container], component) or shared_image_problem,
                 container_refused=_container_refused([container]) or shared_refusal,
                 unschedulable=unschedulable,
                 shape_hash=annotations.get(names.ANNOTATION_SHAPE_HASH, ""),
@@ -199,6 +206,27 @@ def _waiting_since(container: Mapping[str, Any], pod_created: datetime | None) -
     return pod_created
 
 
+def _unready_since(ready: Mapping[str, Any] | None) -> datetime | None:
+    """When a pod that is not Ready last stopped being Ready; None for a Ready pod."""
+    if ready is None or ready.get("status") == "True":
+        return None
+    return parse_time(ready.get(keys.CONDITION.last_transition_time))
+
+
+def _settled(container: Mapping[str, Any], unready_since: datetime | None) -> bool:
+    """Whether the container was ready since it last started: its pod turned unready after the start.
+
+    A pod is Ready only when all its containers are, and it turns unready when its first status is
+    written (before any container starts) or when it loses readiness; so a pod that turned unready
+    after this container started had it ready in between. The node-lifecycle controller also turns
+    the pods of a robot it lost unready: their containers did not restart, so they are settled too.
+    """
+    state = container.get("state") or {}
+    life = state.get("running") or state.get("terminated") or {}
+    started = parse_time(life.get("startedAt"))
+    return started is not None and unready_since is not None and unready_since > started
+
+
 _IMAGE_PROBLEMS = frozenset(
     {
         "ErrImagePull",
@@ -212,12 +240,29 @@ _IMAGE_PROBLEMS = frozenset(
 _CONTAINER_REFUSALS = frozenset({"CreateContainerConfigError"})
 
 
-def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
+def _first_waiting(statuses: list[Mapping[str, Any]], reasons: frozenset[str]) -> tuple[str, str] | None:
+    """(container, the kubelet's reason and message) of the first container waiting for one of `reasons`."""
     for container in statuses:
         waiting = (container.get("state") or {}).get("waiting") or {}
-        if waiting.get("reason") in _CONTAINER_REFUSALS:
-            return _reason_and_message(waiting)
+        if waiting.get("reason") in reasons:
+            return str(container.get("name") or ""), _reason_and_message(waiting)
     return None
+
+
+def _image_problem(statuses: list[Mapping[str, Any]], own: str) -> str | None:
+    """The first image the kubelet cannot pull, in its words, naming the container unless it is the
+    component's own `own`: an init step's or a sidecar's failed pull holds the component back as
+    surely as its own image would."""
+    found = _first_waiting(statuses, _IMAGE_PROBLEMS)
+    if found is None:
+        return None
+    name, told = found
+    return told if name == own else f"container {name}: {told}"
+
+
+def _container_refused(statuses: list[Mapping[str, Any]]) -> str | None:
+    found = _first_waiting(statuses, _CONTAINER_REFUSALS)
+    return found[1] if found else None
 
 
 def _reason_and_message(state: Mapping[str, Any]) -> str:

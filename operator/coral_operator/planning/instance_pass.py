@@ -90,7 +90,12 @@ def plan_instance(
         return InstancePlan(spec=spec, retire=True, stop=startup.plan_shutdown(observed))
     transient = {c.name for c in spec.drivers + spec.skillsets + spec.executors if c.transient}
     plan = startup.plan_startup(
-        desired=desired, observed=observed, transient=transient, startup=spec.startup, now=now
+        desired=desired,
+        observed=observed,
+        transient=transient,
+        startup=spec.startup,
+        now=now,
+        robot_since=node.ready_since if node is not None else None,
     )
     return InstancePlan(spec=spec, startup=plan, desired=desired, transient=transient)
 

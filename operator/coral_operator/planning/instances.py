@@ -28,6 +28,8 @@ def build_template(spec: CoralSystemSpec, tree_config_map: str, params_config_ma
             config_map=tree_config_map,
             main_tree_id=spec.tree.main_tree_id,
             tick_rate_hz=spec.tree.tick_rate_hz,
+            # Unset unless given (`to_wire` drops it): older revisions keep their hash.
+            no_progress_seconds=spec.tree.no_progress_seconds,
         ).to_wire(),
         "drivers": [c.to_wire() for c in spec.drivers],
         "skillsets": [c.to_wire() for c in spec.skillsets],

@@ -34,6 +34,9 @@ class RobotNode:
     A robot can be reachable and not Ready (its kubelet says why)."""
     ready_message: str = ""
     """The Ready condition's message, which says why a reachable robot is not Ready."""
+    ready_since: datetime | None = None
+    """When the Node last turned Ready (its Ready condition's transition), if it is Ready: a robot
+    back from a reboot or an outage starts its components over from then."""
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,12 @@ class ObservedPod:
     ready: bool
     created: datetime | None
     deleting: bool = False
+    unready_since: datetime | None = None
+    """When the pod last stopped being Ready (its Ready condition's transition), if it is not Ready."""
+    settled: bool = False
+    """The component has been ready since its container last started, so it is not starting up: an
+    unready settled component (a readiness probe missing mid-mission, a transient run ending) is
+    not held to the startup health timeout."""
     restarts: int = 0
     crash_looping: bool = False
     image_problem: str | None = None

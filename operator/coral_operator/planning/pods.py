@@ -88,6 +88,12 @@ def executor_command(spec: CoralInstanceSpec) -> list[str]:
         "--hostname",
         spec.robot,
         *(["--main-tree", spec.tree.main_tree_id] if spec.tree.main_tree_id else []),
+        # Only when given, so the pods of systems that leave it out keep their content hash.
+        *(
+            ["--no-progress", str(spec.tree.no_progress_seconds)]
+            if spec.tree.no_progress_seconds is not None
+            else []
+        ),
     ]
 
 

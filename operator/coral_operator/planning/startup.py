@@ -1,8 +1,9 @@
 """Ordered startup of one robot's components: drivers, then skillsets, then executors.
 
 A stage's pods are created only when every pod of the earlier stages is Ready (a transient one:
-Succeeded). A stage that stays unready longer than the health timeout either blocks the next stage
-(`Block`, said in the plan's verdict) or lets it start (`Proceed`).
+Succeeded). A stage still starting up longer than the health timeout either blocks the next stage
+(`Block`, said in the plan's verdict) or lets it start (`Proceed`); the timeout measures startup
+only (`startup_began`), never a component that was ready and lost it mid-mission.
 
 Pods are matched to components by their `coral.dev/component` label and content hash, never by
 name: a pod's name ends in a digest of its content (`naming.pod_name`), so a changed component's
@@ -123,6 +124,21 @@ def current_pod(manifest: dict[str, Any], observed: list[ObservedPod]) -> Observ
     return current_record(Slot(_component(manifest), "", _pod_hash(manifest)), observed)
 
 
+def startup_began(pod: ObservedPod, robot_since: datetime | None) -> datetime | None:
+    """When the component's current startup began, or None when it is not starting up.
+
+    A startup begins when the pod is made, when the pod loses its readiness (its container crashed,
+    or its robot lost it) and when the robot turns Ready again after a reboot or an outage
+    (`robot_since`); it ends when the component is ready. A component that has been ready since its
+    container last started is not starting up, whatever it does next: a long mission or a finished
+    transient run is never held to the health timeout.
+    """
+    if pod.settled:
+        return None
+    moments = [moment for moment in (pod.created, pod.unready_since, robot_since) if moment is not None]
+    return max(moments, default=None)
+
+
 def _wait(
     plan: StartupPlan,
     stage: str,
@@ -130,16 +146,19 @@ def _wait(
     live: list[ObservedPod | None],
     startup: StartupSpec,
     now: datetime,
+    robot_since: datetime | None,
 ) -> bool:
     """Record in the plan that `stage` is not ready; True when the later stages must wait."""
     plan.waiting_for = stage
-    created = [pod.created for pod in live if pod is not None and pod.created]
-    waited = (now - min(created)).total_seconds() if len(created) == len(unready) else 0.0
+    # A component whose pod is still to be made has just begun; one that is not starting up does not count.
+    began = [startup_began(pod, robot_since) for pod in live if pod is not None]
+    starting = [moment for moment in began if moment is not None] if len(began) == len(live) else []
+    waited = (now - min(starting)).total_seconds() if starting else 0.0
     what = f"{_STAGE_NAMES[stage].capitalize()} not ready"
     if waited < startup.health_timeout_seconds:
         note = f"Waiting for {_STAGE_NAMES[stage]} to become ready: {', '.join(unready)}."
-        if len(created) == len(unready):
-            plan.wake_at = min(created) + timedelta(seconds=startup.health_timeout_seconds)
+        if starting:
+            plan.wake_at = min(starting) + timedelta(seconds=startup.health_timeout_seconds)
     else:
         plan.timed_out = True
         consequence = (
@@ -162,6 +181,7 @@ def plan_startup(
     transient: set[str],
     startup: StartupSpec,
     now: datetime,
+    robot_since: datetime | None = None,
 ) -> StartupPlan:
     """Decide which pods to create, delete and relabel now.
 
@@ -171,9 +191,10 @@ def plan_startup(
         transient: names of transient components.
         startup: the health timeout and what a timeout does.
         now: the clock.
+        robot_since: when the robot's Node last turned Ready (`RobotNode.ready_since`).
     """
     if len(desired) == 1 and naming.is_robot_pod(desired[0]):
-        return _plan_robot_pod(desired[0], observed, transient, startup, now)
+        return _plan_robot_pod(desired[0], observed, transient, startup, now, robot_since)
     plan = StartupPlan()
     wanted = {_component(m): _pod_hash(m) for m in desired}
     for pod in observed:
@@ -205,7 +226,7 @@ def plan_startup(
             continue
         # Only pods of the current spec count: a replaced pod still terminating was created for the
         # previous revision, and its age says nothing about how long the new one has waited.
-        if _wait(plan, stage, unready, [current[c] for c in unready], startup, now):
+        if _wait(plan, stage, unready, [current[c] for c in unready], startup, now, robot_since):
             gate_open = False
     plan.delete_selector = _replaced_revision(plan.delete, observed, desired)
     return plan
@@ -241,6 +262,7 @@ def _plan_robot_pod(
     transient: set[str],
     startup: StartupSpec,
     now: datetime,
+    robot_since: datetime | None,
 ) -> StartupPlan:
     """`PodPerRobot`: the kubelet orders the components inside the one pod; the plan replaces the pod
     when it changed (patches it when only images changed), and reads the stages only to report them.
@@ -271,7 +293,9 @@ def _plan_robot_pod(
         members = [slot for slot in slots if slot.role == stage and slot.component not in transient]
         records = {slot.component: current_record(slot, live) for slot in members}
         unready = [c for c, pod in records.items() if not counts_as_ready(pod, c in transient)]
-        if unready and _wait(plan, stage, unready, [records[c] for c in unready], startup, now):
+        if unready and _wait(
+            plan, stage, unready, [records[c] for c in unready], startup, now, robot_since
+        ):
             break
     return plan
 

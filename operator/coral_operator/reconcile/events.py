@@ -3,7 +3,8 @@
 Events are few and aggregated: a system pass posts one Event per kind of change with a count
 (instances created, moved to a revision, retired, deleted; rollout waves), and condition changes of
 the system. An instance posts only what concerns that robot alone and needs attention (warnings:
-a refused pod, an unreachable robot, a failed tree); its progress is counted on its system.
+a refused pod, an unpullable image, an unreachable robot, a failed tree, and the recovery from a
+pod or image failure it warned about); its progress is counted on its system.
 The poster is injected (kopf's, from `handlers`), so this module needs no framework.
 """
 
@@ -30,6 +31,8 @@ _NOTABLE = {
 # Reasons of `ComponentsReady=False` that no other Event tells the instance's user about (the pod's
 # own Events name the pod, not the robot's instance, and a refused pod has none).
 _DELIVERY_FAILURES = {"PodRefused", "ImagePullFailed", "ContainerRefused", "PodUnschedulable"}
+RECOVERED = "Recovered"
+"""The reason of the Normal Event an instance posts when one of `_DELIVERY_FAILURES` clears."""
 
 
 def names(listed: list[str], shown: int = 10) -> str:
@@ -48,12 +51,15 @@ def condition_events(
         ctype, status = condition[keys.CONDITION.type], condition[keys.CONDITION.status]
         why, text = condition[keys.CONDITION.reason], condition[keys.CONDITION.message]
         previous = before.get(ctype)
-        if ctype == "ComponentsReady" and why in _DELIVERY_FAILURES:
-            if not previous or (
-                previous.get(keys.CONDITION.reason),
-                previous.get(keys.CONDITION.message),
-            ) != (why, text):
-                found.append(("Warning", why, text))
+        if ctype == "ComponentsReady":
+            was = previous.get(keys.CONDITION.reason) if previous else None
+            if why in _DELIVERY_FAILURES:
+                if not previous or (was, previous.get(keys.CONDITION.message)) != (why, text):
+                    found.append(("Warning", why, text))
+            elif was in _DELIVERY_FAILURES:
+                # The one piece of good news an instance tells: the end of a failure it warned
+                # about, which the kubelet's back-off can bring minutes after the cause is gone.
+                found.append(("Normal", RECOVERED, f"No longer {was}: {text}"))
             continue
         key = (ctype, status)
         if key not in _NOTABLE:

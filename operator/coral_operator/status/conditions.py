@@ -31,7 +31,7 @@ class ConditionType(StrEnum):
     LIBRARY_DEGRADED = "LibraryDegraded"
     """A skillset died under a loaded behavior."""
     TREE_HEALTHY = "TreeHealthy"
-    """The tree's root has not returned FAILURE."""
+    """The tree's root has not returned FAILURE, and the tree makes progress."""
 
 
 class Reason(StrEnum):
@@ -121,6 +121,8 @@ class Reason(StrEnum):
     """The tree's root returned FAILURE."""
     TREE_OK = "TreeOk"
     """The tree's root has not failed."""
+    NO_PROGRESS = "NoProgress"
+    """One node keeps failing the same way (`tree.noProgressSeconds`): the robot loops."""
     INSTANCES_FAILED = "InstancesFailed"
     """Some reachable robots' CoralInstances are Stalled (a component or the tree failed)."""
     ROLLED_BACK = "RolledBack"

@@ -64,17 +64,37 @@ def _is_names(value: Any) -> bool:
     return isinstance(value, list) and len(value) <= _MAX_ENTRIES and all(_is_text(v) for v in value)
 
 
-def _is_failure(value: Any) -> bool:
-    if value is None:
-        return True
-    if not isinstance(value, Mapping):
-        return False
-    checks = {
+def _is_object_of(checks: Mapping[str, Callable[[Any], bool]]) -> Callable[[Any], bool]:
+    """A check of an optional object whose present fields each pass theirs."""
+
+    def check(value: Any) -> bool:
+        if value is None:
+            return True
+        if not isinstance(value, Mapping):
+            return False
+        return all(check(value[key]) for key, check in checks.items() if key in value)
+
+    return check
+
+
+def _is_optional_time(value: Any) -> bool:
+    return value is None or _is_time(value)
+
+
+_is_failure = _is_object_of(
+    {
         keys.TREE_FAILURE.path: _is_text,
         keys.TREE_FAILURE.message: _is_text,
-        keys.TREE_FAILURE.time: lambda v: v is None or _is_time(v),
+        keys.TREE_FAILURE.time: _is_optional_time,
     }
-    return all(check(value[key]) for key, check in checks.items() if key in value)
+)
+_is_no_progress = _is_object_of(
+    {
+        keys.NO_PROGRESS.path: _is_text,
+        keys.NO_PROGRESS.message: _is_text,
+        keys.NO_PROGRESS.since: _is_optional_time,
+    }
+)
 
 
 _TREE_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
@@ -84,10 +104,11 @@ _TREE_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
     ),
     keys.TREE.active_path: (_is_text, "a string"),
     keys.TREE.tick_count: (_is_count, "a count"),
-    keys.TREE.last_transition_time: (lambda v: v is None or _is_time(v), "an RFC 3339 time"),
+    keys.TREE.last_transition_time: (_is_optional_time, "an RFC 3339 time"),
     keys.TREE.last_failure: (_is_failure, "an object of path, message and RFC 3339 time"),
+    keys.TREE.no_progress: (_is_no_progress, "an object of path, message and RFC 3339 time"),
     keys.TREE.message: (_is_text, "a string"),
-    keys.TREE.updated_at: (lambda v: v is None or _is_time(v), "an RFC 3339 time"),
+    keys.TREE.updated_at: (_is_optional_time, "an RFC 3339 time"),
 }
 _PLUGIN_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
     keys.PLUGINS.loaded: (_is_names, "a list of names"),

@@ -214,6 +214,16 @@ def _tree_reported(view: InstanceView) -> Verdict:
         where, what = failure.get(keys.TREE_FAILURE.path), failure.get(keys.TREE_FAILURE.message)
         detail = f" at {where}: {what}" if failure else ""
         return Verdict(C.TREE_HEALTHY, False, R.TREE_FAILED, f"The tree failed{detail}.")
+    stuck = view.tree.get(keys.TREE.no_progress)
+    if root == "RUNNING" and stuck:
+        where, what = stuck.get(keys.NO_PROGRESS.path, ""), stuck.get(keys.NO_PROGRESS.message, "")
+        since = stuck.get(keys.NO_PROGRESS.since) or "a while"
+        return Verdict(
+            C.TREE_HEALTHY,
+            False,
+            R.NO_PROGRESS,
+            f"The tree makes no progress: {where} has failed the same way since {since}: {what}",
+        )
     return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {root}.")
 
 
@@ -288,7 +298,9 @@ def _stalled_by(view: InstanceView, robot: Verdict, components: Verdict, tree: V
         components.reason == R.HEALTH_TIMEOUT and view.spec.startup.on_timeout == "Block"
     ):
         return components
-    if tree.status is False:
+    # A looping tree is not Ready, but not Stalled either: the loop may end by itself (its
+    # skillset regains its state, the data arrives).
+    if tree.status is False and tree.reason != R.NO_PROGRESS:
         return tree
     return None
 
@@ -309,7 +321,8 @@ def build_instance_status(
             C.RECONCILING,
             reconciling,
             R.PROGRESSING if reconciling else (stalled.reason if stalled else R.READY),
-            components.message if reconciling else "",
+            # What keeps it from Ready: its components, or a tree that makes no progress.
+            ready.message if reconciling else "",
         ),
         Verdict(
             C.STALLED,

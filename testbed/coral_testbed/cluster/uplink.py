@@ -70,7 +70,10 @@ def _pipe(source: socket.socket, sink: socket.socket) -> None:
 
 def _serve(server: socket.socket, port: int) -> None:
     while True:
-        client, _ = server.accept()
+        try:
+            client, _ = server.accept()
+        except OSError:
+            return  # the listening socket was closed: the offer is withdrawn
         try:
             upstream = socket.create_connection(("127.0.0.1", port), timeout=10)
             upstream.settimeout(None)
@@ -79,6 +82,23 @@ def _serve(server: socket.socket, port: int) -> None:
             continue
         for source, sink in ((client, upstream), (upstream, client)):
             threading.Thread(target=_pipe, args=(source, sink), daemon=True).start()
+
+
+@contextmanager
+def offered_inside(netns_path: str, port: int, host_port: int) -> Iterator[None]:
+    """Offers the host's 127.0.0.1:`host_port` at 127.0.0.1:`port` inside the robot, from a thread of
+    this process, for the duration of the block: a service a test brings to one robot (a registry
+    at a new address) without touching its uplink."""
+    server = listen_inside(netns_path, port)
+    threading.Thread(target=_serve, args=(server, host_port), daemon=True).start()
+    try:
+        yield
+    finally:
+        try:
+            server.shutdown(socket.SHUT_RDWR)  # wakes the thread blocked in accept()
+        except OSError:
+            pass
+        server.close()
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -57,6 +57,30 @@ def system(
     }
 
 
+INSPECT_OR_REPORT = """<Fallback>
+        <Sequence name="Inspect">
+          <Count count="{count}"/>
+          <WaitForCount threshold="1000" timeout_ms="180000"/>
+        </Sequence>
+        <Greet name="ReportLostSkillset" who="inspection abandoned" greeting="{report}"/>
+      </Fallback>"""
+"""A long wait on the example skillset (its count topic) and a Fallback that reports instead, so
+that a fault test can take the skillset away while a behavior of it runs."""
+
+
+def mission_tree(*steps: str) -> str:
+    """The tree `Main`: a Sequence of `steps` (XML elements)."""
+    body = "\n      ".join(steps)
+    return f"""<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence>
+      {body}
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
 def create(custom: k8s.CustomObjectsApi, namespace: str, manifest: dict[str, Any]) -> None:
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
 

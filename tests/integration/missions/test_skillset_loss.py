@@ -33,28 +33,17 @@ pytestmark = [
 SYSTEM = "inspection"
 # The pause before counting again lets the Fallback's report reach the instance's status (the
 # executor writes it at most once a second) before the retries' failures replace it.
-TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence>
-      <Fallback>
-        <Sequence name="Inspect">
-          <Count count="{count}"/>
-          <WaitForCount threshold="1000" timeout_ms="180000"/>
-        </Sequence>
-        <Greet name="ReportLostSkillset" who="inspection abandoned" greeting="{report}"/>
-      </Fallback>
-      <Sleep msec="4000"/>
-      <RetryUntilSuccessful num_attempts="240">
+TREE = rs.mission_tree(
+    rs.INSPECT_OR_REPORT,
+    '<Sleep msec="4000"/>',
+    """<RetryUntilSuccessful num_attempts="240">
         <Sequence>
           <Sleep msec="500"/>
           <Count name="CountAgain" count="{count}"/>
         </Sequence>
-      </RetryUntilSuccessful>
-      <WaitForCount name="Recounted" threshold="1" timeout_ms="30000"/>
-    </Sequence>
-  </BehaviorTree>
-</root>
-"""
+      </RetryUntilSuccessful>""",
+    '<WaitForCount name="Recounted" threshold="1" timeout_ms="30000"/>',
+)
 
 
 def test_killed_skillset_container_degrades_the_instance_falls_back_and_recovers(

@@ -539,6 +539,34 @@ def test_instance_stalled_with_the_servers_message_when_its_pod_is_refused(harne
     assert ((NS, "sys-r1"), 30.0) in harness.requeued, "tried again later: the fix may be outside the spec"
 
 
+def test_an_image_pull_failure_is_warned_about_and_its_end_told(harness: Harness) -> None:
+    """Issue 50: the registry came back and the kubelet's back-off healed the robot minutes later;
+    the instance's user, warned of the failure, is told when it ended."""
+    spec = _instance_spec()
+
+    def written() -> dict[str, Any]:
+        # Progress without a new verdict is written once it lasted PROGRESS_INTERVAL_S.
+        harness.pass_instance(spec)
+        harness.seconds += PROGRESS_INTERVAL_S
+        return harness.pass_instance(spec)
+
+    written()
+    refused = 'Back-off pulling image "coral.local/helper:1"'
+    init = {"name": "folders-owner", "state": {"waiting": {"reason": "ImagePullBackOff", "message": refused}}}
+    harness.pods_are(ready=set(), lidar={"phase": "Pending", "initContainerStatuses": [init]})
+    assert _conditions(written())["ComponentsReady"] == ("False", "ImagePullFailed")
+    warned = [e for e in harness.events if e[1:3] == ("Warning", "ImagePullFailed")]
+    assert len(warned) == 1 and refused in warned[0][3], harness.events
+    assert not [e for e in harness.events if e[2] == "Recovered"]
+    harness.pods_are(ready={"lidar"})
+    assert _conditions(written())["ComponentsReady"] == ("False", "WaitingForSkillsets")
+    told = [e for e in harness.events if e[1:3] == ("Normal", "Recovered")]
+    assert len(told) == 1 and told[0][3].startswith("No longer ImagePullFailed: Waiting for skillsets"), told
+    harness.pods_are(ready={"lidar", "slam"})
+    written()
+    assert len([e for e in harness.events if e[2] == "Recovered"]) == 1, "told once"
+
+
 def test_instance_stalled_when_its_spec_is_invalid(harness: Harness) -> None:
     status = harness.pass_instance({"system": "sys", "robot": "r1"})
     assert _conditions(status)["Stalled"] == ("True", "InvalidSpec")

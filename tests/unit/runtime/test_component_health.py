@@ -86,10 +86,27 @@ def test_a_component_back_as_a_new_process_is_degraded_for_a_while_even_without_
     assert "restarted" in monitor.degraded(["examples"])["examples"]
     clock.now += 4.0
     monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
-    assert monitor.failure("examples") is not None
+    assert monitor.refuse_call("examples") is not None  # the tree is told: a behavior fails
     clock.now += 1.1
     monitor.observe(topics.Heartbeat("examples", "skillset", "alive", 1, "second"))
     assert monitor.state("examples") == "alive"
+
+
+def test_a_restarted_component_stays_degraded_until_a_call_into_it_has_failed() -> None:
+    """Issue 50: the SLAM skillset came back without its state while the tree was busy elsewhere;
+    5 s later it read healthy, and the tree's next call found a skillset that had forgotten it."""
+    clock = FakeClock()
+    monitor = HealthMonitor(clock, timeout_s=1.5, restart_s=5.0)
+    monitor.observe(topics.Heartbeat("slam", "skillset", "alive", 1, "first"))
+    monitor.observe(topics.Heartbeat("slam", "skillset", "alive", 1, "second"))
+    for _ in range(120):  # a minute of beats from the new process, and no call into it
+        clock.now += 0.5
+        monitor.observe(topics.Heartbeat("slam", "skillset", "alive", 1, "second"))
+    assert monitor.degraded(["slam"]) == {"slam": "it restarted (a new process; its state is lost)"}
+    assert monitor.failure("slam") is not None, "asking is not telling"
+    assert "restarted" in (monitor.refuse_call("slam") or "")
+    assert monitor.state("slam") == "alive", "told, and longer ago than restart_s"
+    assert monitor.refuse_call("slam") is None, "its next call goes through"
 
 
 def test_beats_of_one_process_never_count_as_a_restart() -> None:

@@ -42,6 +42,10 @@ _RECORDS = st.one_of(
                 st.none(),
                 st.fixed_dictionaries({"path": _TEXT, "message": _TEXT, "node_id": _TEXT, "time": _TIME}),
             ),
+            "no_progress": st.one_of(
+                st.none(),
+                st.fixed_dictionaries({"path": _TEXT, "message": _TEXT, "node_id": _TEXT, "since": _TIME}),
+            ),
             "conditions": st.lists(_CONDITION, max_size=2),
         }
     ),

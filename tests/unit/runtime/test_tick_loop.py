@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import threading
 import time
-from types import SimpleNamespace
-from typing import Any
 
 import pytest
-from coral.executor import plugins_phase, sinks
-from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
 from coral.executor.wakeups import WakeSchedule
-from coral_core.bt import NodeRegistry, Status, build_tree, load_tree_text
+from coral_core.bt import Status
 from coral_core.bt.leaves import StatefulAction
 from coral_testbed.waiting import wait_for
+
+from .tree_fakes import Collect, FailsAtOnce, Refused, build_loop
 
 HALTED: list[str] = []
 
@@ -47,29 +45,9 @@ class Forever(Work):
     DELAY_S = -1.0
 
 
-class Collect:
-    def __init__(self) -> None:
-        self.records: list[dict[str, Any]] = []
-
-    def emit(self, record: dict[str, Any]) -> None:
-        self.records.append(record)
-
-    def close(self) -> None:
-        pass
-
-
 def _loop(xml: str, collect: Collect, rate_hz: float) -> TickLoop:
-    registry = NodeRegistry.with_builtins()
-    registry.register("Work", Work)
-    registry.register("Forever", Forever)
-    registry.register("Waits", Waits)
-    registry.register("Deadline", Deadline)
-    registry.register("WokenWithinItsTick", WokenWithinItsTick)
-    registry.register("FailsFirstRun", FailsFirstRun)
-    context = SimpleNamespace(health=HealthMonitor(time.monotonic), failure_message=lambda path: "")
-    tree = build_tree(load_tree_text(xml), registry, context=context)
-    state = plugins_phase.PluginState(used=set(), builtin_ids=set())
-    return TickLoop(tree, context, sinks.SinkFanout([collect]), state, rate_hz=rate_hz)
+    behaviors = [Work, Forever, Waits, Deadline, WokenWithinItsTick, FailsFirstRun, FailsAtOnce, Refused]
+    return build_loop(xml, collect, {b.__name__: b for b in behaviors}, rate_hz=rate_hz)
 
 
 def _run_in_background(loop: TickLoop, stop: threading.Event) -> tuple[threading.Event, list[int]]:
@@ -86,25 +64,32 @@ def _run_in_background(loop: TickLoop, stop: threading.Event) -> tuple[threading
     return finished, codes
 
 
-def test_wake_ups_tick_at_once_instead_of_waiting_for_the_period() -> None:
+def test_wake_ups_never_tick_the_tree_faster_than_its_rate() -> None:
+    """Issue 50: a retry of a behavior that fails at once wakes the tree from its own tick; a robot
+    whose skillset lost its state ticked 400 times a second with its rate set to 20."""
     collect = Collect()
-    # At 0.1 Hz a tick waits 10 s; only wake-ups can finish two Works within the 5 s bound below.
     loop = _loop(
         '<root BTCPP_format="4"><BehaviorTree ID="M">'
-        "<Sequence><Work/><Work/></Sequence>"
+        '<RetryUntilSuccessful num_attempts="-1"><FailsAtOnce/></RetryUntilSuccessful>'
         "</BehaviorTree></root>",
         collect,
-        rate_hz=0.1,
+        rate_hz=20.0,
     )
     stop = threading.Event()
-    finished, codes = _run_in_background(loop, stop)
-    if not finished.wait(5.0):
+    started = time.monotonic()
+    finished = _start(loop, stop)
+    try:
+        wait_for(lambda: loop.tree.tick_count >= 21, timeout=10, interval=0.01, message="21 ticks")
+        took = time.monotonic() - started
+    finally:
         stop.set()
         loop.tree.wake_up()
-        raise AssertionError("the loop waited for its period instead of ticking on wake-ups")
-    assert codes == [0]
-    assert collect.records[-1]["event"] == "finished" and collect.records[-1]["root_status"] == "SUCCESS"
-    assert collect.records[-2]["event"] == "status" and collect.records[-2]["root_status"] == "SUCCESS"
+    assert finished.wait(5.0)
+    # 21 ticks are 20 periods at the least, however many wake-ups asked for more.
+    assert took >= 20 / 20.0 - 0.01, f"{loop.tree.tick_count} ticks in {took:.2f} s at 20 Hz"
+    counted = [(r["ts"], r["tick_count"]) for r in collect.records if r["event"] == "status"]
+    (t0, n0), (t1, n1) = counted[0], counted[-1]
+    assert n1 - n0 <= (t1 - t0) * 20.0 + 1, "the executor's own counter agrees"
 
 
 def test_a_stop_halts_the_running_behavior_and_reports_halted() -> None:
@@ -189,21 +174,33 @@ def test_a_tree_whose_running_nodes_signal_wake_ups_is_not_polled_at_the_tick_ra
     assert all(event.wait(5.0) for event in done)
 
 
+def _polling_answers(loop: TickLoop) -> list[bool]:
+    """Every answer the loop gets from `needs_polling`: all False means only wake-ups ticked the tree."""
+    answers: list[bool] = []
+    asked = loop.tree.needs_polling
+    loop.tree.needs_polling = lambda: answers.append(asked()) or answers[-1]
+    return answers
+
+
 def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
     loop = _loop(
-        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>', Collect(), 0.1
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>', Collect(), 10.0
     )
     schedule = WakeSchedule()
     loop.context.wakeups = schedule
     loop.context.wake_at = schedule.add
+    polled = _polling_answers(loop)
     stop = threading.Event()
-    # At 0.1 Hz, and with nothing waking the tree, only the booked time can end it within 5 s.
+    # The tree is never polled and nothing wakes it: only the booked time can end it before the
+    # status heartbeat (1 s) ticks it.
+    started = time.monotonic()
     finished = _start(loop, stop)
     if not finished.wait(5.0):
         stop.set()
         loop.tree.wake_up()
         raise AssertionError("the booked deadline did not tick the tree")
     assert loop.tree.last_status == Status.SUCCESS
+    assert time.monotonic() - started < 0.75 and not any(polled)
 
 
 def test_the_wake_schedule_returns_the_earliest_live_booking_and_consumes_due_ones() -> None:
@@ -244,9 +241,9 @@ class FailsFirstRun(StatefulAction):
         return Status.SUCCESS
 
 
-# Each tree can only progress through one kind of wake-up. The loop runs at 0.1 Hz, and while
-# every running node signals its wake-ups it ticks anyway once a second (the status heartbeat):
-# a wake-up that is missed shows as a run of a second or more.
+# Each tree can only progress through one kind of wake-up. While every running node signals its
+# wake-ups the loop does not poll (asserted: it ticks only on wake-ups, at most at its 10 Hz), and
+# ticks anyway once a second (the status heartbeat): a missed wake-up shows as a second or more.
 WAKE_UP_KINDS = {
     "a timer (Sleep)": ('<Sleep msec="50"/>', Status.SUCCESS),
     "a timer that halts a child (Timeout)": ('<Timeout msec="50"><Waits/></Timeout>', Status.FAILURE),
@@ -265,10 +262,11 @@ WAKE_UP_KINDS = {
 def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(kind: str) -> None:
     body, expected = WAKE_UP_KINDS[kind]
     FailsFirstRun.RUNS[0] = 0
-    loop = _loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>', Collect(), 0.1)
+    loop = _loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>', Collect(), 10.0)
     schedule = WakeSchedule()
     loop.context.wakeups = schedule
     loop.context.wake_at = schedule.add
+    polled = _polling_answers(loop)
     stop = threading.Event()
     started = time.monotonic()
     finished = _start(loop, stop)
@@ -278,36 +276,16 @@ def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(k
     loop.tree.wake_up()
     assert ended and loop.tree.last_status == expected
     assert took < 0.75, f"{kind}: the tree ended after {took:.2f} s, as if a wake-up was missed"
-
-
-class Refused(StatefulAction):
-    """Fails at once and says why, as a behavior whose skillset is gone does."""
-
-    def on_start(self) -> Status:
-        self.context.failures[self.path] = "skillset slam is unavailable: it restarted"
-        return Status.FAILURE
-
-    def on_running(self) -> Status:
-        return Status.FAILURE
+    assert not any(polled), f"{kind}: the tree was polled, so its wake-ups went untested"
 
 
 def test_the_failure_that_says_why_is_reported_over_a_condition_that_said_no_first() -> None:
-    registry = NodeRegistry.with_builtins()
-    registry.register("Refused", Refused)
-    failures: dict[str, str] = {}
-    context = SimpleNamespace(
-        health=HealthMonitor(time.monotonic),
-        failures=failures,
-        failure_message=lambda path: failures.pop(path, ""),
-    )
     xml = (
         '<root BTCPP_format="4"><BehaviorTree ID="M">'
         "<Fallback><AlwaysFailure/><Refused/></Fallback>"
         "</BehaviorTree></root>"
     )
-    tree = build_tree(load_tree_text(xml), registry, context=context)
-    state = plugins_phase.PluginState(used=set(), builtin_ids=set())
-    loop = TickLoop(tree, context, sinks.SinkFanout([Collect()]), state, rate_hz=50.0)
+    loop = _loop(xml, Collect(), 50.0)
     assert loop.run(threading.Event(), lambda: 143) != 0
     assert loop.last_failure is not None
     assert "Refused" in loop.last_failure["path"], loop.last_failure
