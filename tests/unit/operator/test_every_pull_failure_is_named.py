@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from coral_operator.api import names
+from coral_core import names
 from coral_operator.kube import observing
 from coral_operator.planning import pods
 from coral_operator.status import instance_status

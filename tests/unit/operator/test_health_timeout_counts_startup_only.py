@@ -16,7 +16,7 @@ from datetime import timedelta
 from typing import Any
 
 import pytest
-from coral_operator.api import names
+from coral_core import names
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
 from coral_operator.planning import instance_pass, instances
