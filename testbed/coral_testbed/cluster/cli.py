@@ -281,3 +281,13 @@ for _verb in ONE_ROBOT_ACTIONS:
 def demo_command() -> None:
     """Start a throwaway control plane, schedule a pod onto a robot, show it Running, stop everything."""
     demo.run(echo=click.echo)
+
+
+def _register_kind() -> None:
+    # Imported here: the kind verbs are a group of their own module, listed under dev-cluster.
+    from coral_testbed.kind import cli as kind_cli
+
+    dev_cluster.add_command(kind_cli.kind)
+
+
+_register_kind()
