@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind kind
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -27,6 +27,12 @@ control-plane:
 node-runtime:
 	@if [ "$$(id -u)" -eq 0 ]; then bash hack/setup-node-runtime.sh; \
 	else bash hack/setup-node-runtime.sh --check || echo "==> not root: real-robot and image tests will be skipped"; fi
+
+# What kind clusters need, installed where missing and cached (docs/kind.md): a Docker engine from
+# Debian, kind and the node binaries from Go modules, and the node image (built locally where
+# kindest/node cannot be pulled; first build about 8 min). Needs root.
+kind: venv node-runtime control-plane
+	@$(VENV)/bin/coral dev-cluster kind setup
 
 # Every image from the repository's Dockerfiles, pushed to the local registry (docs/images.md).
 images: venv node-runtime

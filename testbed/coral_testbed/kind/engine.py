@@ -110,6 +110,11 @@ def _owned_process() -> processes.Recorded | None:
     return process if processes.is_alive(process) else None
 
 
+def project_engine_running() -> bool:
+    """True while the project's dockerd (started by `start`) runs."""
+    return _owned_process() is not None
+
+
 def dockerd_argv(dockerd: str, wrapper: Path) -> list[str]:
     """The project's dockerd command line (its own socket, pid file, exec and data roots)."""
     run = _run_dir()

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
+import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator
@@ -41,6 +43,21 @@ def _step(progress: Callable[[str], None], name: str) -> Iterator[None]:
     progress(name)
     yield
     progress(f"  done in {time.monotonic() - began:.1f} s")
+
+
+def unsupported_reason() -> str | None:
+    """Why kind clusters cannot be made on this machine, or None when they can."""
+    if os.geteuid() != 0:
+        return "kind clusters need root here (the project's dockerd, the node image build)"
+    for tool, how in (
+        ("dockerd", "sudo bash hack/setup-docker.sh"),
+        ("go", "a Go toolchain"),
+        ("buildah", "sudo bash hack/setup-node-runtime.sh"),
+        ("mmdebstrap", "sudo bash hack/setup-node-runtime.sh"),
+    ):
+        if shutil.which(tool) is None:
+            return f"kind clusters need {tool} ({how})"
+    return None
 
 
 def log_path() -> Path:
