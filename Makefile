@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind kind
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind kind test-kind-setup
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -63,7 +63,14 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane node-runtime verdict-tools test-images
+# What the kind test (tests/integration/kind) needs, made before pytest so that the node image's
+# first build (about 8 min) counts against no test's timeout; where it cannot be made, that test
+# says why. Leaves nothing running.
+test-kind-setup: venv node-runtime control-plane
+	@if [ "$$(id -u)" -eq 0 ]; then \
+		$(VENV)/bin/coral dev-cluster kind setup || echo "==> kind setup failed; the kind test will say why"; fi
+
+test: venv control-plane node-runtime verdict-tools test-images test-kind-setup
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

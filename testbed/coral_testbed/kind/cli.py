@@ -59,8 +59,12 @@ def kind() -> None:
 @_fail_on_errors
 def setup() -> None:
     """Install what kind needs where missing: Docker engine, kind, node binaries, node image."""
+    engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(_say)
-    _say(f"kind is ready: node image {ready.node_image} on {ready.engine.host}")
+    _say(f"kind is ready: node image {ready.node_image}")
+    if ready.engine.owned and not engine_was_running:
+        # Setup caches; it leaves nothing running. `up` starts the engine again (a few seconds).
+        engine.stop()
 
 
 @kind.command()

@@ -223,6 +223,15 @@ def create(
     if done.returncode != 0:
         raise ClusterError(f"kind create cluster failed (exit {done.returncode}); see {log}")
     _record(name).write_text(json.dumps({"kubeconfig": str(kubeconfig), "registry": address}))
+    # kind's --wait covers the control plane; robots are Ready once their pod network is written.
+    waited = subprocess.run(
+        [binaries.find_kubectl(None), "wait", "--for=condition=Ready", "nodes", "--all", "--timeout=180s"],
+        env={**env, "KUBECONFIG": str(kubeconfig)},
+        capture_output=True,
+        text=True,
+    )
+    if waited.returncode != 0:
+        raise ClusterError(f"the nodes of kind cluster {name} did not become Ready: {waited.stderr.strip()}")
     return Running(name, kubeconfig, node_engine, address)
 
 

@@ -31,6 +31,7 @@ class ArchiveImage:
     """Ready-made layer tarballs under the files' layer (a Debian root filesystem, say)."""
     entrypoint: Sequence[str] = ()
     env: Sequence[str] = field(default_factory=lambda: (f"PATH={PATH}",))
+    stop_signal: str | None = None
 
 
 def _files_layer(files: dict[str, Path]) -> bytes:
@@ -67,7 +68,11 @@ def write(image: ArchiveImage, archive: Path) -> None:
     config = {
         "architecture": "amd64",
         "os": "linux",
-        "config": {"Env": list(image.env), "Entrypoint": list(image.entrypoint) or None},
+        "config": {
+            "Env": list(image.env),
+            "Entrypoint": list(image.entrypoint) or None,
+            "StopSignal": image.stop_signal,
+        },
         "rootfs": {"type": "layers", "diff_ids": [f"sha256:{d}" for d in [*base_ids, top_id]]},
     }
     config_bytes = json.dumps(config, sort_keys=True).encode()

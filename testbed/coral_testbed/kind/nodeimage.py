@@ -73,21 +73,21 @@ class Inputs:
     kind_files: Path
     tools_bin: Path
     control_plane_bin: Path
-    kind_net_image_id: str
+    kind_net_source: Path
+    """The pod network image's folder (Dockerfile, agent): its image is built only with the node's."""
 
     def key(self) -> str:
         digest = hashlib.sha256()
         for path in [Path(__file__), Path(kindnet.__file__), Path(imagearchives.__file__)]:
             digest.update(path.read_bytes())
-        for path in sorted(p for p in self.kind_files.rglob("*") if p.is_file()):
-            digest.update(str(path.relative_to(self.kind_files)).encode() + path.read_bytes())
+        for folder in (self.kind_files, self.kind_net_source):
+            for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+                digest.update(str(path.relative_to(folder)).encode() + path.read_bytes())
         for folder in (self.tools_bin, self.control_plane_bin):
             for name in sorted(os.listdir(folder)):
                 if (folder / name).is_file():
                     digest.update(name.encode() + _file_digest(folder / name))
-        digest.update(
-            json.dumps([NODE_PACKAGES, PROXY_PACKAGES, rootfs._sources(), self.kind_net_image_id]).encode()
-        )
+        digest.update(json.dumps([NODE_PACKAGES, PROXY_PACKAGES, rootfs._sources()]).encode())
         return digest.hexdigest()[:16]
 
 
@@ -277,11 +277,11 @@ def _preload(root: Path, archives: list[Path], work: Path, log: Path) -> None:
         processes.stop(daemon)
 
 
-def _save_kind_net(log: Path, work: Path) -> tuple[str, Path]:
+def _save_kind_net(log: Path, work: Path) -> Path:
     built = images.build(["kind-net"], progress=lambda line: _append(log, line))["kind-net"]
     archive = work / "kind-net.tar"
     images.builder().save(built.local_reference, archive, kindnet.IMAGE)
-    return built.image_id, archive
+    return archive
 
 
 def _append(log: Path, line: str) -> None:
@@ -313,19 +313,19 @@ def ensure(node_engine: engine.Engine, progress: Callable[[str], None], log: Pat
     kind_files = kind_module_dir(log) / "images" / "base" / "files"
     work_parent = binaries.cache_root() / "kind" / "node-image-build"
     work_parent.mkdir(parents=True, exist_ok=True)
+    inputs = Inputs(kind_files, tools, control_plane, repository_root() / "testbed" / "images" / "kind-net")
+    reference = reference_for(inputs.key())
+    if node_engine.image_exists(reference):
+        progress(f"node image {reference} is built already")
+        return reference
+    progress(
+        f"building node image {reference} locally: kindest/node for Kubernetes {binaries.KUBE_VERSION}"
+        " on cgroup v1 cannot be pulled here (first build: about 8 min)"
+    )
     with tempfile.TemporaryDirectory(dir=work_parent) as folder:
         work = Path(folder)
-        progress("pod network image coral/kind-net (buildah, cached by content)")
-        kind_net_id, kind_net_archive = _save_kind_net(log, work)
-        inputs = Inputs(kind_files, tools, control_plane, kind_net_id)
-        reference = reference_for(inputs.key())
-        if node_engine.image_exists(reference):
-            progress(f"node image {reference} is built already")
-            return reference
-        progress(
-            f"building node image {reference} locally: kindest/node for Kubernetes {binaries.KUBE_VERSION}"
-            " on cgroup v1 cannot be pulled here (first build: about 8 min)"
-        )
+        progress("  pod network image coral/kind-net (buildah, cached by content)")
+        kind_net_archive = _save_kind_net(log, work)
         _build(inputs, reference, kind_net_archive, work, node_engine, progress, log)
     return reference
 
@@ -369,18 +369,25 @@ def _build(
         imagearchives.write(image, archive)
         archives.append(archive)
     _preload(root, [*archives, kind_net_archive], work, log)
-    progress(f"  importing the root filesystem into Docker as {reference}")
-    changes = [
-        'ENTRYPOINT ["/usr/local/bin/entrypoint", "/sbin/init"]',
-        "ENV container=docker",
-        "STOPSIGNAL SIGRTMIN+3",
-    ]
-    tar = subprocess.Popen(
-        ["tar", "-C", str(root), "--numeric-owner", "-cf", "-", "."], stdout=subprocess.PIPE
+    progress(f"  loading the root filesystem into Docker as {reference}")
+    rootfs_tar = work / "node-rootfs.tar"
+    _logged(["tar", "-C", str(root), "--numeric-owner", "-cf", str(rootfs_tar), "."], log, "tar of the node")
+    shutil.rmtree(root)
+    # As kind's base image: systemd as PID 1 behind kind's entrypoint, halted by SIGRTMIN+3.
+    node = imagearchives.ArchiveImage(
+        reference,
+        files={},
+        base_layers=[rootfs_tar],
+        entrypoint=["/usr/local/bin/entrypoint", "/sbin/init"],
+        env=(f"PATH={imagearchives.PATH}", "container=docker"),
+        stop_signal="SIGRTMIN+3",
     )
-    argv = ["docker", "import", *(f"--change={change}" for change in changes), "-", reference]
-    with log.open("a") as sink:
-        imported = subprocess.run(argv, stdin=tar.stdout, stdout=sink, stderr=sink, env=node_engine.env())
-    tar.wait()
-    if imported.returncode != 0 or tar.returncode != 0:
-        raise NodeImageError(f"docker import of the node image failed; see {log}")
+    archive = work / "node-image.tar"
+    imagearchives.write(node, archive)
+    rootfs_tar.unlink()
+    _logged(
+        ["docker", "load", "--input", str(archive)],
+        log,
+        "docker load of the node image",
+        env=node_engine.env(),
+    )
