@@ -51,9 +51,10 @@ test-images: venv node-runtime
 verdict-tools:
 	@bash hack/build-verdict-tools.sh >/dev/null
 
-# The SLAM mission on a real local control plane: images, a real robot, the operator by Helm, kubectl apply.
-demo: venv control-plane node-runtime
-	@$(VENV)/bin/coral demo
+# The SLAM mission on a kind cluster (docs/kind.md): images, a robot worker, the operator by Helm,
+# kubectl apply; the cluster and the project's dockerd are gone afterwards.
+demo: venv control-plane node-runtime kind
+	@$(VENV)/bin/coral demo --cluster kind
 
 # The same mission on one machine, no cluster: `coral run` with a live tree view.
 demo-local: venv
