@@ -57,6 +57,13 @@ spec:
     spec:
       hostNetwork: true
       dnsPolicy: Default
+      # Not on kwok's simulated robots: no machine behind them to give a network.
+      affinity:
+        nodeAffinity:
+          requiredDuringSchedulingIgnoredDuringExecution:
+            nodeSelectorTerms:
+            - matchExpressions:
+              - {key: type, operator: NotIn, values: [kwok]}
       priorityClassName: system-node-critical
       serviceAccountName: coral-kind-net
       tolerations:

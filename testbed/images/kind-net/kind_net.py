@@ -10,6 +10,7 @@ the Nodes from the API server with its ServiceAccount and
 Writes are atomic and only made when something changed.
 """
 
+import ipaddress
 import json
 import os
 import ssl
@@ -45,9 +46,16 @@ def read_nodes() -> list[dict]:
 
 
 def internal_ip(node: dict) -> str | None:
+    """The node's IPv4 InternalIP; None for a loopback one (a kwok Node's: no machine to route to)."""
     for address in node.get("status", {}).get("addresses", []):
-        if address.get("type") == "InternalIP" and ":" not in address.get("address", ""):
-            return address["address"]
+        if address.get("type") != "InternalIP":
+            continue
+        try:
+            parsed = ipaddress.ip_address(address.get("address", ""))
+        except ValueError:
+            continue
+        if parsed.version == 4 and not parsed.is_loopback:
+            return str(parsed)
     return None
 
 

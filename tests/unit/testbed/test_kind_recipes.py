@@ -123,3 +123,35 @@ def test_the_runtime_wrapper_trims_the_process_file_of_a_privileged_exec(tmp_pat
     wrapper["trim"](*found, {"CAP_KILL"})
     assert json.loads(process.read_text()) == {"args": ["cat"], "capabilities": {"effective": ["CAP_KILL"]}}
     assert wrapper["spec_to_trim"](["--root", "/r", "delete", "id"]) is None
+
+
+def _agent() -> dict[str, object]:
+    return runpy.run_path(
+        str(REPOSITORY / "testbed" / "images" / "kind-net" / "kind_net.py"), run_name="agent"
+    )
+
+
+def test_the_pod_network_routes_to_a_nodes_ipv4_internal_ip_and_never_to_a_kwok_loopback() -> None:
+    internal_ip = _agent()["internal_ip"]
+
+    def node(*addresses: str) -> dict[str, object]:
+        return {"status": {"addresses": [{"type": "InternalIP", "address": a} for a in addresses]}}
+
+    assert internal_ip(node("fc00::2", "10.89.0.2")) == "10.89.0.2"  # type: ignore[operator]
+    assert internal_ip(node("127.0.0.1")) is None  # type: ignore[operator]
+    assert internal_ip({"status": {}}) is None  # type: ignore[operator]
+
+
+def test_a_nodes_cni_config_gives_pods_addresses_of_its_pod_cidr_on_point_to_point_links() -> None:
+    config = json.loads(_agent()["conflist"]("10.244.3.0/24"))  # type: ignore[operator]
+    main, portmap = config["plugins"]
+    assert main["type"] == "ptp" and main["ipam"]["ranges"] == [[{"subnet": "10.244.3.0/24"}]]
+    assert portmap["type"] == "portmap"
+
+
+def test_the_pod_network_stays_off_kwok_robots() -> None:
+    documents = {doc["kind"]: doc for doc in yaml.safe_load_all(kindnet.build_manifest())}
+    terms = documents["DaemonSet"]["spec"]["template"]["spec"]["affinity"]["nodeAffinity"][
+        "requiredDuringSchedulingIgnoredDuringExecution"
+    ]["nodeSelectorTerms"]
+    assert terms == [{"matchExpressions": [{"key": "type", "operator": "NotIn", "values": ["kwok"]}]}]
