@@ -1,6 +1,7 @@
 """`coral dev-cluster kind`: a kind cluster of robots (setup, up, down, robot faults).
 
-Thin verbs over `provisioning`, `clusters` and `faults`; registered under `coral dev-cluster`.
+Thin verbs over `provisioning`, `clusters` and `faults`; registered under `coral dev-cluster` (whose
+module, imported first, lends its progress line and label parsing).
 Progress goes to stderr and the kubeconfig path to stdout, so
 `export KUBECONFIG=$(coral dev-cluster kind up --robots 2)` works.
 """
@@ -15,6 +16,7 @@ import click
 
 from coral_testbed import clierrors, images
 from coral_testbed.cluster import binaries, controlplane
+from coral_testbed.cluster import cli as cluster_cli
 from coral_testbed.kind import clusters, engine, faults, nodeimage, provisioning
 
 _fail_on_errors = clierrors.fail_on(
@@ -30,24 +32,10 @@ _fail_on_errors = clierrors.fail_on(
 )
 
 
-def _say(line: str) -> None:
-    click.echo(f"==> {line}", err=True)
-
-
 def _name_option(command: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--name", default=clusters.DEFAULT_NAME, show_default=True, help="The kind cluster's name."
     )(command)
-
-
-def _parse_labels(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> dict[str, str]:
-    labels = {}
-    for value in values:
-        key, sep, label_value = value.partition("=")
-        if not sep or not key:
-            raise click.BadParameter(f"{value!r} is not KEY=VALUE", ctx=ctx, param=param)
-        labels[key] = label_value
-    return labels
 
 
 @click.group("kind")
@@ -60,8 +48,8 @@ def kind() -> None:
 def setup() -> None:
     """Install what kind needs where missing: Docker engine, kind, node binaries, node image."""
     engine_was_running = engine.project_engine_running()
-    ready = provisioning.ensure(_say)
-    _say(f"kind is ready: node image {ready.node_image}")
+    ready = provisioning.ensure(cluster_cli.say)
+    cluster_cli.say(f"kind is ready: node image {ready.node_image}")
     if ready.engine.owned and not engine_was_running:
         # Setup caches; it leaves nothing running. `up` starts the engine again (a few seconds).
         engine.stop()
@@ -88,24 +76,28 @@ def setup() -> None:
     help="Simulated robots: kwok Nodes, kwok running against kind's API server.",
 )
 @click.option(
-    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for every robot."
+    "--label",
+    "labels",
+    multiple=True,
+    callback=cluster_cli.parse_labels,
+    help="KEY=VALUE label for every robot.",
 )
 @_fail_on_errors
 def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[str, str]) -> None:
     """Create the kind cluster (set up first if needed); print its kubeconfig path."""
     from coral_testbed.cluster.client import Cluster
 
-    ready = provisioning.ensure(_say)
+    ready = provisioning.ensure(cluster_cli.say)
     running = clusters.load(name, ready.engine)
     if running is None:
         robots = {f"{robot_prefix}{i}": dict(labels) for i in range(1, count + 1)}
-        running = clusters.create(name, robots, ready.engine, ready.node_image, _say)
+        running = clusters.create(name, robots, ready.engine, ready.node_image, cluster_cli.say)
     else:
-        _say(f"kind cluster {name} exists already")
+        cluster_cli.say(f"kind cluster {name} exists already")
     if kwok_count:
         clusters.start_kwok(running)
         names = [f"kwok-{robot_prefix}{i}" for i in range(1, kwok_count + 1)]
-        _say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
+        cluster_cli.say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
         Cluster(running.kubeconfig, None, is_local=False).add_robots(names, labels)
     click.echo(str(running.kubeconfig))
 
@@ -120,14 +112,14 @@ def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[s
 @_fail_on_errors
 def down(name: str, keep_engine: bool) -> None:
     """Delete the kind cluster, its registry, kwok and network; stop the project's dockerd."""
-    node_engine = engine.start(_say)
-    clusters.delete(name, node_engine, _say)
+    node_engine = engine.start(cluster_cli.say)
+    clusters.delete(name, node_engine, cluster_cli.say)
     if node_engine.owned and not keep_engine:
         if node_engine.containers(clusters.KIND_CLUSTER_LABEL):
-            _say("Other kind clusters still run on the project's dockerd; leaving it running")
+            cluster_cli.say("Other kind clusters still run on the project's dockerd; leaving it running")
         else:
             engine.stop()
-            _say("Stopped the project's dockerd")
+            cluster_cli.say("Stopped the project's dockerd")
 
 
 FAULTS: dict[str, Callable[[clusters.Running, str], object]] = {
@@ -148,7 +140,7 @@ def _on_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
     @_fail_on_errors
     @functools.wraps(command)
     def wrapper(name: str, robot: str, **kwargs: Any) -> Any:
-        node_engine = engine.start(_say)
+        node_engine = engine.start(cluster_cli.say)
         running = clusters.load(name, node_engine)
         if running is None:
             raise clusters.ClusterError(f"no kind cluster {name}; create it with `coral dev-cluster kind up`")

@@ -53,11 +53,8 @@ def _files_layer(files: dict[str, Path]) -> bytes:
 
 
 def _sha256_of_file(path: Path) -> str:
-    digest = hashlib.sha256()
     with path.open("rb") as content:
-        for block in iter(lambda: content.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+        return hashlib.file_digest(content, "sha256").hexdigest()
 
 
 def write(image: ArchiveImage, archive: Path) -> None:

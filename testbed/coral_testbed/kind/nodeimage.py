@@ -320,7 +320,7 @@ def ensure(node_engine: engine.Engine, progress: Callable[[str], None], log: Pat
         return reference
     progress(
         f"building node image {reference} locally: kindest/node for Kubernetes {binaries.KUBE_VERSION}"
-        " on cgroup v1 cannot be pulled here (first build: about 8 min)"
+        " on cgroup v1 cannot be pulled here (about 3 min)"
     )
     with tempfile.TemporaryDirectory(dir=work_parent) as folder:
         work = Path(folder)
