@@ -17,6 +17,7 @@ then nothing here starts or stops an engine. Called by `nodeimage`, `clusters` a
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -29,6 +30,9 @@ from coral_testbed.cluster import binaries, processes
 from coral_testbed.waiting import wait_for
 
 USER_DOCKER_ENV = "CORAL_DOCKER_HOST"
+CGROUP_PARENT = "coral-kind-docker"
+"""The cgroup the project's dockerd puts its containers under (in every hierarchy), removed on stop."""
+_CGROUP_ROOT = Path("/sys/fs/cgroup")
 RUNTIME_NAME = "coral-runc"
 _RUNTIME_WRAPPER = "runc-within-bounding-set"
 
@@ -128,6 +132,7 @@ def dockerd_argv(dockerd: str, wrapper: Path) -> list[str]:
         "--ip-masq=false",
         "--ip-forward=false",
         "--bridge=none",
+        f"--cgroup-parent=/{CGROUP_PARENT}",
         f"--add-runtime={RUNTIME_NAME}={wrapper}",
         f"--default-runtime={RUNTIME_NAME}",
     ]
@@ -177,7 +182,16 @@ def stop() -> bool:
     if process is None:
         return False
     processes.stop(process, timeout=60)
+    for folder in leftover_cgroups():
+        # Empty once its containers are gone; rmdir refuses a cgroup that still has any.
+        with contextlib.suppress(OSError):
+            folder.rmdir()
     return True
+
+
+def leftover_cgroups() -> list[Path]:
+    """The project's dockerd's cgroup in each hierarchy, where it still exists."""
+    return sorted(_CGROUP_ROOT.glob(f"*/{CGROUP_PARENT}")) + sorted(_CGROUP_ROOT.glob(CGROUP_PARENT))
 
 
 def run_command(argv: Sequence[str], engine: Engine, log: Path) -> None:

@@ -128,6 +128,7 @@ def test_a_kind_cluster_of_two_robots_runs_pods_survives_a_cut_link_and_leaves_n
     if started_engine:
         assert not ready.engine.is_serving(), "the project's dockerd still runs"
         assert not _mounts_under(engine.engine_dir()), "mounts of the project's dockerd are left"
+        assert not engine.leftover_cgroups(), "cgroups of the project's dockerd are left"
     else:
         assert not ready.engine.containers(f"{clusters.KIND_CLUSTER_LABEL}={NAME}")
         networks = ready.engine.docker("network", "ls", "--format", "{{.Name}}").stdout.split()
