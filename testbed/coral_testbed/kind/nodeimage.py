@@ -391,3 +391,12 @@ def _build(
         "docker load of the node image",
         env=node_engine.env(),
     )
+    _remove_superseded(node_engine, reference)
+
+
+def _remove_superseded(node_engine: engine.Engine, reference: str) -> None:
+    """Untags earlier builds of the node image (about 1 GB each); one a container still uses stays."""
+    listed = node_engine.docker("images", REPOSITORY, "--format", "{{.Repository}}:{{.Tag}}").stdout.split()
+    for older in listed:
+        if older != reference:
+            node_engine.docker("rmi", older, check=False)
