@@ -32,6 +32,8 @@ from coral_testbed.images import registry
 from coral_testbed.kind import engine
 
 ROBOT_LABEL = "coral.dev/robot"
+KIND_VERSION = "v0.33.0"
+"""The kind release hack/build-kind-tools.sh builds (its KIND_VERSION)."""
 DEFAULT_NAME = "coral"
 KIND_CLUSTER_LABEL = "io.x-k8s.kind.cluster"
 """The label kind puts on every node container of a cluster."""
@@ -96,7 +98,8 @@ def network_name(name: str) -> str:
 
 def kind_binary() -> Path:
     """kind, built by hack/build-kind-tools.sh (`coral dev-cluster kind setup`)."""
-    found = sorted((binaries.cache_root() / "kind" / "tools").glob("kind-*/bin/kind"))
+    # The tools' folder is keyed by every version hack/build-kind-tools.sh pins, kind's first.
+    found = sorted((binaries.cache_root() / "kind" / "tools").glob(f"kind-{KIND_VERSION}_*/bin/kind"))
     if found:
         return found[-1]
     on_path = shutil.which("kind")

@@ -32,10 +32,9 @@ from pathlib import Path
 from coral_testbed import images
 from coral_testbed.cluster import binaries, processes
 from coral_testbed.images import rootfs
-from coral_testbed.kind import engine, imagearchives, kindnet
+from coral_testbed.kind import clusters, engine, imagearchives, kindnet
 from coral_testbed.waiting import wait_for
 
-KIND_VERSION = "v0.33.0"
 IMAGE_ENV = "CORAL_KIND_NODE_IMAGE"
 """A node image to use instead of building one (say `kindest/node:v1.34.3` where it can be pulled)."""
 REPOSITORY = "coral.local/kind-node"
@@ -113,7 +112,7 @@ def _logged(argv: list[str], log: Path, step: str, **kwargs: object) -> subproce
 def kind_module_dir(log: Path) -> Path:
     """kind's module in the Go module cache (downloaded if missing): its node files are read there."""
     done = _logged(
-        ["go", "mod", "download", "-json", f"sigs.k8s.io/kind@{KIND_VERSION}"],
+        ["go", "mod", "download", "-json", f"sigs.k8s.io/kind@{clusters.KIND_VERSION}"],
         log,
         "downloading the kind module",
         env={**os.environ, "GOFLAGS": "-mod=mod"},

@@ -155,3 +155,8 @@ def test_the_pod_network_stays_off_kwok_robots() -> None:
         "requiredDuringSchedulingIgnoredDuringExecution"
     ]["nodeSelectorTerms"]
     assert terms == [{"matchExpressions": [{"key": "type", "operator": "NotIn", "values": ["kwok"]}]}]
+
+
+def test_the_kind_the_tooling_looks_for_is_the_kind_the_build_script_pins() -> None:
+    script = (REPOSITORY / "hack" / "build-kind-tools.sh").read_text()
+    assert f'KIND_VERSION="${{KIND_VERSION:-{clusters.KIND_VERSION}}}"' in script
