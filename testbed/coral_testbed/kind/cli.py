@@ -1,7 +1,6 @@
 """`coral dev-cluster kind`: a kind cluster of robots (setup, up, down, robot faults).
 
-Thin verbs over `provisioning`, `clusters` and `faults`; registered under `coral dev-cluster` (whose
-module, imported first, lends its progress line and label parsing).
+Thin verbs over `provisioning`, `clusters` and `faults`; registered under `coral dev-cluster`.
 Progress goes to stderr and the kubeconfig path to stdout, so
 `export KUBECONFIG=$(coral dev-cluster kind up --robots 2)` works.
 """
@@ -14,15 +13,14 @@ from typing import Any
 
 import click
 
-from coral_testbed import clierrors, images
+from coral_testbed import clierrors, clilines, images
 from coral_testbed.cluster import binaries, controlplane
-from coral_testbed.cluster import cli as cluster_cli
-from coral_testbed.kind import clusters, engine, faults, nodeimage, provisioning
+from coral_testbed.kind import clusters, engine, faults, noderootfs, provisioning
 
 _fail_on_errors = clierrors.fail_on(
     provisioning.SetupError,
     engine.EngineError,
-    nodeimage.NodeImageError,
+    noderootfs.NodeImageError,
     clusters.ClusterError,
     faults.FaultError,
     images.ImageBuildError,
@@ -48,8 +46,8 @@ def kind() -> None:
 def setup() -> None:
     """Install what kind needs where missing: Docker engine, kind, node binaries, node image."""
     engine_was_running = engine.project_engine_running()
-    ready = provisioning.ensure(cluster_cli.say)
-    cluster_cli.say(f"kind is ready: node image {ready.node_image}")
+    ready = provisioning.ensure(clilines.say)
+    clilines.say(f"kind is ready: node image {ready.node_image}")
     if ready.engine.owned and not engine_was_running:
         # Setup caches; it leaves nothing running. `up` starts the engine again (a few seconds).
         engine.stop()
@@ -79,7 +77,7 @@ def setup() -> None:
     "--label",
     "labels",
     multiple=True,
-    callback=cluster_cli.parse_labels,
+    callback=clilines.parse_labels,
     help="KEY=VALUE label for every robot.",
 )
 @_fail_on_errors
@@ -87,17 +85,17 @@ def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[s
     """Create the kind cluster (set up first if needed); print its kubeconfig path."""
     from coral_testbed.cluster.client import Cluster
 
-    ready = provisioning.ensure(cluster_cli.say)
+    ready = provisioning.ensure(clilines.say)
     running = clusters.load(name, ready.engine)
     if running is None:
         robots = {f"{robot_prefix}{i}": dict(labels) for i in range(1, count + 1)}
-        running = clusters.create(name, robots, ready.engine, ready.node_image, cluster_cli.say)
+        running = clusters.create(name, robots, ready.engine, ready.node_image, clilines.say)
     else:
-        cluster_cli.say(f"kind cluster {name} exists already")
+        clilines.say(f"kind cluster {name} exists already")
     if kwok_count:
         clusters.start_kwok(running)
         names = [f"kwok-{robot_prefix}{i}" for i in range(1, kwok_count + 1)]
-        cluster_cli.say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
+        clilines.say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
         Cluster(running.kubeconfig, None, is_local=False).add_robots(names, labels)
     click.echo(str(running.kubeconfig))
 
@@ -112,14 +110,14 @@ def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[s
 @_fail_on_errors
 def down(name: str, keep_engine: bool) -> None:
     """Delete the kind cluster, its registry, kwok and network; stop the project's dockerd."""
-    node_engine = engine.start(cluster_cli.say)
-    clusters.delete(name, node_engine, cluster_cli.say)
+    node_engine = engine.start(clilines.say)
+    clusters.delete(name, node_engine, clilines.say)
     if node_engine.owned and not keep_engine:
         if node_engine.containers(clusters.KIND_CLUSTER_LABEL):
-            cluster_cli.say("Other kind clusters still run on the project's dockerd; leaving it running")
+            clilines.say("Other kind clusters still run on the project's dockerd; leaving it running")
         else:
             engine.stop()
-            cluster_cli.say("Stopped the project's dockerd")
+            clilines.say("Stopped the project's dockerd")
 
 
 FAULTS: dict[str, Callable[[clusters.Running, str], object]] = {
@@ -140,7 +138,7 @@ def _on_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
     @_fail_on_errors
     @functools.wraps(command)
     def wrapper(name: str, robot: str, **kwargs: Any) -> Any:
-        node_engine = engine.start(cluster_cli.say)
+        node_engine = engine.start(clilines.say)
         running = clusters.load(name, node_engine)
         if running is None:
             raise clusters.ClusterError(f"no kind cluster {name}; create it with `coral dev-cluster kind up`")

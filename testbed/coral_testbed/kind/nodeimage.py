@@ -23,17 +23,15 @@ import hashlib
 import json
 import os
 import shutil
-import subprocess
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from coral_testbed import images
-from coral_testbed.cluster import binaries, processes
+from coral_testbed.cluster import binaries
 from coral_testbed.images import rootfs
-from coral_testbed.kind import clusters, engine, imagearchives, kindnet
-from coral_testbed.waiting import wait_for
+from coral_testbed.kind import clusters, engine, imagearchives, kindnet, noderootfs
 
 IMAGE_ENV = "CORAL_KIND_NODE_IMAGE"
 """A node image to use instead of building one (say `kindest/node:v1.34.3` where it can be pulled)."""
@@ -41,28 +39,8 @@ REPOSITORY = "coral.local/kind-node"
 
 ETCD_TAG = "3.6.5-0"
 COREDNS_TAG = "v1.12.1"
-PAUSE_TAG = "3.10.1"
 
-NODE_PACKAGES = tuple(
-    "systemd containerd runc containernetworking-plugins conntrack iptables nftables iproute2 ethtool "
-    "util-linux mount kmod libseccomp2 pigz bash ca-certificates curl jq procps socat".split()
-)
-PROXY_PACKAGES = ("iptables", "conntrack")
-"""kube-proxy's image: it runs iptables-restore and conntrack inside its own container."""
-
-# Inside a node: containerd may not raise oom_score_adj (no CAP_SYS_RESOURCE here), pods get the
-# pause image kubeadm expects, and the node forwards for its pods (a new network namespace inherits
-# the host's ip_forward, which stays 0).
-_CONTAINERD_EDITS = {
-    "restrict_oom_score_adj = false": "restrict_oom_score_adj = true",
-    'sandbox_image = "registry.k8s.io/pause:3.10"': f'sandbox_image = "registry.k8s.io/pause:{PAUSE_TAG}"',
-}
-_SYSCTL = "# Coral's kind node forwards for its pods; the host's setting stays.\nnet.ipv4.ip_forward=1\n"
 _TOOLS_SCRIPT = "build-kind-tools.sh"
-
-
-class NodeImageError(RuntimeError):
-    """The node image could not be built; the message names the step and its log."""
 
 
 @dataclass(frozen=True)
@@ -77,7 +55,12 @@ class Inputs:
 
     def key(self) -> str:
         digest = hashlib.sha256()
-        for path in [Path(__file__), Path(kindnet.__file__), Path(imagearchives.__file__)]:
+        for path in [
+            Path(__file__),
+            Path(noderootfs.__file__),
+            Path(kindnet.__file__),
+            Path(imagearchives.__file__),
+        ]:
             digest.update(path.read_bytes())
         for folder in (self.kind_files, self.kind_net_source):
             for path in sorted(p for p in folder.rglob("*") if p.is_file()):
@@ -86,7 +69,9 @@ class Inputs:
             for name in sorted(os.listdir(folder)):
                 if (folder / name).is_file():
                     digest.update(name.encode() + _file_digest(folder / name))
-        digest.update(json.dumps([NODE_PACKAGES, PROXY_PACKAGES, rootfs._sources()]).encode())
+        digest.update(
+            json.dumps([noderootfs.NODE_PACKAGES, noderootfs.PROXY_PACKAGES, rootfs._sources()]).encode()
+        )
         return digest.hexdigest()[:16]
 
 
@@ -99,19 +84,9 @@ def repository_root() -> Path:
     return images.building.find_repository_root()
 
 
-def _logged(argv: list[str], log: Path, step: str, **kwargs: object) -> subprocess.CompletedProcess[str]:
-    with log.open("a") as sink:
-        sink.write(f"$ {' '.join(argv)}\n")
-        sink.flush()
-        done = subprocess.run(argv, stdout=subprocess.PIPE, stderr=sink, text=True, **kwargs)  # type: ignore[call-overload]
-    if done.returncode != 0:
-        raise NodeImageError(f"{step} failed (exit {done.returncode}); see {log}")
-    return done  # type: ignore[no-any-return]
-
-
 def kind_module_dir(log: Path) -> Path:
     """kind's module in the Go module cache (downloaded if missing): its node files are read there."""
-    done = _logged(
+    done = noderootfs.logged(
         ["go", "mod", "download", "-json", f"sigs.k8s.io/kind@{clusters.KIND_VERSION}"],
         log,
         "downloading the kind module",
@@ -124,7 +99,7 @@ def kind_module_dir(log: Path) -> Path:
 def build_tools(log: Path) -> Path:
     """kind, kubeadm, kube-proxy, crictl, etcd, coredns, pause (hack/build-kind-tools.sh); their folder."""
     script = repository_root() / "hack" / _TOOLS_SCRIPT
-    done = _logged(["bash", str(script)], log, f"hack/{_TOOLS_SCRIPT}")
+    done = noderootfs.logged(["bash", str(script)], log, f"hack/{_TOOLS_SCRIPT}")
     return Path(done.stdout.strip().splitlines()[-1])
 
 
@@ -153,127 +128,11 @@ def preloaded_images(tools: Path, control_plane: Path, proxy_base: Path) -> list
             entrypoint=["/coredns"],
         ),
         imagearchives.ArchiveImage(
-            f"registry.k8s.io/pause:{PAUSE_TAG}", {"/pause": tools / "pause"}, entrypoint=["/pause"]
+            f"registry.k8s.io/pause:{noderootfs.PAUSE_TAG}",
+            {"/pause": tools / "pause"},
+            entrypoint=["/pause"],
         ),
     ]
-
-
-def _debootstrap(target: Path, packages: tuple[str, ...], variant: str, log: Path) -> None:
-    argv = ["mmdebstrap", f"--variant={variant}", f"--include={','.join(packages)}"]
-    # Merged /usr as bookworm has it (relative links), without the usrmerge package.
-    argv.append(f"--hook-dir={rootfs._MERGED_USR_HOOK}")
-    argv += [f"--dpkgopt={option}" for option in rootfs._DPKG_OPTIONS]
-    _logged([*argv, rootfs.SUITE, str(target), *rootfs._sources()], log, f"mmdebstrap of {target.name}")
-
-
-def _copy_kind_files(kind_files: Path, root: Path) -> None:
-    """kind's node files into `root` with the modes kind's Dockerfile gives them (the module cache
-    holds them read-only): scripts 0755, the rest 0644."""
-    for source in sorted(p for p in kind_files.rglob("*") if p.is_file()):
-        inside = source.relative_to(kind_files)
-        if inside.parts[0] == "LICENSES":
-            continue
-        target = root / inside
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(source, target)
-        target.chmod(0o755 if inside.parent.name == "bin" else 0o644)
-
-
-def _install_kind_files(kind_files: Path, root: Path) -> None:
-    """What kind's base Dockerfile COPYs and RUNs, from the module's images/base/files."""
-    _copy_kind_files(kind_files, root)
-    config = root / "etc/containerd/config.toml"
-    text = config.read_text()
-    for old, new in _CONTAINERD_EDITS.items():
-        if old not in text:
-            raise NodeImageError(f"kind's containerd config has no {old!r} any more ({config})")
-        text = text.replace(old, new)
-    config.write_text(text)
-    (root / "etc/sysctl.d/99-coral-kind-forwarding.conf").write_text(_SYSCTL)
-    # Debian puts containerd in /usr/bin and the CNI plugins in /usr/lib/cni; kind expects
-    # /usr/local/bin/containerd and /opt/cni/bin.
-    (root / "usr/local/bin/containerd").symlink_to("/usr/bin/containerd")
-    (root / "opt/cni").mkdir(parents=True, exist_ok=True)
-    (root / "opt/cni/bin").symlink_to("/usr/lib/cni")
-    wants = [
-        *root.glob("usr/lib/systemd/system/multi-user.target.wants/*"),
-        *root.glob("etc/systemd/system/*.wants/*"),
-        *root.glob("usr/lib/systemd/system/local-fs.target.wants/*"),
-        *root.glob("usr/lib/systemd/system/sockets.target.wants/*udev*"),
-        *root.glob("usr/lib/systemd/system/sockets.target.wants/*initctl*"),
-        *root.glob("usr/lib/systemd/system/basic.target.wants/*"),
-        *root.glob("usr/lib/systemd/system/sysinit.target.wants/systemd-tmpfiles-setup.service"),
-    ]
-    for link in wants:
-        link.unlink()
-    with (root / "etc/systemd/journald.conf").open("a") as journald:
-        journald.write("ReadKMsg=no\n")
-    (root / "usr/sbin/init").unlink(missing_ok=True)
-    (root / "usr/sbin/init").symlink_to("/usr/lib/systemd/systemd")
-    (root / "etc/kubernetes/manifests").mkdir(parents=True, exist_ok=True)
-
-
-def _cri_base_spec(root: Path, log: Path) -> None:
-    """/etc/containerd/cri-base.json as kind makes it: `ctr oci spec`, plus kind's product-uuid
-    hook, minus rlimits (pods inherit the node's)."""
-    done = _logged(["ctr", "oci", "spec"], log, "ctr oci spec")
-    spec = json.loads(done.stdout)
-    hooks = spec.setdefault("hooks", {}).setdefault("createContainer", [])
-    hooks.append({"path": "/kind/bin/mount-product-files.sh"})
-    spec["process"].pop("rlimits", None)
-    (root / "etc/containerd/cri-base.json").write_text(json.dumps(spec, indent=2))
-
-
-def _install_binaries(root: Path, tools: Path, control_plane: Path) -> None:
-    for name, folder in (("kubeadm", tools), ("kubelet", control_plane), ("kubectl", control_plane)):
-        shutil.copy2(folder / name, root / "usr/bin" / name)
-    shutil.copy2(tools / "crictl", root / "usr/local/bin/crictl")
-    (root / "kind/version").write_text(binaries.KUBE_VERSION + "\n")
-    (root / "kind/manifests").mkdir(parents=True, exist_ok=True)
-    (root / "kind/manifests/default-cni.yaml").write_text(kindnet.build_manifest())
-
-
-def _preload(root: Path, archives: list[Path], work: Path, log: Path) -> None:
-    """Imports `archives` into the root filesystem's containerd store (namespace k8s.io), with a
-    throwaway containerd whose root is that store, as kind's own node-image build does."""
-    state = work / "containerd-state"
-    socket = work / "containerd.sock"
-    config = work / "containerd.toml"
-    # Only the content and metadata stores are needed; the CRI plugin would start a pod runtime.
-    config.write_text('version = 2\ndisabled_plugins = ["io.containerd.grpc.v1.cri"]\n')
-    argv = [
-        "containerd",
-        "--config",
-        str(config),
-        "--root",
-        str(root / "var/lib/containerd"),
-        "--state",
-        str(state),
-        "--address",
-        str(socket),
-    ]
-    daemon = processes.spawn("containerd-preload", argv, work / "containerd.log")
-    try:
-        wait_for(socket.exists, timeout=30, message=f"throwaway containerd at {socket}")
-        for archive in archives:
-            _logged(
-                [
-                    "ctr",
-                    "--address",
-                    str(socket),
-                    "--namespace",
-                    "k8s.io",
-                    "images",
-                    "import",
-                    "--no-unpack",
-                    "--all-platforms",
-                    str(archive),
-                ],
-                log,
-                f"importing {archive.name}",
-            )
-    finally:
-        processes.stop(daemon)
 
 
 def _save_kind_net(log: Path, work: Path) -> Path:
@@ -296,7 +155,7 @@ def ensure(node_engine: engine.Engine, progress: Callable[[str], None], log: Pat
     """The node image's reference in `node_engine`, building and importing it if missing.
 
     Raises:
-        NodeImageError, engine.EngineError, images.ImageBuildError: naming the step and `log`.
+        noderootfs.NodeImageError, engine.EngineError, images.ImageBuildError: naming the step and `log`.
     """
     wanted = os.environ.get(IMAGE_ENV)
     if wanted:
@@ -339,38 +198,22 @@ def _build(
     log: Path,
 ) -> None:
     root = work / "rootfs"
-    progress(f"  Debian {rootfs.SUITE} root filesystem with {', '.join(NODE_PACKAGES[:7])}, ... (mmdebstrap)")
-    _debootstrap(root, NODE_PACKAGES, "minbase", log)
     proxy_base = work / "proxy-base.tar"
-    progress(f"  kube-proxy's base: Debian {rootfs.SUITE} with {', '.join(PROXY_PACKAGES)}")
-    _debootstrap(proxy_base, PROXY_PACKAGES, "essential", log)
-    progress("  kind's node files, kubeadm, kubelet, kubectl, crictl, the pod network manifest")
-    _install_kind_files(inputs.kind_files, root)
-    _cri_base_spec(root, log)
-    _install_binaries(root, inputs.tools_bin, inputs.control_plane_bin)
-    _logged(
-        [
-            "systemctl",
-            f"--root={root}",
-            "enable",
-            "kubelet.service",
-            "containerd.service",
-            "undo-mount-hacks.service",
-        ],
-        log,
-        "systemctl enable",
+    noderootfs.make(
+        root, proxy_base, inputs.kind_files, inputs.tools_bin, inputs.control_plane_bin, progress, log
     )
-    _logged(["systemctl", f"--root={root}", "mask", "systemd-binfmt.service"], log, "systemctl mask")
     progress("  preloading the control-plane, kube-proxy, etcd, coredns, pause and coral-kind-net images")
     archives = []
     for image in preloaded_images(inputs.tools_bin, inputs.control_plane_bin, proxy_base):
         archive = work / "archives" / (image.reference.rsplit("/", 1)[-1].replace(":", "_") + ".tar")
         imagearchives.write(image, archive)
         archives.append(archive)
-    _preload(root, [*archives, kind_net_archive], work, log)
+    noderootfs.preload(root, [*archives, kind_net_archive], work, log)
     progress(f"  loading the root filesystem into Docker as {reference}")
     rootfs_tar = work / "node-rootfs.tar"
-    _logged(["tar", "-C", str(root), "--numeric-owner", "-cf", str(rootfs_tar), "."], log, "tar of the node")
+    noderootfs.logged(
+        ["tar", "-C", str(root), "--numeric-owner", "-cf", str(rootfs_tar), "."], log, "tar of the node"
+    )
     shutil.rmtree(root)
     # As kind's base image: systemd as PID 1 behind kind's entrypoint, halted by SIGRTMIN+3.
     node = imagearchives.ArchiveImage(
@@ -384,7 +227,7 @@ def _build(
     archive = work / "node-image.tar"
     imagearchives.write(node, archive)
     rootfs_tar.unlink()
-    _logged(
+    noderootfs.logged(
         ["docker", "load", "--input", str(archive)],
         log,
         "docker load of the node image",

@@ -81,7 +81,7 @@ def ensure(progress: Callable[[str], None]) -> Ready:
     The engine is left running: `engine.stop()` (or `coral dev-cluster kind down`) stops it.
 
     Raises:
-        SetupError, engine.EngineError, nodeimage.NodeImageError: naming the step and the log.
+        SetupError, engine.EngineError, noderootfs.NodeImageError: naming the step and the log.
     """
     log = log_path()
     log.parent.mkdir(parents=True, exist_ok=True)
