@@ -5,6 +5,9 @@ Used by `coral dev-cluster` and `coral dev-cluster kind`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import click
 
 
@@ -21,3 +24,8 @@ def parse_labels(ctx: click.Context, param: click.Parameter, values: tuple[str, 
             raise click.BadParameter(f"{value!r} is not KEY=VALUE", ctx=ctx, param=param)
         labels[key] = label_value
     return labels
+
+
+def labels_option(help: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """`--label KEY=VALUE` (repeatable), passed to the verb as the dict `labels`."""
+    return click.option("--label", "labels", multiple=True, callback=parse_labels, help=help)

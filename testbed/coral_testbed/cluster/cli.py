@@ -86,13 +86,7 @@ def dev_cluster() -> None:
 @click.option(
     "--kwok-prefix", default="kwok-robot-", show_default=True, help="kwok robots are named PREFIX1..PREFIXN."
 )
-@click.option(
-    "--label",
-    "labels",
-    multiple=True,
-    callback=clilines.parse_labels,
-    help="KEY=VALUE label for every robot.",
-)
+@clilines.labels_option("KEY=VALUE label for every robot.")
 @click.option(
     "--operator",
     "with_operator",
@@ -189,13 +183,7 @@ def robots() -> None:
 
 def _robot_names(command: Callable[..., Any]) -> Callable[..., Any]:
     """The NAMES argument and `--label` options of the verbs that add robots."""
-    command = click.option(
-        "--label",
-        "labels",
-        multiple=True,
-        callback=clilines.parse_labels,
-        help="KEY=VALUE label for the robots.",
-    )(command)
+    command = clilines.labels_option("KEY=VALUE label for the robots.")(command)
     return click.argument("names", nargs=-1, required=True)(command)
 
 

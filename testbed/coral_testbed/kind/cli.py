@@ -73,13 +73,7 @@ def setup() -> None:
     default=0,
     help="Simulated robots: kwok Nodes, kwok running against kind's API server.",
 )
-@click.option(
-    "--label",
-    "labels",
-    multiple=True,
-    callback=clilines.parse_labels,
-    help="KEY=VALUE label for every robot.",
-)
+@clilines.labels_option("KEY=VALUE label for every robot.")
 @_fail_on_errors
 def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[str, str]) -> None:
     """Create the kind cluster (set up first if needed); print its kubeconfig path."""
