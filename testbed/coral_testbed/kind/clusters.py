@@ -199,7 +199,9 @@ def create(
     config = folder / "kind-config.json"
     config.write_text(build_config(spec))
     kubeconfig = folder / "kubeconfig"
-    progress(f"kind create cluster --name {name}: 1 control plane, {len(robots)} robot workers (log {log})")
+    workers = len(robots) + len(extra_workers or {})
+    progress(f"kind create cluster --name {name}: a control plane, {workers} workers ({len(robots)} robots)")
+    progress(f"  (log {log})")
     argv = [
         str(kind_binary()),
         "create",
