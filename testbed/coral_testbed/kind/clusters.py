@@ -263,3 +263,5 @@ def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None
         registry.down(folder, address)
     node_engine.docker("network", "rm", network_name(name), check=False)
     _record(name).unlink(missing_ok=True)
+    # A kubeconfig of a deleted cluster would only point the next `export KUBECONFIG` nowhere.
+    (folder / "kubeconfig").unlink(missing_ok=True)
