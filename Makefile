@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind kind test-kind-setup
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -28,6 +28,12 @@ node-runtime:
 	@if [ "$$(id -u)" -eq 0 ]; then bash hack/setup-node-runtime.sh; \
 	else bash hack/setup-node-runtime.sh --check || echo "==> not root: real-robot and image tests will be skipped"; fi
 
+# What kind clusters need, installed where missing and cached (docs/kind.md): a Docker engine from
+# Debian, kind and the node binaries from Go modules, and the node image (built locally where
+# kindest/node cannot be pulled; first build about 8 min). Needs root.
+kind: venv node-runtime control-plane
+	@$(VENV)/bin/coral dev-cluster kind setup
+
 # Every image from the repository's Dockerfiles, pushed to the local registry (docs/images.md).
 images: venv node-runtime
 	@$(VENV)/bin/coral images build
@@ -45,9 +51,10 @@ test-images: venv node-runtime
 verdict-tools:
 	@bash hack/build-verdict-tools.sh >/dev/null
 
-# The SLAM mission on a real local control plane: images, a real robot, the operator by Helm, kubectl apply.
-demo: venv control-plane node-runtime
-	@$(VENV)/bin/coral demo
+# The SLAM mission on a kind cluster (docs/kind.md): images, a robot worker, the operator by Helm,
+# kubectl apply; the cluster and the project's dockerd are gone afterwards.
+demo: venv control-plane node-runtime kind
+	@$(VENV)/bin/coral demo --cluster kind
 
 # The same mission on one machine, no cluster: `coral run` with a live tree view.
 demo-local: venv
@@ -57,7 +64,14 @@ demo-local: venv
 demo-cluster: venv control-plane
 	@$(VENV)/bin/coral dev-cluster demo
 
-test: venv control-plane node-runtime verdict-tools test-images
+# What the kind test (tests/integration/kind) needs, made before pytest so that the node image's
+# first build (about 8 min) counts against no test's timeout; where it cannot be made, that test
+# says why. Leaves nothing running.
+test-kind-setup: venv node-runtime control-plane
+	@if [ "$$(id -u)" -eq 0 ]; then \
+		$(VENV)/bin/coral dev-cluster kind setup || echo "==> kind setup failed; the kind test will say why"; fi
+
+test: venv control-plane node-runtime verdict-tools test-images test-kind-setup
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"

@@ -15,27 +15,13 @@ from typing import Any
 import click
 from coral_core import terminal
 
-from coral_testbed import clierrors, images
+from coral_testbed import clierrors, clilines, images
 from coral_testbed.cluster import binaries, controlplane, demo, operatorchart, realrobots
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.images import registry
 
 OPERATOR_NODE = "operator-node"
 """The real non-robot node `up --operator` schedules the operator onto."""
-
-
-def _say(line: str) -> None:
-    click.echo(f"==> {line}", err=True)
-
-
-def _parse_labels(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]) -> dict[str, str]:
-    labels = {}
-    for value in values:
-        key, sep, label_value = value.partition("=")
-        if not sep or not key:
-            raise click.BadParameter(f"{value!r} is not KEY=VALUE", ctx=ctx, param=param)
-        labels[key] = label_value
-    return labels
 
 
 def dir_option(command: Callable[..., Any]) -> Callable[..., Any]:
@@ -101,9 +87,7 @@ def dev_cluster() -> None:
 @click.option(
     "--kwok-prefix", default="kwok-robot-", show_default=True, help="kwok robots are named PREFIX1..PREFIXN."
 )
-@click.option(
-    "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for every robot."
-)
+@clilines.labels_option("KEY=VALUE label for every robot.")
 @click.option(
     "--operator",
     "with_operator",
@@ -123,21 +107,21 @@ def up(
 ) -> None:
     """Start the control plane in the background; print the kubeconfig path once the API is healthy."""
     try:
-        state = controlplane.start(state_dir, progress=_say)
+        state = controlplane.start(state_dir, progress=clilines.say)
     except controlplane.AlreadyRunning as running:
-        _say(str(running))
+        clilines.say(str(running))
         state = controlplane.load_state(state_dir.resolve())  # type: ignore[assignment]
     cluster = Cluster(state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir)
     if kwok_count:
         names = [f"{kwok_prefix}{i}" for i in range(1, kwok_count + 1)]
-        _say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
+        clilines.say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
         cluster.add_robots(names, labels)
     if count:
         names = [f"{robot_prefix}{i}" for i in range(1, count + 1)]
         wanted = [name for name in names if name not in cluster.robots.names()]
         if wanted:
-            cluster.robots.add(wanted, labels, progress=_say)
-        _say(f"Real robots {', '.join(names)} are Ready")
+            cluster.robots.add(wanted, labels, progress=clilines.say)
+        clilines.say(f"Real robots {', '.join(names)} are Ready")
     if with_operator:
         install_operator(cluster)
     click.echo(str(state.kubeconfig))
@@ -151,17 +135,17 @@ def install_operator(cluster: Cluster, release: operatorchart.Release | None = N
     helm = cluster.bin_dir / "helm"
     listed = cluster.kubectl("get", "deployments", "-n", release.namespace, "-o", "name", check=False)
     if f"deployment.apps/{release.name}" in listed.stdout:
-        _say(f"The operator is installed already ({release.namespace}/{release.name})")
+        clilines.say(f"The operator is installed already ({release.namespace}/{release.name})")
         return
     address = registry.configured_address()
-    images.publish(address, ["operator"], progress=_say)
+    images.publish(address, ["operator"], progress=clilines.say)
     if OPERATOR_NODE not in cluster.robots.names():
         cluster.robots.add(
-            [OPERATOR_NODE], {operatorchart.OPERATOR_NODE_LABEL: "true"}, progress=_say, robot=False
+            [OPERATOR_NODE], {operatorchart.OPERATOR_NODE_LABEL: "true"}, progress=clilines.say, robot=False
         )
-    _say(f"helm install {release.name} charts/coral-operator -n {release.namespace}")
+    clilines.say(f"helm install {release.name} charts/coral-operator -n {release.namespace}")
     pod = operatorchart.install(cluster.api_client, helm, cluster.env(), release)
-    _say(f"The operator runs in pod {release.namespace}/{pod.metadata.name} on {pod.spec.node_name}")
+    clilines.say(f"The operator runs in pod {release.namespace}/{pod.metadata.name} on {pod.spec.node_name}")
 
 
 @dev_cluster.command()
@@ -169,8 +153,8 @@ def install_operator(cluster: Cluster, release: operatorchart.Release | None = N
 @_fail_on_errors
 def down(state_dir: Path) -> None:
     """Stop every process the control plane started."""
-    stopped = controlplane.stop(state_dir, progress=_say)
-    _say(f"Stopped {len(stopped)} processes" if stopped else f"Nothing was running from {state_dir}")
+    stopped = controlplane.stop(state_dir, progress=clilines.say)
+    clilines.say(f"Stopped {len(stopped)} processes" if stopped else f"Nothing was running from {state_dir}")
 
 
 @dev_cluster.command()
@@ -200,9 +184,7 @@ def robots() -> None:
 
 def _robot_names(command: Callable[..., Any]) -> Callable[..., Any]:
     """The NAMES argument and `--label` options of the verbs that add robots."""
-    command = click.option(
-        "--label", "labels", multiple=True, callback=_parse_labels, help="KEY=VALUE label for the robots."
-    )(command)
+    command = clilines.labels_option("KEY=VALUE label for the robots.")(command)
     return click.argument("names", nargs=-1, required=True)(command)
 
 
@@ -219,7 +201,7 @@ def add_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str])
 @_robot_names
 def add_real_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str]) -> None:
     """Start real robots (kubelet + containerd each) and wait until they are Ready."""
-    cluster.robots.add(list(names), labels, progress=_say)
+    cluster.robots.add(list(names), labels, progress=clilines.say)
 
 
 @robots.command("remove")
@@ -282,3 +264,13 @@ for _verb in ONE_ROBOT_ACTIONS:
 def demo_command() -> None:
     """Start a throwaway control plane, schedule a pod onto a robot, show it Running, stop everything."""
     demo.run(echo=click.echo)
+
+
+def _register_kind() -> None:
+    # Imported here: the kind verbs are a group of their own module, listed under dev-cluster.
+    from coral_testbed.kind import cli as kind_cli
+
+    dev_cluster.add_command(kind_cli.kind)
+
+
+_register_kind()

@@ -161,6 +161,11 @@ class Buildah:
                       reference, f"docker://{destination}")
             return Path(digestfile.name).read_text().strip()
 
+    def save(self, reference: str, archive: Path, name: str) -> None:
+        """Writes a local image as a `docker save` archive at `archive`, tagged `name` inside."""
+        archive.unlink(missing_ok=True)
+        self._run("push", "--quiet", reference, f"docker-archive:{archive}:{name}")
+
     def pull(self, source: str, tag: str) -> str:
         """Pulls `source` (host:port/repo:tag) into the store, tags it `tag`; returns its image ID."""
         done = self._run("pull", "--tls-verify=false", "--quiet", f"docker://{source}")

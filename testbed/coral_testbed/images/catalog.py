@@ -63,6 +63,8 @@ IMAGES: tuple[ImageSpec, ...] = (
               "components/skillsets/snapshot/Dockerfile", Context.REPOSITORY, _RUNTIME_CHILD),
     ImageSpec("operator", "coral-on-kubernetes/coral-operator", VERSION, "operator/Dockerfile",
               Context.REPOSITORY, {"BASE": "python"}),
+    ImageSpec("kind-net", "coral/kind-net", VERSION, "testbed/images/kind-net/Dockerfile",
+              Context.REPOSITORY, {"BASE": "python"}),
 )
 
 COMPONENTS = ("executor", "bag-player", "examples-skillset", "slam-skillset", "snapshot-skillset")

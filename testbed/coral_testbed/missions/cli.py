@@ -21,10 +21,17 @@ from coral.local.cli import TREE_PNG, output_option
     "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
+@click.option(
+    "--cluster",
+    type=click.Choice(["local", "kind"]),
+    default="local",
+    show_default=True,
+    help="local: the project's control plane with real robots; kind: a kind cluster (docs/kind.md).",
+)
 @TREE_PNG
 @output_option(Path("out/demo"), "Where the SLAM map, trajectory and picture are kept after the demo.")
 def demo_command(
-    mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
+    mission: str, scans: int | None, timeout: float, cluster: str, tree_png: Path | None, output_dir: Path
 ) -> None:
     """Start a control plane, real robots and the operator by Helm; kubectl apply a mission, follow it."""
     from coral_testbed.missions import demo
@@ -37,6 +44,7 @@ def demo_command(
             echo=click.echo,
             tree_png=tree_png,
             output_dir=output_dir,
+            on_kind=cluster == "kind",
         )
     except demo.DemoUnsupported as error:
         raise click.ClickException(str(error)) from error

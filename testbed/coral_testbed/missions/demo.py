@@ -29,7 +29,7 @@ from rich.live import Live
 from coral_testbed.cluster import binaries, controlplane, realrobots
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.missions import domains, following, manifests
-from coral_testbed.missions.stack import MissionStack, MissionView
+from coral_testbed.missions.stack import OPERATOR_NODE, MissionStack, MissionView
 from coral_testbed.waiting import wait_for
 
 NAMESPACE = "coral-demo"
@@ -210,6 +210,56 @@ def _stack(cluster: Cluster, robots: list[str], root: Path, echo: Echo) -> Missi
     return MissionStack(cluster, NAMESPACE, robots, root, echo=echo)
 
 
+OnStack = Callable[[MissionStack], dict[str, str]]
+"""Runs the mission on a started stack; returns each robot's final tree root status."""
+
+
+def _run_on_local(robots: list[str], folder: Path, echo: Echo, on_stack: OnStack) -> dict[str, str]:
+    state_dir = folder / "control-plane"
+    echo(
+        "==> Starting a local control plane: etcd, kube-apiserver, kube-controller-manager,"
+        " kube-scheduler, kwok"
+    )
+    try:
+        state = controlplane.start(state_dir, progress=lambda line: echo(f"    {line}"))
+        cluster = Cluster(
+            state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir
+        )
+        with _stack(cluster, robots, folder / "mission", echo) as stack:
+            _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
+            roots = on_stack(stack)
+            echo("==> Stopping the robots and the operator")
+        cluster.close()
+    finally:
+        stopped = controlplane.stop(state_dir)
+        echo(f"==> Stopped {len(stopped)} control-plane processes")
+    return roots
+
+
+def _run_on_kind(robots: list[str], folder: Path, echo: Echo, on_stack: OnStack) -> dict[str, str]:
+    from coral_testbed.kind import missions as kind_missions
+
+    echo(f"==> A kind cluster: a control plane; robots {', '.join(robots)} and {OPERATOR_NODE} as workers")
+    with kind_missions.demo_cluster(robots, echo) as (running, cluster):
+        _kubectl(cluster, echo, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot")
+        with kind_missions.KindMissionStack(
+            running, cluster, NAMESPACE, robots, folder / "mission", echo
+        ) as stack:
+            roots = on_stack(stack)
+            _kubectl(cluster, echo, "get", "pods", "-A", "-o", "wide")
+    return roots
+
+
+def _check_kind(mission: str) -> None:
+    from coral_testbed.kind import provisioning
+
+    if mission != "slam":
+        raise DemoUnsupported("on kind, the demo runs the slam mission only (the relay needs a site share)")
+    missing = provisioning.unsupported_reason()
+    if missing is not None:
+        raise DemoUnsupported(f"the demo runs on a kind cluster, which this machine cannot host: {missing}")
+
+
 def run(
     mission: str,
     scans: int,
@@ -217,13 +267,19 @@ def run(
     echo: Echo = print,
     tree_png: Path | None = None,
     output_dir: Path = DEFAULT_OUTPUT,
+    on_kind: bool = False,
 ) -> Outcome:
     """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring.
+
+    `on_kind` runs it on a throwaway kind cluster (docs/kind.md) instead of the local control plane.
 
     Raises:
         DemoUnsupported: this machine cannot host real robots (checked before anything starts).
     """
-    _check_machine()
+    if on_kind:
+        _check_kind(mission)
+    else:
+        _check_machine()
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
     echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
@@ -234,28 +290,17 @@ def run(
     run_mission = _slam if mission == "slam" else _relay
     roots: dict[str, str] = {}
     domain, lock = domains.claim_domain()
+
+    def on_stack(stack: MissionStack) -> dict[str, str]:
+        roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
+        if tree_png is not None:
+            draw_trees(stack, robots, tree_png.resolve(), echo)
+        return roots
+
     try:
         with tempfile.TemporaryDirectory(prefix="coral-demo-") as folder:
-            state_dir = Path(folder) / "control-plane"
-            echo(
-                "==> Starting a local control plane: etcd, kube-apiserver, kube-controller-manager,"
-                " kube-scheduler, kwok"
-            )
-            try:
-                state = controlplane.start(state_dir, progress=lambda line: echo(f"    {line}"))
-                cluster = Cluster(
-                    state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir
-                )
-                with _stack(cluster, robots, Path(folder) / "mission", echo) as stack:
-                    _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
-                    roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
-                    if tree_png is not None:
-                        draw_trees(stack, robots, tree_png.resolve(), echo)
-                    echo("==> Stopping the robots and the operator")
-                cluster.close()
-            finally:
-                stopped = controlplane.stop(state_dir)
-                echo(f"==> Stopped {len(stopped)} control-plane processes")
+            run_on = _run_on_kind if on_kind else _run_on_local
+            roots = run_on(robots, Path(folder), echo, on_stack)
     finally:
         os.close(lock)
     outcome = Outcome(roots=roots, duration_s=time.monotonic() - began)

@@ -183,18 +183,7 @@ class MissionStack(MissionView):
             images.build(list(MISSION_IMAGES), registry_address=address, progress=self._image_progress)
             self._install_crds()
             self._ensure_namespace()
-            self.echo(
-                f"==> Starting real robots {', '.join(self.robots)} and {OPERATOR_NODE}"
-                " (a kubelet and a containerd each)"
-            )
-            fleet = self.cluster.robots
-            fleet.add(self.robots, progress=lambda line: self.echo(f"    {line}"))
-            fleet.add(
-                [OPERATOR_NODE],
-                {operatorchart.OPERATOR_NODE_LABEL: "true"},
-                progress=lambda line: self.echo(f"    {line}"),
-                robot=False,
-            )
+            self._start_nodes()
             self.echo(f"$ helm install coral-operator charts/coral-operator -n {self.namespace} ...")
             assert self.cluster.bin_dir is not None
             pod = operatorchart.install(
@@ -204,6 +193,25 @@ class MissionStack(MissionView):
         except BaseException:
             self.stop()
             raise
+
+    def _start_nodes(self) -> None:
+        """The robots and the operator's node, as real kubelets with containerd."""
+        self.echo(
+            f"==> Starting real robots {', '.join(self.robots)} and {OPERATOR_NODE}"
+            " (a kubelet and a containerd each)"
+        )
+        fleet = self.cluster.robots
+        fleet.add(self.robots, progress=lambda line: self.echo(f"    {line}"))
+        fleet.add(
+            [OPERATOR_NODE],
+            {operatorchart.OPERATOR_NODE_LABEL: "true"},
+            progress=lambda line: self.echo(f"    {line}"),
+            robot=False,
+        )
+
+    def _stop_nodes(self) -> None:
+        if self.cluster.robots.names():
+            self.cluster.robots.remove_all()
 
     def _image_progress(self, line: str) -> None:
         # One line when an image starts building and one when it is done; its build steps and
@@ -276,8 +284,7 @@ class MissionStack(MissionView):
         """Removes the real robots and the operator node, the registry this stack started, and the
         namespace when the stack created it."""
         try:
-            if self.cluster.robots.names():
-                self.cluster.robots.remove_all()
+            self._stop_nodes()
         finally:
             if self._registry is not None:
                 registry.stop(self._registry)

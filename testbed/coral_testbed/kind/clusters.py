@@ -1,0 +1,267 @@
+"""kind clusters of robots: create, find and delete them, with their network and image registry.
+
+A cluster is one kind control plane and one kind worker per robot, labelled
+`coral.dev/robot=<name>` (the label contract: docs/kind.md). Each cluster gets, besides what kind
+makes:
+
+- its own Docker network (`coral-kind-<cluster>`, a /24 the host uses nowhere else), so that a
+  robot's link can be cut (`docker network disconnect`) and restored at the same address;
+- the project's image registry (Debian's docker-registry over the checkout's registry storage,
+  `coral_testbed.images.registry`) listening on that network's gateway, which every node's
+  containerd uses as the mirror of `docker.io` and `coral.local` (kind's local-registry pattern
+  with a registry process instead of a container): `coral/executor:0.1.0` pulls from it;
+- optionally kwok, against kind's API server, for simulated robots at fleet scale.
+
+State (kubeconfig, registry and kwok records, logs) lives in
+`~/.cache/coral-on-kubernetes/kind/clusters/<name>/`. Called by the CLI, the demo and the tests.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import shutil
+import subprocess
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from coral_testbed import images
+from coral_testbed.cluster import binaries, controlplane
+from coral_testbed.images import registry
+from coral_testbed.kind import engine
+
+ROBOT_LABEL = "coral.dev/robot"
+KIND_VERSION = "v0.33.0"
+"""The kind release hack/build-kind-tools.sh builds (its KIND_VERSION)."""
+DEFAULT_NAME = "coral"
+KIND_CLUSTER_LABEL = "io.x-k8s.kind.cluster"
+"""The label kind puts on every node container of a cluster."""
+_SUBNETS = ipaddress.ip_network("10.89.0.0/16")
+"""Where clusters' networks are carved from: clear of kind's pod (10.244/16) and Service (10.96/12) ranges."""
+
+
+class ClusterError(RuntimeError):
+    """A cluster could not be created, found or deleted; the message says which and why."""
+
+
+@dataclass(frozen=True)
+class ClusterSpec:
+    name: str
+    robots: dict[str, dict[str, str]]
+    """Robot name -> its further labels (`coral.dev/model`, ...); one kind worker each."""
+    node_image: str
+    registry_address: str
+    """HOST:PORT of the registry on the cluster's network gateway."""
+    extra_workers: dict[str, dict[str, str]] = field(default_factory=dict)
+    """Non-robot workers (the operator's node, say): name -> labels."""
+
+
+def build_config(spec: ClusterSpec) -> str:
+    """kind's cluster configuration (JSON, which kind reads as YAML) for `spec`. Pure."""
+    mirror = f"http://{spec.registry_address}"
+    patch = "\n".join(
+        f'[plugins."io.containerd.grpc.v1.cri".registry.mirrors."{host}"]\n  endpoint = ["{mirror}"]'
+        for host in ("docker.io", "coral.local", spec.registry_address)
+    )
+    nodes: list[dict[str, object]] = [{"role": "control-plane"}]
+    for robot, labels in spec.robots.items():
+        nodes.append({"role": "worker", "labels": {**labels, ROBOT_LABEL: robot}})
+    for labels in spec.extra_workers.values():
+        nodes.append({"role": "worker", "labels": dict(labels)})
+    config = {
+        "kind": "Cluster",
+        "apiVersion": "kind.x-k8s.io/v1alpha4",
+        "name": spec.name,
+        "nodes": nodes,
+        "containerdConfigPatches": [patch],
+    }
+    return json.dumps(config, indent=2)
+
+
+def free_subnet(taken: list[str]) -> ipaddress.IPv4Network:
+    """The first /24 of 10.89.0.0/16 overlapping none of `taken` (CIDRs in use on the host). Pure."""
+    used = [ipaddress.ip_network(cidr, strict=False) for cidr in taken]
+    for candidate in _SUBNETS.subnets(new_prefix=24):
+        if not any(candidate.overlaps(other) for other in used if other.version == 4):
+            return candidate  # type: ignore[return-value]
+    raise ClusterError(f"no free /24 left in {_SUBNETS} for a kind network")
+
+
+def state_dir(name: str) -> Path:
+    return binaries.cache_root() / "kind" / "clusters" / name
+
+
+def network_name(name: str) -> str:
+    return f"coral-kind-{name}"
+
+
+def kind_binary() -> Path:
+    """kind, built by hack/build-kind-tools.sh (`coral dev-cluster kind setup`)."""
+    # The tools' folder is keyed by every version hack/build-kind-tools.sh pins, kind's first.
+    found = sorted((binaries.cache_root() / "kind" / "tools").glob(f"kind-{KIND_VERSION}_*/bin/kind"))
+    if found:
+        return found[-1]
+    on_path = shutil.which("kind")
+    if on_path is None:
+        raise ClusterError("kind is not built yet; run `coral dev-cluster kind setup` (or `make kind`)")
+    return Path(on_path)
+
+
+def _host_cidrs(node_engine: engine.Engine) -> list[str]:
+    routes = subprocess.run(["ip", "-4", "route", "show"], capture_output=True, text=True).stdout
+    cidrs = [line.split()[0] for line in routes.splitlines() if "/" in line.split()[0]]
+    networks = node_engine.docker("network", "ls", "-q").stdout.split()
+    if networks:
+        inspected = json.loads(node_engine.docker("network", "inspect", *networks).stdout)
+        cidrs += [
+            config["Subnet"] for net in inspected for config in (net.get("IPAM", {}).get("Config") or [])
+        ]
+    return cidrs
+
+
+def create_network(node_engine: engine.Engine, name: str) -> ipaddress.IPv4Network:
+    """The cluster's Docker network (created if missing); returns its subnet."""
+    network = network_name(name)
+    existing = node_engine.docker("network", "inspect", network, check=False)
+    if existing.returncode == 0:
+        return ipaddress.ip_network(json.loads(existing.stdout)[0]["IPAM"]["Config"][0]["Subnet"])  # type: ignore[return-value]
+    subnet = free_subnet(_host_cidrs(node_engine))
+    node_engine.docker(
+        "network",
+        "create",
+        "--driver=bridge",
+        f"--subnet={subnet}",
+        f"--gateway={subnet[1]}",
+        "--opt=com.docker.network.driver.mtu=1500",
+        network,
+    )
+    return subnet
+
+
+@dataclass(frozen=True)
+class Running:
+    """A created cluster: where its kubeconfig is and how to reach its nodes."""
+
+    name: str
+    kubeconfig: Path
+    engine: engine.Engine
+    registry_address: str
+
+    def node_containers(self) -> list[str]:
+        return sorted(self.engine.containers(f"{KIND_CLUSTER_LABEL}={self.name}"))
+
+    def env(self) -> dict[str, str]:
+        return {**self.engine.env(), "KUBECONFIG": str(self.kubeconfig)}
+
+
+def _record(name: str) -> Path:
+    return state_dir(name) / "cluster.json"
+
+
+def load(name: str, node_engine: engine.Engine) -> Running | None:
+    """The cluster `create` made under `name`, if its record and its nodes still exist."""
+    try:
+        data = json.loads(_record(name).read_text())
+    except (OSError, ValueError):
+        return None
+    running = Running(name, Path(data["kubeconfig"]), node_engine, data["registry"])
+    return running if running.node_containers() else None
+
+
+def start_registry(name: str, subnet: ipaddress.IPv4Network) -> str:
+    """The checkout's registry storage served on the cluster network's gateway; its address."""
+    address = registry.free_address(str(subnet[1]))
+    registry.up(address, images.registry_storage(), state_dir(name))
+    return address
+
+
+def create(
+    name: str,
+    robots: dict[str, dict[str, str]],
+    node_engine: engine.Engine,
+    node_image: str,
+    progress: Callable[[str], None],
+    extra_workers: dict[str, dict[str, str]] | None = None,
+) -> Running:
+    """Creates the kind cluster `name` with one worker per robot and waits until every node is Ready.
+
+    Raises:
+        ClusterError, engine.EngineError: naming the step and the log to read.
+    """
+    folder = state_dir(name)
+    folder.mkdir(parents=True, exist_ok=True)
+    log = folder / "kind.log"
+    subnet = create_network(node_engine, name)
+    address = start_registry(name, subnet)
+    progress(f"registry for the cluster's nodes on {address} (the network {network_name(name)}'s gateway)")
+    spec = ClusterSpec(name, robots, node_image, address, extra_workers or {})
+    config = folder / "kind-config.json"
+    config.write_text(build_config(spec))
+    kubeconfig = folder / "kubeconfig"
+    workers = len(robots) + len(extra_workers or {})
+    progress(f"kind create cluster --name {name}: a control plane, {workers} workers ({len(robots)} robots)")
+    progress(f"  (log {log})")
+    argv = [
+        str(kind_binary()),
+        "create",
+        "cluster",
+        "--name",
+        name,
+        "--image",
+        node_image,
+        "--config",
+        str(config),
+        "--kubeconfig",
+        str(kubeconfig),
+        "--wait",
+        "5m",
+    ]
+    # kind joins the nodes to the network named here rather than making its own `kind` network.
+    env = {
+        **node_engine.env(),
+        "KIND_EXPERIMENTAL_DOCKER_NETWORK": network_name(name),
+        "KIND_EXPERIMENTAL_PROVIDER": "docker",
+    }
+    with log.open("a") as sink:
+        done = subprocess.run(argv, env=env, stdout=sink, stderr=subprocess.STDOUT)
+    if done.returncode != 0:
+        raise ClusterError(f"kind create cluster failed (exit {done.returncode}); see {log}")
+    _record(name).write_text(json.dumps({"kubeconfig": str(kubeconfig), "registry": address}))
+    # kind's --wait covers the control plane; robots are Ready once their pod network is written.
+    waited = subprocess.run(
+        [binaries.find_kubectl(None), "wait", "--for=condition=Ready", "nodes", "--all", "--timeout=180s"],
+        env={**env, "KUBECONFIG": str(kubeconfig)},
+        capture_output=True,
+        text=True,
+    )
+    if waited.returncode != 0:
+        raise ClusterError(f"the nodes of kind cluster {name} did not become Ready: {waited.stderr.strip()}")
+    return Running(name, kubeconfig, node_engine, address)
+
+
+def start_kwok(running: Running) -> None:
+    """kwok against the cluster's API server, so simulated robots (kwok Nodes) join it."""
+    controlplane.start_kwok(state_dir(running.name) / "kwok", running.kubeconfig)
+
+
+def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None]) -> None:
+    """Deletes the cluster, its kwok, its registry process and its network; a no-op for what is gone."""
+    folder = state_dir(name)
+    controlplane.stop(folder / "kwok")
+    if node_engine.containers(f"{KIND_CLUSTER_LABEL}={name}"):
+        progress(f"kind delete cluster --name {name}")
+        done = subprocess.run(
+            [str(kind_binary()), "delete", "cluster", "--name", name],
+            env=node_engine.env(),
+            capture_output=True,
+            text=True,
+        )
+        if done.returncode != 0:
+            raise ClusterError(f"kind delete cluster --name {name} failed: {done.stderr.strip()}")
+    for address in registry.recorded_addresses(folder):
+        registry.down(folder, address)
+    node_engine.docker("network", "rm", network_name(name), check=False)
+    _record(name).unlink(missing_ok=True)
+    # A kubeconfig of a deleted cluster would only point the next `export KUBECONFIG` nowhere.
+    (folder / "kubeconfig").unlink(missing_ok=True)

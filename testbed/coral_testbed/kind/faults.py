@@ -1,0 +1,82 @@
+"""Robot faults on a kind cluster, made through the robot's node container as on real hardware.
+
+A robot is the kind worker labelled `coral.dev/robot=<name>`; its container has the Node's name.
+Each fault acts on that container only: its kubelet or containerd (systemd inside the node), its
+link to the cluster's network, or the whole machine. Called by the CLI and the tests.
+"""
+
+from __future__ import annotations
+
+import subprocess
+
+from coral_testbed.cluster import binaries
+from coral_testbed.kind import clusters
+
+
+class FaultError(RuntimeError):
+    """The robot is unknown or the fault could not be made; the message says which."""
+
+
+def node_of(running: clusters.Running, robot: str) -> str:
+    """The node container of `robot`: the Node labelled coral.dev/robot=<robot> (same name)."""
+    done = _kubectl(running, "get", "nodes", "-l", f"{clusters.ROBOT_LABEL}={robot}", "-o", "name")
+    names = [line.removeprefix("node/") for line in done.stdout.split()]
+    if done.returncode != 0 or len(names) != 1 or names[0] not in running.node_containers():
+        raise FaultError(
+            f"no robot {robot!r} among the nodes of kind cluster {running.name}: {done.stderr.strip()}"
+        )
+    return names[0]
+
+
+def _exec(running: clusters.Running, robot: str, *argv: str) -> None:
+    running.engine.docker("exec", node_of(running, robot), *argv)
+
+
+def stop_kubelet(running: clusters.Running, robot: str) -> None:
+    """The robot's kubelet stops; its containers keep running and its Node goes NotReady (~40 s)."""
+    _exec(running, robot, "systemctl", "stop", "kubelet")
+
+
+def start_kubelet(running: clusters.Running, robot: str) -> None:
+    """Starts the robot's stopped kubelet again; its Node reports Ready within seconds."""
+    _exec(running, robot, "systemctl", "start", "kubelet")
+
+
+def kill_containerd(running: clusters.Running, robot: str) -> None:
+    """SIGKILL to the robot's containerd; systemd restarts it (Restart=always), the pods' shims survive."""
+    _exec(running, robot, "systemctl", "kill", "--signal=SIGKILL", "containerd")
+
+
+def _kubectl(running: clusters.Running, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [binaries.find_kubectl(None), *args], env=running.env(), capture_output=True, text=True, timeout=30
+    )
+
+
+def cut_link(running: clusters.Running, robot: str) -> None:
+    """Disconnects the robot's node from the cluster's network: no traffic to the API server, the
+    registry or other robots."""
+    running.engine.docker(
+        "network", "disconnect", clusters.network_name(running.name), node_of(running, robot)
+    )
+
+
+def restore_link(running: clusters.Running, robot: str) -> None:
+    """Reconnects the robot's node at its Node's InternalIP, the address its kubelet serves on."""
+    container = node_of(running, robot)
+    address = _kubectl(
+        running,
+        "get",
+        "node",
+        container,
+        "-o",
+        'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}',
+    ).stdout.strip()
+    running.engine.docker(
+        "network", "connect", f"--ip={address}", clusters.network_name(running.name), container
+    )
+
+
+def power_cycle(running: clusters.Running, robot: str) -> None:
+    """Restarts the robot's node container: every process in it starts again from boot."""
+    running.engine.docker("restart", node_of(running, robot), timeout=180)

@@ -1,0 +1,162 @@
+"""The pure parts of the kind tooling: cluster configuration, network choice, the pod network's
+manifest, preloaded image archives and the runtime wrapper's capability filter."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import ipaddress
+import json
+import runpy
+import tarfile
+from pathlib import Path
+
+import pytest
+import yaml
+from coral_testbed.kind import clusters, imagearchives, kindnet
+
+REPOSITORY = Path(__file__).resolve().parents[3]
+
+
+def _spec(**overrides: object) -> clusters.ClusterSpec:
+    values: dict[str, object] = {
+        "name": "coral",
+        "robots": {"robot-1": {"coral.dev/model": "tb4"}, "robot-2": {}},
+        "node_image": "coral.local/kind-node:v1.34.4-abc",
+        "registry_address": "10.89.0.1:5000",
+    }
+    values.update(overrides)
+    return clusters.ClusterSpec(**values)  # type: ignore[arg-type]
+
+
+def test_each_robot_is_a_worker_labelled_with_its_name_after_one_control_plane() -> None:
+    config = yaml.safe_load(clusters.build_config(_spec()))
+    roles = [node["role"] for node in config["nodes"]]
+    assert roles == ["control-plane", "worker", "worker"]
+    assert config["nodes"][1]["labels"] == {"coral.dev/model": "tb4", "coral.dev/robot": "robot-1"}
+    assert config["nodes"][2]["labels"] == {"coral.dev/robot": "robot-2"}
+
+
+def test_a_non_robot_worker_carries_only_its_own_labels() -> None:
+    config = yaml.safe_load(
+        clusters.build_config(_spec(extra_workers={"ops": {"coral.dev/operator-node": "true"}}))
+    )
+    assert config["nodes"][-1] == {"role": "worker", "labels": {"coral.dev/operator-node": "true"}}
+
+
+def test_docker_hub_names_and_coral_local_pull_from_the_clusters_registry() -> None:
+    patch = yaml.safe_load(clusters.build_config(_spec()))["containerdConfigPatches"][0]
+    for host in ("docker.io", "coral.local", "10.89.0.1:5000"):
+        assert f'mirrors."{host}"]\n  endpoint = ["http://10.89.0.1:5000"]' in patch
+
+
+def test_the_clusters_network_avoids_every_subnet_the_host_uses() -> None:
+    chosen = clusters.free_subnet(["10.89.0.0/24", "10.89.1.128/25", "172.17.0.0/16", "fd00::/64"])
+    assert chosen == ipaddress.ip_network("10.89.2.0/24")
+
+
+def test_no_network_is_offered_when_every_candidate_is_taken() -> None:
+    with pytest.raises(clusters.ClusterError, match="no free /24"):
+        clusters.free_subnet(["10.89.0.0/16"])
+
+
+def test_the_pod_network_is_a_privileged_host_network_daemonset_kind_patches_with_its_endpoint() -> None:
+    manifest = kindnet.build_manifest()
+    assert "would you kindly patch this file" in manifest
+    documents = {doc["kind"]: doc for doc in yaml.safe_load_all(manifest)}
+    pod = documents["DaemonSet"]["spec"]["template"]["spec"]
+    assert pod["hostNetwork"] is True
+    container = pod["containers"][0]
+    # kind appends CONTROL_PLANE_ENDPOINT to this list: it must exist.
+    assert [variable["name"] for variable in container["env"]] == ["NODE_NAME"]
+    assert container["image"] == kindnet.IMAGE and container["imagePullPolicy"] == "Never"
+    assert documents["ClusterRole"]["rules"][0]["resources"] == ["nodes"]
+
+
+def test_an_archive_image_holds_its_binary_under_the_name_containerd_imports(tmp_path: Path) -> None:
+    binary = tmp_path / "etcd"
+    binary.write_bytes(b"\x7fELF pretend etcd")
+    base = tmp_path / "base.tar"
+    with tarfile.open(base, "w") as layer:
+        layer.add(str(binary), arcname="etc/base-file")
+    archive = tmp_path / "etcd.tar"
+    image = imagearchives.ArchiveImage(
+        "registry.k8s.io/etcd:3.6.5-0",
+        {"/usr/local/bin/etcd": binary},
+        base_layers=[base],
+        stop_signal="SIGTERM",
+    )
+    imagearchives.write(image, archive)
+    with tarfile.open(archive) as out:
+        manifest = json.loads(out.extractfile("manifest.json").read())[0]  # type: ignore[union-attr]
+        config = json.loads(out.extractfile(manifest["Config"]).read())  # type: ignore[union-attr]
+        layers = [out.extractfile(name).read() for name in manifest["Layers"]]  # type: ignore[union-attr]
+    assert manifest["RepoTags"] == ["registry.k8s.io/etcd:3.6.5-0"]
+    assert config["rootfs"]["diff_ids"] == [f"sha256:{hashlib.sha256(layer).hexdigest()}" for layer in layers]
+    assert config["config"]["StopSignal"] == "SIGTERM"
+    top = tarfile.open(fileobj=io.BytesIO(layers[-1]))
+    member = top.getmember("usr/local/bin/etcd")
+    assert member.mode == 0o755 and top.extractfile(member).read() == binary.read_bytes()  # type: ignore[union-attr]
+
+
+def test_the_runtime_wrapper_keeps_only_capabilities_of_the_bounding_set(tmp_path: Path) -> None:
+    wrapper = runpy.run_path(str(REPOSITORY / "hack" / "runc-within-bounding-set"), run_name="not-main")
+    bundle = tmp_path / "bundle"
+    bundle.mkdir()
+    (bundle / "config.json").write_text(
+        json.dumps({"process": {"capabilities": {"bounding": ["CAP_SYS_ADMIN", "CAP_SYS_RESOURCE"]}}})
+    )
+    found = wrapper["spec_to_trim"](["--root", "/r", "create", "--bundle", str(bundle), "id"])
+    wrapper["trim"](*found, {"CAP_SYS_ADMIN"})
+    assert json.loads((bundle / "config.json").read_text())["process"]["capabilities"] == {
+        "bounding": ["CAP_SYS_ADMIN"]
+    }
+
+
+def test_the_runtime_wrapper_trims_the_process_file_of_a_privileged_exec(tmp_path: Path) -> None:
+    wrapper = runpy.run_path(str(REPOSITORY / "hack" / "runc-within-bounding-set"), run_name="not-main")
+    process = tmp_path / "process.json"
+    process.write_text(
+        json.dumps({"args": ["cat"], "capabilities": {"effective": ["CAP_SYS_RESOURCE", "CAP_KILL"]}})
+    )
+    found = wrapper["spec_to_trim"](["--root", "/r", "exec", "--process", str(process), "--detach", "id"])
+    wrapper["trim"](*found, {"CAP_KILL"})
+    assert json.loads(process.read_text()) == {"args": ["cat"], "capabilities": {"effective": ["CAP_KILL"]}}
+    assert wrapper["spec_to_trim"](["--root", "/r", "delete", "id"]) is None
+
+
+def _agent() -> dict[str, object]:
+    return runpy.run_path(
+        str(REPOSITORY / "testbed" / "images" / "kind-net" / "kind_net.py"), run_name="agent"
+    )
+
+
+def test_the_pod_network_routes_to_a_nodes_ipv4_internal_ip_and_never_to_a_kwok_loopback() -> None:
+    internal_ip = _agent()["internal_ip"]
+
+    def node(*addresses: str) -> dict[str, object]:
+        return {"status": {"addresses": [{"type": "InternalIP", "address": a} for a in addresses]}}
+
+    assert internal_ip(node("fc00::2", "10.89.0.2")) == "10.89.0.2"  # type: ignore[operator]
+    assert internal_ip(node("127.0.0.1")) is None  # type: ignore[operator]
+    assert internal_ip({"status": {}}) is None  # type: ignore[operator]
+
+
+def test_a_nodes_cni_config_gives_pods_addresses_of_its_pod_cidr_on_point_to_point_links() -> None:
+    config = json.loads(_agent()["conflist"]("10.244.3.0/24"))  # type: ignore[operator]
+    main, portmap = config["plugins"]
+    assert main["type"] == "ptp" and main["ipam"]["ranges"] == [[{"subnet": "10.244.3.0/24"}]]
+    assert portmap["type"] == "portmap"
+
+
+def test_the_pod_network_stays_off_kwok_robots() -> None:
+    documents = {doc["kind"]: doc for doc in yaml.safe_load_all(kindnet.build_manifest())}
+    terms = documents["DaemonSet"]["spec"]["template"]["spec"]["affinity"]["nodeAffinity"][
+        "requiredDuringSchedulingIgnoredDuringExecution"
+    ]["nodeSelectorTerms"]
+    assert terms == [{"matchExpressions": [{"key": "type", "operator": "NotIn", "values": ["kwok"]}]}]
+
+
+def test_the_kind_the_tooling_looks_for_is_the_kind_the_build_script_pins() -> None:
+    script = (REPOSITORY / "hack" / "build-kind-tools.sh").read_text()
+    assert f'KIND_VERSION="${{KIND_VERSION:-{clusters.KIND_VERSION}}}"' in script
