@@ -123,7 +123,7 @@ def test_an_unreachable_registry_for_the_plugin_folder_step_is_named_and_its_rec
 
     offer_registry()
     restored = time.monotonic()
-    finished = wait_for(
+    wait_for(
         lambda: rs.with_root(custom, namespace, SYSTEM, "SUCCESS"),
         timeout=360,
         interval=1,
@@ -132,7 +132,14 @@ def test_an_unreachable_registry_for_the_plugin_folder_step_is_named_and_its_rec
         ),
     )
     print(f"the mission succeeded {time.monotonic() - restored:.1f} s after the registry came back")
-    assert rs.condition(finished, "ComponentsReady")["status"] == "True"
+    # The executor writes the root's SUCCESS itself; the operator's next pass tells ComponentsReady.
+    wait_for(
+        lambda: rs.condition(rs.instance(custom, namespace, SYSTEM), "ComponentsReady").get("status")
+        == "True",
+        timeout=30,
+        interval=0.5,
+        message=lambda: f"ComponentsReady=True after the pull: {rs.instance(custom, namespace, SYSTEM)}",
+    )
     told = wait_for(
         lambda: [e for e in _events(core, namespace, instance) if e.reason == "Recovered"],
         timeout=30,
