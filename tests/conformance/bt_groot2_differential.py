@@ -3,7 +3,8 @@ reads both through one pyzmq client (`coral_core.bt.groot2.client`): the FULLTRE
 STATUS after every tick, every subtree's blackboard after every tick (MessagePack decoded), and the
 recorded transitions (uid and status in order; times ignored). `bt_groot2_hooks` adds hooks.
 
-Used by test_bt_groot2_differential.py; `python tests/conformance/bt_groot2_differential.py N`
+Used by test_bt_groot2_differential.py;
+`PYTHONPATH=tests python tests/conformance/bt_groot2_differential.py N`
 runs N random trees (`make bench-bt` runs 2,000).
 """
 

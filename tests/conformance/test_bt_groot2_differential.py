@@ -4,7 +4,7 @@ STATUS after every tick, blackboards, recorded transitions and hook behaviour, f
 conformance corpus and random trees.
 
 The suite runs a fixed sample (CORAL_GROOT2_DIFF_TREES random trees, default 150, about 15 s);
-`python tests/conformance/bt_groot2_differential.py 2000` (in `make bench-bt`) runs more.
+`PYTHONPATH=tests python tests/conformance/bt_groot2_differential.py 2000` (in `make bench-bt`) runs more.
 """
 
 from __future__ import annotations
