@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml setup.py constraints.txt
 venv: $(STAMP)
 
 # Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok, helm, the
-# kubelet and coral-cri (a CRI client) from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
+# kubelet and crictl from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 

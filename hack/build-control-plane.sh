@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the pinned control-plane binaries (etcd, kube-apiserver, kube-controller-manager,
-# kube-scheduler, kubectl, kwok, helm) and the node binaries of real robots (kubelet, coral-cri) with
+# kube-scheduler, kubectl, kwok, helm) and the node binaries of real robots (kubelet, crictl) with
 # the go tool from Go modules, and caches them outside the repository, keyed by version, so a
 # machine pays for the build once. Only missing binaries are built.
 #
@@ -12,11 +12,12 @@ KUBE_VERSION="${KUBE_VERSION:-v1.34.4}"
 ETCD_VERSION="${ETCD_VERSION:-v3.6.4}"
 KWOK_VERSION="${KWOK_VERSION:-v0.7.0}"
 HELM_VERSION="${HELM_VERSION:-v3.19.0}"
+CRI_TOOLS_VERSION="${CRI_TOOLS_VERSION:-v1.34.0}"
 
 cache_root="${CORAL_CACHE_DIR:-$HOME/.cache/coral-on-kubernetes}"
 key="kube-${KUBE_VERSION}_etcd-${ETCD_VERSION}_kwok-${KWOK_VERSION}_helm-${HELM_VERSION}"
 bin_dir="$cache_root/control-plane/$key/bin"
-wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm kubelet coral-cri)
+wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm kubelet crictl)
 
 have_all() {
   for b in "${wanted[@]}"; do [[ -x "$bin_dir/$b" ]] || return 1; done
@@ -126,17 +127,12 @@ if ! staged helm; then
   GOBIN="$bin_dir" go install -trimpath -ldflags "-s -w -X helm.sh/helm/v3/internal/version.version=${HELM_VERSION}" "helm.sh/helm/v3/cmd/helm@${HELM_VERSION}"
 fi
 
-# A small CRI client of ours (hack/coral-cri), built in the kube module against the pinned CRI API;
-# rebuilt whenever its source changes.
-cri_source="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/coral-cri/main.go"
-cri_sum=$(sha256sum "$cri_source" | cut -d' ' -f1)
-if ! staged coral-cri || [[ "$(cat "$bin_dir/.coral-cri.sha256" 2>/dev/null)" != "$cri_sum" ]]; then
-  kube_module
-  log "building coral-cri"
-  mkdir -p "$work/kube/cmd/coral-cri"
-  cp "$cri_source" "$work/kube/cmd/coral-cri/main.go"
-  (cd "$work/kube" && go build -trimpath -ldflags "-s -w" -o "$bin_dir/coral-cri" ./cmd/coral-cri)
-  echo "$cri_sum" > "$bin_dir/.coral-cri.sha256"
+# crictl, the CRI client node operators use, to reach a real robot's containerd as they would
+# (tests stop containers through it). The kind tools reuse this build.
+if ! staged crictl; then
+  log "building crictl ${CRI_TOOLS_VERSION}"
+  GOBIN="$bin_dir" go install -trimpath -ldflags "-s -w -X sigs.k8s.io/cri-tools/pkg/version.Version=${CRI_TOOLS_VERSION}" \
+    "sigs.k8s.io/cri-tools/cmd/crictl@${CRI_TOOLS_VERSION}"
 fi
 
 have_all || { echo "error: some control-plane binaries are missing in $bin_dir" >&2; exit 1; }

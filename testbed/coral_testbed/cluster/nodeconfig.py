@@ -301,7 +301,13 @@ def build_ctr(layout: RobotLayout) -> list[str]:
 
 
 def build_cri(layout: RobotLayout) -> list[str]:
-    return [*enter_robot(layout), str(layout.bin_dir / "coral-cri"), f"--endpoint=unix://{CONTAINERD_SOCKET}"]
+    endpoint = f"unix://{CONTAINERD_SOCKET}"
+    return [
+        *enter_robot(layout),
+        str(layout.bin_dir / "crictl"),
+        f"--runtime-endpoint={endpoint}",
+        f"--image-endpoint={endpoint}",
+    ]
 
 
 def write_files(layout: RobotLayout, client_cert: Path, client_key: Path) -> None:

@@ -59,7 +59,7 @@ def unsupported_reason(bin_dir: Path | None) -> str | None:
             return f"real robots need `{tool}`; install it with `sudo bash hack/setup-node-runtime.sh`"
     if not Path(nodeconfig.CNI_BIN_DIR, "bridge").exists():
         return f"real robots need the CNI plugins in {nodeconfig.CNI_BIN_DIR} (containernetworking-plugins)"
-    for binary in ("kubelet", "coral-cri"):
+    for binary in ("kubelet", "crictl"):
         if bin_dir is None or not os.access(bin_dir / binary, os.X_OK):
             return f"{binary} is not built yet; run `make control-plane`"
     if not cgroups.hierarchies():
@@ -75,7 +75,7 @@ class RealRobots:
         api: a client for the cluster, to wait on Nodes and delete them.
         api_port: the API server's port on 127.0.0.1.
         pki_dir: the control plane's certificates (signs each kubelet's client certificate).
-        bin_dir: the pinned binaries (kubelet, coral-cri).
+        bin_dir: the pinned binaries (kubelet, crictl).
         die_with_parent: stop the node processes when this process dies (test sessions).
     """
 
@@ -394,16 +394,16 @@ class RealRobots:
     def cri(
         self, name: str, *args: str, check: bool = True, timeout: float = 60
     ) -> subprocess.CompletedProcess[str]:
-        """Runs coral-cri (hack/coral-cri) against the robot's containerd, e.g. `cri(robot, "ps", "-q")`.
+        """Runs crictl against the robot's containerd, e.g. `cri(robot, "ps", "-q")`.
 
         Raises:
-            RobotError: `check` is set and coral-cri failed (the message has its stderr).
+            RobotError: `check` is set and crictl failed (the message has its stderr).
         """
         argv = [*nodeconfig.build_cri(self.layout(name)), *args]
         result = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, check=False)
         if check and result.returncode != 0:
             raise RobotError(
-                f"`coral-cri {' '.join(args)}` on {name} exited with {result.returncode}: "
+                f"`crictl {' '.join(args)}` on {name} exited with {result.returncode}: "
                 f"{result.stderr.strip()}"
             )
         return result

@@ -200,7 +200,7 @@ def real_robots_missing(bin_dir: Path | None) -> str | None:
 
 def _check_machine() -> None:
     """Raises DemoUnsupported before anything starts when this machine cannot host real robots."""
-    missing = real_robots_missing(binaries.optional_bin_dir((*binaries.REQUIRED, "kubelet", "coral-cri")))
+    missing = real_robots_missing(binaries.optional_bin_dir((*binaries.REQUIRED, "kubelet", "crictl")))
     if missing is not None:
         raise DemoUnsupported(f"the demo runs on real robots, which this machine cannot host: {missing}")
 

@@ -1,7 +1,7 @@
 """A skillset container killed on a real robot mid-mission: `LibraryDegraded` on the robot's
 CoralInstance, the tree's Fallback instead of a wait on the dead skillset, and the way back.
 
-The container is killed through the CRI (`coral-cri stop --timeout 0` against the robot's
+The container is killed through the CRI (`crictl stop --timeout 0` against the robot's
 containerd), as an operator of the node would do it. The kubelet restarts it (restartPolicy
 Always), the skillset exports its plugin again, and the executor, still running, calls it again:
 the library recovers and `LibraryDegraded` turns False.
