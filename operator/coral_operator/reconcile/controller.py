@@ -18,6 +18,7 @@ from coral_core import names
 
 from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
+from coral_operator.kube.writer import KubeWriter, Writer
 from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
@@ -56,11 +57,13 @@ class Controller:
         policy: Policy,
         post: events.Poster,
         memory: Memory | None = None,
+        writer: Writer | None = None,
         workers: int = WORKERS,
         pod_settings: PodSettings | None = None,
     ) -> None:
         self.memory = memory or Memory()
         self.indexes = Indexes()
+        writer = writer or KubeWriter()
         self.trimmer = Trimmer()
         self._pool = ThreadPoolExecutor(max_workers=API_WRITERS, thread_name_prefix="coral-api")
         self.queue: WorkQueue[Key] = WorkQueue(
@@ -69,6 +72,7 @@ class Controller:
         self.instances = InstanceReconciler(
             memory=self.memory,
             indexes=self.indexes,
+            writer=writer,
             post=post,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
@@ -77,6 +81,7 @@ class Controller:
         self.systems = SystemReconciler(
             memory=self.memory,
             indexes=self.indexes,
+            writer=writer,
             post=post,
             requeue=lambda key, delay: self.queue.add((SYSTEM, *key), delay),
             policy=policy,
@@ -111,7 +116,7 @@ class Controller:
         key = (SYSTEM, namespace, name)
         if deleted:
             self.memory.forget_system(uid, namespace, name)
-            self.memory.forget_seen(key)
+            self.memory.seen.forget(key)
             self.queue.forget(key)
             self.trimmer.soon()
             return
@@ -123,7 +128,7 @@ class Controller:
             annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
             annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
-        if self.memory.changed(key, inputs):
+        if self.memory.seen.changed(key, inputs):
             self.queue.add(key)
 
     def on_instance(
@@ -135,21 +140,20 @@ class Controller:
         key = (INSTANCE, namespace, name)
         system = (body.get("spec") or {}).get("system")
         if deleted:
-            self.memory.forget_instance(uid)
-            self.memory.forget_record((namespace, name))
-            self.memory.forget_seen(key)
+            self.memory.forget_instance(uid, namespace, name)
+            self.memory.seen.forget(key)
             self.queue.forget(key)
             self.trimmer.soon()
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return
         version = (body.get("metadata") or {}).get("resourceVersion")
-        own_write = self.memory.is_own_write(uid, version)
+        own_write = self.memory.statuses.is_own(uid, version)
         # The echo of a system pass's move: that pass already handed it to the instance's pass.
-        if not own_write and not self.memory.is_own_record((namespace, name), version):
+        if not own_write and not self.memory.moved.is_own((namespace, name), version):
             self.queue.add(key)
         # The pass that wrote a status woke the system itself if the system reads a change in it.
-        if system and self.memory.changed(key, observing.instance_summary(body)) and not own_write:
+        if system and self.memory.seen.changed(key, observing.instance_summary(body)) and not own_write:
             self.queue.add((SYSTEM, namespace, system))
 
     def on_pod(self, *, namespace: str, instance: str) -> None:
@@ -167,10 +171,10 @@ class Controller:
         """A robot came, went, changed labels or reachability; heartbeats alone change nothing."""
         robot = None if deleted else observing.robot_node(name, labels, status, spec)
         summary = None if robot is None else (tuple(sorted(labels.items())), robot.ready, robot.reachable)
-        if not self.memory.changed(("Node", name), summary):
+        if not self.memory.seen.changed(("Node", name), summary):
             return
         if deleted:
-            self.memory.forget_seen(("Node", name))
+            self.memory.seen.forget(("Node", name))
         for namespace, instance in self.indexes.read("coral_instances", instances_on_node(name)):
             self.queue.add((INSTANCE, namespace, instance))
         for namespace, system in self.indexes.keys("coral_systems"):

@@ -14,13 +14,14 @@ from typing import Any
 
 import pytest
 from coral_api import GROUP, VERSION, Coral, fleet_mission, is_current_and_true
-from coral_operator.status import instance_status, ownership
+from coral_operator.planning import status_pacing
+from coral_operator.status import ownership
 from kubernetes import client as k8s
 from kubernetes import watch
 from urllib3.exceptions import ProtocolError
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
-# Progress alone is written at most this often (reconcile.instances.progress_interval: 10 s, then
+# Progress alone is written at most this often (planning.status_pacing.progress_interval: 10 s, then
 # longer), less the time a watch event takes to arrive.
 PROGRESS_WRITE_S = 9.0
 
@@ -157,7 +158,7 @@ def test_an_instance_starts_its_robot_and_writes_status_once_per_verdict_change(
     history = [entry for entry in recorder.seen[name] if entry[1]]
     assert len(history) >= 2, "the first status and the Ready one were not both seen"
     for (before_at, before), (after_at, after) in zip(history, history[1:], strict=False):
-        verdict_changed = instance_status.verdict_of(before) != instance_status.verdict_of(after)
+        verdict_changed = status_pacing.verdict_of(before) != status_pacing.verdict_of(after)
         assert verdict_changed or after_at - before_at >= PROGRESS_WRITE_S, (
             "a status write without a verdict change came early",
             before,
