@@ -114,6 +114,7 @@ class SystemReconciler:
         read_history = partial(self.writer.read_revisions, *history_key)
         observation = system_pass.SystemObservation(
             system=system,
+            spec=spec,
             tree=self._read_source(system, spec.tree, "tree") if isinstance(spec, CoralSystemSpec) else None,
             parameters=self._read_source(system, spec.parameters, "parameters")
             if isinstance(spec, CoralSystemSpec)
