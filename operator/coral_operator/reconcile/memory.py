@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from coral_operator.kube.observing import SpecTable
 from coral_operator.planning.validation import Verdicts
@@ -35,32 +34,25 @@ from coral_operator.reconcile.pacing import WritePacing
 from coral_operator.reconcile.unseen_writes import MovedInstances, RolloutWrites, StatusWrites
 
 
-@dataclass
 class Memory:
     """The operator's only state between passes (see the module docstring)."""
 
-    clock: Callable[[], float] = time.monotonic
-    specs: SpecTable = field(default_factory=SpecTable)
-    verdicts: Verdicts = field(default_factory=Verdicts)
-    seen: EventFilter = field(default_factory=EventFilter)
-    desired_pods: DesiredPods = field(default_factory=DesiredPods)
-    vetted: VettedSpecs = field(default_factory=VettedSpecs)
-    histories: RevisionHistories = field(default_factory=RevisionHistories)
-    rollouts: RolloutWrites = field(default_factory=RolloutWrites)
-    statuses: StatusWrites = field(init=False)
-    moved: MovedInstances = field(init=False)
-    creates: WriteExpectations = field(init=False)
-    """Under an owner's uid: an instance's pods, a system's instances."""
-    moves: MoveExpectations = field(init=False)
-    pacing: WritePacing = field(init=False)
-
-    def __post_init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self.clock = clock
         # The parts that time their entries share the memory's clock, so that tests can move it.
-        self.statuses = StatusWrites(clock=self.clock)
-        self.moved = MovedInstances(clock=self.clock)
-        self.creates = WriteExpectations(clock=self.clock)
-        self.moves = MoveExpectations(clock=self.clock)
-        self.pacing = WritePacing(clock=self.clock)
+        self.statuses = StatusWrites(clock=clock)
+        self.moved = MovedInstances(clock=clock)
+        self.rollouts = RolloutWrites()
+        self.creates = WriteExpectations(clock=clock)
+        """Under an owner's uid: an instance's pods, a system's instances."""
+        self.moves = MoveExpectations(clock=clock)
+        self.pacing = WritePacing(clock=clock)
+        self.desired_pods = DesiredPods()
+        self.vetted = VettedSpecs()
+        self.histories = RevisionHistories()
+        self.seen = EventFilter()
+        self.specs = SpecTable()
+        self.verdicts = Verdicts()
 
     def forget_instance(self, uid: str, namespace: str, name: str) -> None:
         """The watch reported the CoralInstance deleted."""
