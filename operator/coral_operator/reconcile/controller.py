@@ -63,26 +63,25 @@ class Controller:
     ) -> None:
         self.memory = memory or Memory()
         self.indexes = Indexes()
-        writer = writer or KubeWriter()
         self.trimmer = Trimmer()
         self._pool = ThreadPoolExecutor(max_workers=API_WRITERS, thread_name_prefix="coral-api")
         self.queue: WorkQueue[Key] = WorkQueue(
             self._process, workers=workers, min_interval_s=_interval, name="coral"
         )
+        shared: dict[str, Any] = {
+            "memory": self.memory,
+            "indexes": self.indexes,
+            "writer": writer or KubeWriter(),
+            "post": post,
+        }
         self.instances = InstanceReconciler(
-            memory=self.memory,
-            indexes=self.indexes,
-            writer=writer,
-            post=post,
+            **shared,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
             pod_settings=pod_settings or PodSettings(policy=policy),
         )
         self.systems = SystemReconciler(
-            memory=self.memory,
-            indexes=self.indexes,
-            writer=writer,
-            post=post,
+            **shared,
             requeue=lambda key, delay: self.queue.add((SYSTEM, *key), delay),
             policy=policy,
             pool=self._pool,

@@ -18,51 +18,34 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from datetime import UTC, datetime
+from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.kube import applying, observing
-from coral_operator.kube.writer import Writer
 from coral_operator.planning import instance_pass, provenance, status_pacing
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.pods import HostPathRefused, PodSettings
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.indexes import instance_named, instances_of_system
+from coral_operator.reconcile.reconciler import Key, Reconciler
 from coral_operator.status import executor_report, instance_status, ownership, transitions
 from coral_operator.status.conditions import ConditionType, Reason
 
-Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
 # outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
 REFUSED_RETRY_S = 30.0
 
 
-class InstanceReconciler:
+@dataclass(kw_only=True)
+class InstanceReconciler(Reconciler):
     """One level-based pass per CoralInstance key (namespace, name)."""
 
-    def __init__(
-        self,
-        *,
-        memory: Memory,
-        indexes: Indexes,
-        writer: Writer,
-        post: events.Poster,
-        requeue: Callable[[Key, float], None],
-        wake_system: Callable[[Key], None] = lambda _key: None,
-        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
-        pod_settings: PodSettings | None = None,
-    ) -> None:
-        self.memory = memory
-        self.indexes = indexes
-        self.writer = writer
-        self.post = post
-        self.requeue = requeue
-        self.wake_system = wake_system
-        self.clock = clock
-        self.pod_settings = pod_settings or PodSettings()
+    wake_system: Callable[[Key], None] = lambda _key: None
+    """Pass the system of this key at once (a verdict its rollout reads was written)."""
+    pod_settings: PodSettings = field(default_factory=PodSettings)
 
     def reconcile(self, key: Key) -> None:
         indexed: InstanceRecord | None = next(

@@ -13,7 +13,8 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
-from datetime import UTC, datetime
+from dataclasses import dataclass, field
+from datetime import datetime
 from functools import partial
 from typing import Any
 
@@ -23,59 +24,41 @@ from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
-from coral_operator.kube.writer import Writer
 from coral_operator.planning import budgets, configmaps, instances, naming, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
-    Indexes,
     config_maps_of_system,
     instance_named,
     instances_of_system,
 )
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.reconciler import Key, Reconciler
 from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
-Key = tuple[str, str]
 FILES_AT_ONCE = 4
 """System passes that may hold their large files (read from the API) at the same time."""
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
 _OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
 
-class SystemReconciler:
+@dataclass(kw_only=True)
+class SystemReconciler(Reconciler):
     """One level-based pass per CoralSystem key (namespace, name)."""
 
-    def __init__(
-        self,
-        *,
-        memory: Memory,
-        indexes: Indexes,
-        writer: Writer,
-        post: events.Poster,
-        requeue: Callable[[Key, float], None],
-        policy: Policy,
-        pool: Executor,
-        wake_instance: Callable[[Key], None] = lambda _key: None,
-        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
-        trim: Callable[[], None] = lambda: None,
-    ) -> None:
-        self.memory = memory
-        self.trim = trim
-        """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
-        self._files_at_once = threading.BoundedSemaphore(FILES_AT_ONCE)
-        self.indexes = indexes
-        self.writer = writer
-        self.post = post
-        self.requeue = requeue
-        self.wake_instance = wake_instance
-        self.policy = policy
-        self.pool = pool
-        self.clock = clock
+    policy: Policy
+    pool: Executor
+    """Carries one pass's instance writes in parallel."""
+    wake_instance: Callable[[Key], None] = lambda _key: None
+    """Pass the instance of this key at once (a move's answer is in memory)."""
+    trim: Callable[[], None] = lambda: None
+    """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
+    _files_at_once: threading.BoundedSemaphore = field(
+        default_factory=lambda: threading.BoundedSemaphore(FILES_AT_ONCE), init=False, repr=False
+    )
 
     def reconcile(self, key: Key) -> None:
         records = self.indexes.read("coral_systems", key)
@@ -281,45 +264,30 @@ class SystemReconciler:
         # Created now or already there (409): either way the watch will show it.
         self.memory.creates.expect(system.uid, [m["metadata"]["name"] for m in create])
         created = [m["metadata"]["name"] for m, new in zip(create, made, strict=True) if new is not None]
-        if created:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesCreated",
-                f"Created {len(created)} CoralInstances: {events.names(created)}",
-            )
+        self._announce(reference, "InstancesCreated", created, "Created")
         applying.in_parallel(self.pool, self._move, changes.update)
         if changes.update:
             revision = changes.update[0]["spec"]["revision"]
             updated = [m["metadata"]["name"] for m in changes.update]
-            self.post(
-                reference,
-                "Normal",
-                "InstancesUpdated",
-                f"Moved {len(updated)} CoralInstances to revision {revision}: {events.names(updated)}",
-            )
+            self._announce(reference, "InstancesUpdated", updated, "Moved", f" to revision {revision}")
         applying.in_parallel(
             self.pool, lambda name: self.writer.retire_instance(namespace, name), changes.retire
         )
-        if changes.retire:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesRetiring",
-                f"Stopping {len(changes.retire)} CoralInstances in reverse order, their robots left: "
-                f"{events.names(changes.retire)}",
-            )
+        self._announce(
+            reference, "InstancesRetiring", changes.retire, "Stopping", " in reverse order, their robots left"
+        )
         applying.in_parallel(
             self.pool, lambda name: self.writer.delete_instance(namespace, name), changes.delete
         )
-        if changes.delete:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesDeleted",
-                f"Deleted {len(changes.delete)} CoralInstances whose robots left: "
-                f"{events.names(changes.delete)}",
-            )
+        self._announce(reference, "InstancesDeleted", changes.delete, "Deleted", " whose robots left")
+
+    def _announce(
+        self, reference: dict[str, Any], reason: str, names: list[str], verb: str, how: str = ""
+    ) -> None:
+        """One Normal Event for a kind of change to the instances `names`, if any, with their count."""
+        if names:
+            message = f"{verb} {len(names)} CoralInstances{how}: {events.names(names)}"
+            self.post(reference, "Normal", reason, message)
 
     def _write_status(
         self,
