@@ -39,7 +39,7 @@ from coral_operator.status.conditions import ConditionType, Reason
 REFUSED_RETRY_S = 30.0
 
 
-@dataclass(kw_only=True)
+@dataclass(kw_only=True, eq=False)
 class InstanceReconciler(Reconciler):
     """One level-based pass per CoralInstance key (namespace, name)."""
 

@@ -21,7 +21,7 @@ def _utc_now() -> datetime:
     return datetime.now(UTC)
 
 
-@dataclass(kw_only=True)
+@dataclass(kw_only=True, eq=False)
 class Reconciler:
     memory: Memory
     indexes: Indexes

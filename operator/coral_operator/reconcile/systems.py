@@ -45,7 +45,7 @@ FILES_AT_ONCE = 4
 _OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
 
-@dataclass(kw_only=True)
+@dataclass(kw_only=True, eq=False)
 class SystemReconciler(Reconciler):
     """One level-based pass per CoralSystem key (namespace, name)."""
 
