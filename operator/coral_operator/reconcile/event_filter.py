@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 @dataclass
 class EventFilter:
+    """The last summary seen per watched object."""
+
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _last_seen: dict[Hashable, Hashable] = field(default_factory=dict)
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 @dataclass
 class WritePacing:
+    """Per instance: writes that could wait since the last verdict, and when its generation was seen."""
+
     clock: Callable[[], float] = time.monotonic
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _deferred: dict[str, int] = field(default_factory=dict)

@@ -23,6 +23,8 @@ def _utc_now() -> datetime:
 
 @dataclass(kw_only=True, eq=False)
 class Reconciler:
+    """The base of both kinds' reconcilers (see the module docstring)."""
+
     memory: Memory
     indexes: Indexes
     writer: Writer
