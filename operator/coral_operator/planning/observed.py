@@ -8,7 +8,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, ClassVar
 
 from coral_core import names
 
@@ -127,35 +127,42 @@ def _numbers_as_stored(value: Any) -> Any:
 
 
 @dataclass(frozen=True)
-class InstanceRecord:
-    """What a CoralInstance pass reads of its own object."""
+class _OwnRecord:
+    """What a pass reads of its own object (the fields both kinds have)."""
 
+    KIND: ClassVar[str]
     name: str
     namespace: str
     uid: str
     generation: int | None
     spec: dict[str, Any]
     status: dict[str, Any]
-    resource_version: str | None = None
-    owners: tuple[dict[str, Any], ...] = ()
-    """`metadata.ownerReferences`: whether the instance is its system's (`planning.provenance`)."""
 
     @property
     def reference(self) -> dict[str, Any]:
         """Enough of a body for an Event to name its object."""
-        return _reference(names.INSTANCE_KIND, self.name, self.namespace, self.uid)
+        return {
+            "apiVersion": names.API_VERSION,
+            "kind": self.KIND,
+            "metadata": {"name": self.name, "namespace": self.namespace, "uid": self.uid},
+        }
 
 
 @dataclass(frozen=True)
-class SystemRecord:
+class InstanceRecord(_OwnRecord):
+    """What a CoralInstance pass reads of its own object."""
+
+    KIND: ClassVar[str] = names.INSTANCE_KIND
+    resource_version: str | None = None
+    owners: tuple[dict[str, Any], ...] = ()
+    """`metadata.ownerReferences`: whether the instance is its system's (`planning.provenance`)."""
+
+
+@dataclass(frozen=True)
+class SystemRecord(_OwnRecord):
     """What a CoralSystem pass reads of its own object."""
 
-    name: str
-    namespace: str
-    uid: str
-    generation: int | None
-    spec: dict[str, Any]
-    status: dict[str, Any]
+    KIND: ClassVar[str] = names.SYSTEM_KIND
     annotations: dict[str, str] = field(default_factory=dict)
     resource_version: str | None = None
     created: str = ""
@@ -167,16 +174,3 @@ class SystemRecord:
     files_left_out: bool = False
     """The spec's inline files were left out of this record (`kube.observing.system_record`): a
     pass reads the system from the API for them."""
-
-    @property
-    def reference(self) -> dict[str, Any]:
-        """Enough of a body for an Event to name its object."""
-        return _reference(names.SYSTEM_KIND, self.name, self.namespace, self.uid)
-
-
-def _reference(kind: str, name: str, namespace: str, uid: str) -> dict[str, Any]:
-    return {
-        "apiVersion": names.API_VERSION,
-        "kind": kind,
-        "metadata": {"name": name, "namespace": namespace, "uid": uid},
-    }

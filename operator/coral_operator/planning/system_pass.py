@@ -43,6 +43,8 @@ class SystemObservation:
     """Everything one system pass decides from, read by the reconciler before planning."""
 
     system: SystemRecord
+    spec: CoralSystemSpec | Problem
+    """`system.spec` as parsed once for the pass (`parse_spec`)."""
     tree: SourceText | Problem | None
     """The tree's text; None when the spec did not parse, so nothing was read."""
     parameters: SourceText | Problem | None
@@ -156,8 +158,7 @@ def plan_system(observation: SystemObservation) -> SystemPlan:
     Raises:
         ValueError: the rollout policy cannot be applied (`maxUnavailable` malformed).
     """
-    system = observation.system
-    spec = parse_spec(system.spec)
+    spec = observation.spec
     if isinstance(spec, Problem):
         return SystemPlan(problem=spec, matched=len(observation.instances))
     try:

@@ -18,6 +18,7 @@ from coral_core import names
 
 from coral_operator.kube import observing
 from coral_operator.kube.workqueue import WorkQueue
+from coral_operator.kube.writer import KubeWriter, Writer
 from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
@@ -56,6 +57,7 @@ class Controller:
         policy: Policy,
         post: events.Poster,
         memory: Memory | None = None,
+        writer: Writer | None = None,
         workers: int = WORKERS,
         pod_settings: PodSettings | None = None,
     ) -> None:
@@ -66,18 +68,20 @@ class Controller:
         self.queue: WorkQueue[Key] = WorkQueue(
             self._process, workers=workers, min_interval_s=_interval, name="coral"
         )
+        shared: dict[str, Any] = {
+            "memory": self.memory,
+            "indexes": self.indexes,
+            "writer": writer or KubeWriter(),
+            "post": post,
+        }
         self.instances = InstanceReconciler(
-            memory=self.memory,
-            indexes=self.indexes,
-            post=post,
+            **shared,
             requeue=lambda key, delay: self.queue.add((INSTANCE, *key), delay),
             wake_system=lambda key: self.queue.add((SYSTEM, *key)),
             pod_settings=pod_settings or PodSettings(policy=policy),
         )
         self.systems = SystemReconciler(
-            memory=self.memory,
-            indexes=self.indexes,
-            post=post,
+            **shared,
             requeue=lambda key, delay: self.queue.add((SYSTEM, *key), delay),
             policy=policy,
             pool=self._pool,
@@ -111,7 +115,7 @@ class Controller:
         key = (SYSTEM, namespace, name)
         if deleted:
             self.memory.forget_system(uid, namespace, name)
-            self.memory.forget_seen(key)
+            self.memory.seen.forget(key)
             self.queue.forget(key)
             self.trimmer.soon()
             return
@@ -123,7 +127,7 @@ class Controller:
             annotations.get(names.ANNOTATION_ROLLOUT_UNDO),
             annotations.get(names.ANNOTATION_ROLLOUT_RESUME),
         )
-        if self.memory.changed(key, inputs):
+        if self.memory.seen.changed(key, inputs):
             self.queue.add(key)
 
     def on_instance(
@@ -135,21 +139,20 @@ class Controller:
         key = (INSTANCE, namespace, name)
         system = (body.get("spec") or {}).get("system")
         if deleted:
-            self.memory.forget_instance(uid)
-            self.memory.forget_record((namespace, name))
-            self.memory.forget_seen(key)
+            self.memory.forget_instance(uid, namespace, name)
+            self.memory.seen.forget(key)
             self.queue.forget(key)
             self.trimmer.soon()
             if system:
                 self.queue.add((SYSTEM, namespace, system))
             return
         version = (body.get("metadata") or {}).get("resourceVersion")
-        own_write = self.memory.is_own_write(uid, version)
+        own_write = self.memory.statuses.is_own(uid, version)
         # The echo of a system pass's move: that pass already handed it to the instance's pass.
-        if not own_write and not self.memory.is_own_record((namespace, name), version):
+        if not own_write and not self.memory.moved.is_own((namespace, name), version):
             self.queue.add(key)
         # The pass that wrote a status woke the system itself if the system reads a change in it.
-        if system and self.memory.changed(key, observing.instance_summary(body)) and not own_write:
+        if system and self.memory.seen.changed(key, observing.instance_summary(body)) and not own_write:
             self.queue.add((SYSTEM, namespace, system))
 
     def on_pod(self, *, namespace: str, instance: str) -> None:
@@ -167,10 +170,10 @@ class Controller:
         """A robot came, went, changed labels or reachability; heartbeats alone change nothing."""
         robot = None if deleted else observing.robot_node(name, labels, status, spec)
         summary = None if robot is None else (tuple(sorted(labels.items())), robot.ready, robot.reachable)
-        if not self.memory.changed(("Node", name), summary):
+        if not self.memory.seen.changed(("Node", name), summary):
             return
         if deleted:
-            self.memory.forget_seen(("Node", name))
+            self.memory.seen.forget(("Node", name))
         for namespace, instance in self.indexes.read("coral_instances", instances_on_node(name)):
             self.queue.add((INSTANCE, namespace, instance))
         for namespace, system in self.indexes.keys("coral_systems"):

@@ -2,12 +2,10 @@
 
 Run by the work queue's workers (`reconcile.controller`), never inside a kopf handler. A pass
 reads the instance, its pods and its robot's Node from the indexes, asks
-`planning.instance_pass.plan_instance` what to write, writes it through `kube.applying`, and
-computes the status with `status.instance_status`. The status is patched only when a verdict
-changed (`status.instance_status.verdict_of`); progress alone waits (`progress_interval`), and
-so does "progressing" at a new generation while the status written for the old one already reads
-as in progress (`status.instance_status.stale_status_says_as_much`), and "starting" while a new
-instance still has the CRD's pending status (`status.instance_status.pending_status_says_as_much`).
+`planning.instance_pass.plan_instance` what to write, writes it through its `kube.writer.Writer`,
+and computes the status with `status.instance_status`. The status is patched at once only when a
+verdict changed; progress alone waits, and so does a status that tells no reader more than the one
+written (`planning.status_pacing`).
 The executor's fields (`tree`, `plugins`) are read, never written, and read defensively
 (`status.executor_report`): a value the operator cannot read is named on the conditions, never a
 pass that fails before it writes. Whatever else the executor writes there is overwritten
@@ -20,81 +18,45 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from datetime import UTC, datetime
+from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.kube import applying, leases, observing
-from coral_operator.kube import revisions as stored_revisions
-from coral_operator.planning import instance_pass, provenance
+from coral_operator.kube import applying, observing
+from coral_operator.planning import instance_pass, provenance, status_pacing
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.pods import HostPathRefused, PodSettings
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
-from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.indexes import instance_named, instances_of_system
+from coral_operator.reconcile.reconciler import Key, Reconciler
 from coral_operator.status import executor_report, instance_status, ownership, transitions
 from coral_operator.status.conditions import ConditionType, Reason
 
-Key = tuple[str, str]
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
 # outside the spec (a namespace label, a quota), and nothing else would wake the instance up.
 REFUSED_RETRY_S = 30.0
-# Status changes that change no verdict (a stage's message, a pod's phase) wait this long before
-# they are written. A new instance reads as pending meanwhile (the CRD's default status), so a
-# robot that starts within it costs one status write, when it is Ready.
-PROGRESS_INTERVAL_S = 10.0
-# Each further progress write before the next verdict waits twice as long as the one before, up
-# to this: a start of a minute and a half (a loaded control plane, a slow image pull) is reported
-# at 10, 30 and 70 s instead of every 10 s, and its robot's writes stay bounded however slow it is.
-PROGRESS_INTERVAL_MAX_S = 60.0
-# A fleet's robots start and update together, so their progress writes come together too: the
-# intervals of a large system stretch so that its robots write progress at most this often between
-# them. A CoralInstance status patch costs the API server 7 to 10 ms of CPU; at a thousand robots,
-# 10 s apart, progress was more than half of a first deployment's status writes and slowed the
-# very starts it reported (docs/architecture.md, "The operator: from spec to pods to status").
-SYSTEM_PROGRESS_WRITES_PER_S = 20.0
 
 
-def progress_interval(deferred_writes: int, robots: int = 1) -> float:
-    """How long a status that can wait (`deferred_writes` such writes since the last verdict) waits
-    after the last write, or after the spec change for the first, in a system of `robots`."""
-    first = max(PROGRESS_INTERVAL_S, robots / SYSTEM_PROGRESS_WRITES_PER_S)
-    return min(first * 2**deferred_writes, max(PROGRESS_INTERVAL_MAX_S, first))
-
-
-class InstanceReconciler:
+@dataclass(kw_only=True, eq=False)
+class InstanceReconciler(Reconciler):
     """One level-based pass per CoralInstance key (namespace, name)."""
 
-    def __init__(
-        self,
-        *,
-        memory: Memory,
-        indexes: Indexes,
-        post: events.Poster,
-        requeue: Callable[[Key, float], None],
-        wake_system: Callable[[Key], None] = lambda _key: None,
-        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
-        pod_settings: PodSettings | None = None,
-    ) -> None:
-        self.memory = memory
-        self.indexes = indexes
-        self.post = post
-        self.requeue = requeue
-        self.wake_system = wake_system
-        self.clock = clock
-        self.pod_settings = pod_settings or PodSettings()
+    wake_system: Callable[[Key], None] = lambda _key: None
+    """Pass the system of this key at once (a verdict its rollout reads was written)."""
+    pod_settings: PodSettings = field(default_factory=PodSettings)
 
     def reconcile(self, key: Key) -> None:
         indexed: InstanceRecord | None = next(
             iter(self.indexes.read("coral_instances", instance_named(*key))), None
         )
         # A system pass that just moved this instance woke this pass with its answer.
-        record = self.memory.latest_record(key, indexed)
+        record = self.memory.moved.latest(key, indexed)
         if record is None:
             return
         now = self.clock()
-        status = self.memory.observed_status(record.uid, record.resource_version, record.status)
+        status = self.memory.statuses.observed(record.uid, record.resource_version, record.status)
         spec = instance_pass.parse_instance_spec(record)
         if isinstance(spec, str):
             self._write_invalid(record, status, spec, now=now)
@@ -109,7 +71,7 @@ class InstanceReconciler:
         if not spec.retiring:
             parsed = spec
             try:
-                desired = self.memory.desired_pods(
+                desired = self.memory.desired_pods.get(
                     record.uid,
                     record.generation,
                     lambda: instance_pass.build_desired_pods(record, parsed, self.pod_settings),
@@ -169,7 +131,7 @@ class InstanceReconciler:
         if problems:
             return Reason.FOREIGN_INSTANCE, _not_served(problems)
         assert system is not None
-        if spec.retiring or self.memory.spec_vetted(record.uid, record.generation, system.uid):
+        if spec.retiring or self.memory.vetted.has(record.uid, record.generation, system.uid):
             return None  # stopping builds nothing; a vetted generation's spec cannot have changed
         problem = provenance.evaluate_revision(spec, self._history(system, spec.revision))
         if problem is not None:
@@ -178,18 +140,18 @@ class InstanceReconciler:
         if denied:
             refusals = "; ".join(denied)
             return Reason.POLICY_DENIED, f"Not served, the operator's policy refuses: {refusals}."
-        self.memory.vet_spec(record.uid, record.generation, system.uid)
+        self.memory.vetted.add(record.uid, record.generation, system.uid)
         return None
 
     def _history(self, system: SystemRecord, revision: str) -> list[StoredRevision]:
         """The system's revisions, read from the API only when this process does not hold one
         with `revision` (a system pass may store it any moment, and a restarted operator holds none)."""
         key = (system.namespace, system.name, system.uid)
-        known = self.memory.known_revisions(key)
+        known = self.memory.histories.known(key)
         if known is not None and any(stored.revision == revision for stored in known):
             return known
-        read = stored_revisions.read_revisions(*key)
-        self.memory.offer_revisions(key, read)
+        read = self.writer.read_revisions(*key)
+        self.memory.histories.offer(key, read)
         return read
 
     def _refuse(
@@ -221,7 +183,7 @@ class InstanceReconciler:
         if node is not None and not node.reachable:
             # The Lease says when the robot was last heard from; it no longer changes while it is away.
             node = dataclasses.replace(
-                node, last_seen=leases.read_renew_time(node.node_name) or node.last_seen
+                node, last_seen=self.writer.read_renew_time(node.node_name) or node.last_seen
             )
         return node
 
@@ -234,39 +196,41 @@ class InstanceReconciler:
         assert plan.startup is not None
         namespace = record.namespace
         refused: dict[str, str] = {}
-        created, deleted = self.memory.pods_in_flight(record.uid, observed)
+        created, deleted = self.memory.creates.in_flight(
+            record.uid, {pod.name: pod.deleting for pod in observed}
+        )
         delete = [name for name in plan.startup.delete if name not in deleted]
         if delete and plan.startup.delete_selector is not None:
-            applying.delete_pods(namespace, plan.startup.delete_selector)
+            self.writer.delete_pods(namespace, plan.startup.delete_selector)
         else:
             for pod_name in delete:
-                applying.delete_pod(namespace, pod_name)
+                self.writer.delete_pod(namespace, pod_name)
         made = []
         for manifest in plan.startup.create:
             if instance_pass.refusal_key(manifest) in refused or manifest["metadata"]["name"] in created:
                 continue
             try:
-                applying.create_pod(manifest)
+                self.writer.create_pod(manifest)
                 made.append(manifest["metadata"]["name"])
             except Exception as error:
                 message = applying.refusal(error)
                 if message is None:
                     raise
                 refused[instance_pass.refusal_key(manifest)] = message
-        self.memory.expect_pods(record.uid, made, delete)
+        self.memory.creates.expect(record.uid, made, delete)
         for pod_name, labels in plan.startup.relabel:
-            applying.patch_pod_labels(namespace, pod_name, labels)
+            self.writer.patch_pod_labels(namespace, pod_name, labels)
         for pod_name, patch in plan.startup.set_images:
-            applying.patch_pod(namespace, pod_name, patch)
+            self.writer.patch_pod(namespace, pod_name, patch)
         return refused
 
     def _retire(self, record: InstanceRecord, plan: instance_pass.InstancePlan) -> None:
         """Stop the robot's components in reverse startup order, then remove the instance."""
         if plan.delete_instance:
-            applying.delete_instance(record.namespace, record.name)
+            self.writer.delete_instance(record.namespace, record.name)
             return
         for pod_name in plan.stop:
-            applying.delete_pod(record.namespace, pod_name)
+            self.writer.delete_pod(record.namespace, pod_name)
 
     def _write_status(
         self,
@@ -280,34 +244,34 @@ class InstanceReconciler:
         if not changed:
             return
         since: float | None = None
-        if instance_status.verdict_of(current) == instance_status.verdict_of(new):
-            _, _, since = self.memory.status_written(record.uid)  # progress only
-        elif instance_status.stale_status_says_as_much(
-            current, new, record.generation
-        ) or instance_status.pending_status_says_as_much(current, new):
-            since = self.memory.generation_seen_at(record.uid, record.generation)
+        anchor = status_pacing.can_wait(current, new, record.generation)
+        if anchor is status_pacing.Anchor.LAST_WRITE:
+            _, _, since = self.memory.statuses.last(record.uid)
+        elif anchor is status_pacing.Anchor.GENERATION_SEEN:
+            since = self.memory.pacing.generation_seen_at(record.uid, record.generation)
         if since is not None:
             robots = self.indexes.count(
                 "coral_instances", instances_of_system(record.namespace, record.spec.get("system", ""))
             )
-            interval = progress_interval(self.memory.deferred_writes(record.uid), robots)
-            wait = interval - (self.memory.clock() - since)
+            wait = status_pacing.wait_left(
+                since=since,
+                now=self.memory.clock(),
+                deferred_writes=self.memory.pacing.deferred_writes(record.uid),
+                robots=robots,
+            )
             if wait > 0:
                 # It rides along with the next verdict, or goes out when this is due.
                 self.requeue((record.namespace, record.name), wait)
                 return
         changes = {key: _patch_value(current.get(key), value) for key, value in changed.items()}
-        version = applying.patch_instance_status(record.namespace, record.name, changes)
+        version = self.writer.patch_instance_status(record.namespace, record.name, changes)
         if version is None:
             return
         after = {key: value for key, value in {**current, **changed}.items() if value is not None}
-        self.memory.remember_status(
-            record.uid,
-            version,
-            ownership.operator_part(after),
-            replaced=record.resource_version,
-            deferred=since is not None,
+        self.memory.statuses.remember(
+            record.uid, version, ownership.operator_part(after), replaced=record.resource_version
         )
+        self.memory.pacing.wrote(record.uid, deferred=since is not None)
         system = record.spec.get("system")
         if system and _system_reads_a_change(record, current, after):
             # At once, not when the watch brings this write back: the system pass reads it from

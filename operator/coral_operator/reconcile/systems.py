@@ -2,10 +2,10 @@
 
 Run by the work queue's workers (`reconcile.controller`). A pass reads the system, its robots and
 its instances from the indexes and its source files from the API, asks
-`planning.system_pass.plan_system` what to write, writes it through `kube` in order (revision
-history, ConfigMaps before the instances that name them, instances, stale ConfigMaps last), and
-computes status with `status.system_status`, patched only when it changed. See
-docs/architecture.md.
+`planning.system_pass.plan_system` what to write, writes it through its `kube.writer.Writer` in
+order (revision history, ConfigMaps before the instances that name them, instances, stale
+ConfigMaps last), and computes status with `status.system_status`, patched only when it changed.
+See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
-from datetime import UTC, datetime
+from dataclasses import dataclass, field
+from datetime import datetime
 from functools import partial
 from typing import Any
 
@@ -23,57 +24,41 @@ from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
-from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import budgets, configmaps, instances, naming, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
-    Indexes,
     config_maps_of_system,
     instance_named,
     instances_of_system,
 )
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.reconciler import Key, Reconciler
 from coral_operator.status import system_status, transitions
 from coral_operator.status.conditions import Reason
 from coral_operator.status.rollout import evaluate_rollout
 
-Key = tuple[str, str]
 FILES_AT_ONCE = 4
 """System passes that may hold their large files (read from the API) at the same time."""
 # Fields of `status.rollout` that come and go: a merge patch removes one only when sent as null.
 _OPTIONAL_ROLLOUT_FIELDS = (keys.ROLLOUT.failure, keys.ROLLOUT.rolled_back, keys.ROLLOUT.canary)
 
 
-class SystemReconciler:
+@dataclass(kw_only=True, eq=False)
+class SystemReconciler(Reconciler):
     """One level-based pass per CoralSystem key (namespace, name)."""
 
-    def __init__(
-        self,
-        *,
-        memory: Memory,
-        indexes: Indexes,
-        post: events.Poster,
-        requeue: Callable[[Key, float], None],
-        policy: Policy,
-        pool: Executor,
-        wake_instance: Callable[[Key], None] = lambda _key: None,
-        clock: Callable[[], datetime] = lambda: datetime.now(UTC),
-        trim: Callable[[], None] = lambda: None,
-    ) -> None:
-        self.memory = memory
-        self.trim = trim
-        """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
-        self._files_at_once = threading.BoundedSemaphore(FILES_AT_ONCE)
-        self.indexes = indexes
-        self.post = post
-        self.requeue = requeue
-        self.wake_instance = wake_instance
-        self.policy = policy
-        self.pool = pool
-        self.clock = clock
+    policy: Policy
+    pool: Executor
+    """Carries one pass's instance writes in parallel."""
+    wake_instance: Callable[[Key], None] = lambda _key: None
+    """Pass the instance of this key at once (a move's answer is in memory)."""
+    trim: Callable[[], None] = lambda: None
+    """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
+    _files_at_once: threading.BoundedSemaphore = field(
+        default_factory=lambda: threading.BoundedSemaphore(FILES_AT_ONCE), init=False, repr=False
+    )
 
     def reconcile(self, key: Key) -> None:
         records = self.indexes.read("coral_systems", key)
@@ -88,14 +73,14 @@ class SystemReconciler:
         # once (a megabyte each, twice over while decoded). A newer version read here is only
         # what the watch is about to bring.
         with self._files_at_once:
-            body = applying.read_system(*key)
+            body = self.writer.read_system(*key)
             if body is not None:
                 self._reconcile(key, observing.system_record(body, keep_files=True))
         self.trim()
 
     def _reconcile(self, key: Key, system: SystemRecord) -> None:
         now = self.clock()
-        status = self.memory.observed_status(system.uid, system.resource_version, system.status)
+        status = self.memory.statuses.observed(system.uid, system.resource_version, system.status)
         # An instance written by hand that names this system is not one of its robots.
         observed = [
             self._with_own_writes(instance)
@@ -103,24 +88,27 @@ class SystemReconciler:
             if provenance.is_claimed_by(instance, system.name, system.uid)
         ]
         # Every pass, so that an instance seen once and then gone is no longer counted on its way.
-        creating = self.memory.instances_in_flight(system.uid, {instance.name for instance in observed})
+        creating, _ = self.memory.creates.in_flight(
+            system.uid, {instance.name: False for instance in observed}
+        )
         spec = system_pass.parse_spec(system.spec)
         parsed = isinstance(spec, CoralSystemSpec)
         history_key = (system.namespace, system.name, system.uid)
-        read_history = partial(stored_revisions.read_revisions, *history_key)
+        read_history = partial(self.writer.read_revisions, *history_key)
         observation = system_pass.SystemObservation(
             system=system,
+            spec=spec,
             tree=self._read_source(system, spec.tree, "tree") if isinstance(spec, CoralSystemSpec) else None,
             parameters=self._read_source(system, spec.parameters, "parameters")
             if isinstance(spec, CoralSystemSpec)
             else None,
             robots=self.indexes.read("robot_nodes", ALL_ROBOTS),
             instances=observed,
-            stored_revisions=self.memory.stored_revisions(history_key, read_history) if parsed else [],
-            expected=self.memory.expected_moves(
+            stored_revisions=self.memory.histories.get(history_key, read_history) if parsed else [],
+            expected=self.memory.moves.pending(
                 system.uid, system.namespace, {i.robot: i.revision for i in observed}
             ),
-            previous_rollout=self.memory.rollout_written(system.uid) or _rollout_of(status),
+            previous_rollout=self.memory.rollouts.last(system.uid) or _rollout_of(status),
             policy=self.policy,
             now=now,
             neighbours=self._neighbours(system) if parsed else [],
@@ -130,8 +118,8 @@ class SystemReconciler:
         problem = plan.problem
         if plan.rollout is not None:
             self._apply_history(system, plan)
-            self.memory.remember_rollout(system.uid, plan.rollout.status)
-            self.memory.expect_moves(system.uid, system.namespace, plan.rollout.moves)
+            self.memory.rollouts.remember(system.uid, plan.rollout.status)
+            self.memory.moves.expect(system.uid, system.namespace, plan.rollout.moves)
             try:
                 self._apply_changes(system, plan, creating)
             except applying.NameTaken as error:
@@ -183,10 +171,10 @@ class SystemReconciler:
         between passes")."""
         named = instance_named(manifest["metadata"]["namespace"], manifest["metadata"]["name"])
         before = next(iter(self.indexes.read("coral_instances", named)), None)
-        body = applying.update_instance(manifest)
+        body = self.writer.update_instance(manifest)
         if body is not None:
             record = observing.instance_record(body, self.memory.specs.share(body))
-            self.memory.remember_record(record, replaced=before.resource_version if before else None)
+            self.memory.moved.remember(record, replaced=before.resource_version if before else None)
             self.wake_instance((record.namespace, record.name))
         return body
 
@@ -194,7 +182,7 @@ class SystemReconciler:
         """`instance` with the status this process last wrote on it, if the index does not show
         that write yet: the instance's pass wakes this one as it writes a verdict (a robot Ready
         frees a rollout's budget), which would otherwise wait for the watch to bring it back."""
-        unseen = self.memory.status_unseen(instance.uid, instance.resource_version)
+        unseen = self.memory.statuses.unseen(instance.uid, instance.resource_version)
         return instance if unseen is None else observing.with_operator_status(instance, unseen)
 
     def _read_source(
@@ -207,7 +195,7 @@ class SystemReconciler:
         assert ref is not None  # the model guarantees exactly one of the two
         where = f"spec.{field}.configMapRef"
         try:
-            found = applying.read_config_map_key(system.namespace, ref.name, ref.key)
+            found = self.writer.read_config_map_key(system.namespace, ref.name, ref.key)
         except Exception as error:
             # A name the API server cannot take (one written before the schema had a pattern) or a
             # read it refuses: the same answer next time, so a status, not a retried traceback.
@@ -217,9 +205,7 @@ class SystemReconciler:
             return system_status.Problem(
                 Reason.CONFIG_MAP_UNREADABLE, f"{where}: ConfigMap {ref.name!r} could not be read: {refused}"
             )
-        refusal = configmaps.source_refusal(
-            where, ref.name, None if found is None else found.labels
-        )
+        refusal = configmaps.source_refusal(where, ref.name, None if found is None else found.labels)
         if refusal is not None:
             return system_status.Problem(Reason.CONFIG_MAP_NOT_A_SOURCE, refusal)
         if found is None or found.text is None:
@@ -241,19 +227,19 @@ class SystemReconciler:
         history = plan.history
         assert history is not None
         if history.create is not None:
-            stored_revisions.create_revision(history.create)
+            self.writer.create_revision(history.create)
         if history.renumber is not None:
-            stored_revisions.renumber_revision(system.namespace, *history.renumber)
+            self.writer.renumber_revision(system.namespace, *history.renumber)
         for name in history.delete:
-            stored_revisions.delete_revision(system.namespace, name)
-        self.memory.remember_revisions((system.namespace, system.name, system.uid), plan.stored_after)
+            self.writer.delete_revision(system.namespace, name)
+        self.memory.histories.remember((system.namespace, system.name, system.uid), plan.stored_after)
 
     def _apply_changes(self, system: SystemRecord, plan: system_pass.SystemPlan, creating: set[str]) -> None:
         changes = plan.changes
         if changes.empty:
             return
         if plan.identity:
-            applying.apply_rbac(plan.identity)
+            self.writer.apply_rbac(plan.identity)
         # ConfigMaps first: an instance must never point at a file that does not exist yet. Named
         # by content, so one the index holds is already right: no create that would answer 409.
         listed = config_maps_of_system(system.namespace, naming.label_value(system.name))
@@ -262,10 +248,10 @@ class SystemReconciler:
         ]
         for manifest in plan.config_maps:
             if manifest["metadata"]["name"] not in existing:
-                applying.create_config_map(manifest)
+                self.writer.create_config_map(manifest)
         self._apply_instances(system, changes, creating)
         for stale in configmaps.plan_config_map_cleanup(existing, plan.in_use):
-            applying.delete_config_map(system.namespace, stale)
+            self.writer.delete_config_map(system.namespace, stale)
 
     def _apply_instances(
         self, system: SystemRecord, changes: instances.InstanceChanges, creating: set[str]
@@ -274,49 +260,34 @@ class SystemReconciler:
         # One Event per kind of change and pass, with a count, not one per robot.
         namespace, reference = system.namespace, system.reference
         create = [m for m in changes.create if m["metadata"]["name"] not in creating]
-        made = applying.in_parallel(self.pool, applying.create_instance, create)
+        made = applying.in_parallel(self.pool, self.writer.create_instance, create)
         # Created now or already there (409): either way the watch will show it.
-        self.memory.expect_instances(system.uid, [m["metadata"]["name"] for m in create])
+        self.memory.creates.expect(system.uid, [m["metadata"]["name"] for m in create])
         created = [m["metadata"]["name"] for m, new in zip(create, made, strict=True) if new is not None]
-        if created:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesCreated",
-                f"Created {len(created)} CoralInstances: {events.names(created)}",
-            )
+        self._announce(reference, "InstancesCreated", created, "Created")
         applying.in_parallel(self.pool, self._move, changes.update)
         if changes.update:
             revision = changes.update[0]["spec"]["revision"]
             updated = [m["metadata"]["name"] for m in changes.update]
-            self.post(
-                reference,
-                "Normal",
-                "InstancesUpdated",
-                f"Moved {len(updated)} CoralInstances to revision {revision}: {events.names(updated)}",
-            )
+            self._announce(reference, "InstancesUpdated", updated, "Moved", f" to revision {revision}")
         applying.in_parallel(
-            self.pool, lambda name: applying.retire_instance(namespace, name), changes.retire
+            self.pool, lambda name: self.writer.retire_instance(namespace, name), changes.retire
         )
-        if changes.retire:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesRetiring",
-                f"Stopping {len(changes.retire)} CoralInstances in reverse order, their robots left: "
-                f"{events.names(changes.retire)}",
-            )
+        self._announce(
+            reference, "InstancesRetiring", changes.retire, "Stopping", " in reverse order, their robots left"
+        )
         applying.in_parallel(
-            self.pool, lambda name: applying.delete_instance(namespace, name), changes.delete
+            self.pool, lambda name: self.writer.delete_instance(namespace, name), changes.delete
         )
-        if changes.delete:
-            self.post(
-                reference,
-                "Normal",
-                "InstancesDeleted",
-                f"Deleted {len(changes.delete)} CoralInstances whose robots left: "
-                f"{events.names(changes.delete)}",
-            )
+        self._announce(reference, "InstancesDeleted", changes.delete, "Deleted", " whose robots left")
+
+    def _announce(
+        self, reference: dict[str, Any], reason: str, names: list[str], verb: str, how: str = ""
+    ) -> None:
+        """One Normal Event for a kind of change to the instances `names`, if any, with their count."""
+        if names:
+            message = f"{verb} {len(names)} CoralInstances{how}: {events.names(names)}"
+            self.post(reference, "Normal", reason, message)
 
     def _write_status(
         self,
@@ -351,13 +322,13 @@ class SystemReconciler:
         changes = {key: value for key, value in new.items() if status.get(key) != value}
         if not changes:
             return
-        version = applying.patch_system_status(system.namespace, system.name, changes)
+        version = self.writer.patch_system_status(system.namespace, system.name, changes)
         if version is None:
             return
         after = {
             key: _without_nulls(value) for key, value in {**status, **changes}.items() if value is not None
         }
-        self.memory.remember_status(system.uid, version, after, replaced=system.resource_version)
+        self.memory.statuses.remember(system.uid, version, after, replaced=system.resource_version)
         for kind, reason, message in events.condition_events(old_conditions, new["conditions"]):
             self.post(system.reference, kind, reason, message)
 

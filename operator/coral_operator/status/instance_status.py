@@ -15,10 +15,10 @@ from coral_operator.api import keys
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning.observed import ObservedPod, RobotNode
 from coral_operator.planning.startup import StartupPlan, component_slots, counts_as_ready, current_record
-from coral_operator.status import executor_report, transitions
+from coral_operator.status import executor_report
 from coral_operator.status.conditions import ConditionType as C
 from coral_operator.status.conditions import Reason as R
-from coral_operator.status.transitions import Verdict, find, merge_conditions, parse_rfc3339, rfc3339
+from coral_operator.status.transitions import Verdict, merge_conditions, parse_rfc3339, rfc3339
 
 
 @dataclass(frozen=True)
@@ -384,81 +384,3 @@ def build_invalid_status(
         now=now,
     )
     return {keys.INSTANCE_STATUS.conditions: conditions, keys.INSTANCE_STATUS.observed_generation: generation}
-
-
-def verdict_of(status: Mapping[str, Any]) -> tuple[Any, ...]:
-    """What of an instance's status is a verdict: the status of each condition, why it is Stalled,
-    whether its robot is reachable, and for which generation.
-
-    A change here is written at once (the system's rollout reads it); anything else (a stage's
-    message, a pod's phase or restarts) waits to ride along with the next write.
-    """
-    conditions = _entries(status.get(keys.INSTANCE_STATUS.conditions))
-    kind, state, why = keys.CONDITION.type, keys.CONDITION.status, keys.CONDITION.reason
-    stalled = next((c for c in conditions if c.get(kind) == C.STALLED), {})
-    robot = _mapping(status.get(keys.INSTANCE_STATUS.robot))
-    return (
-        status.get(keys.INSTANCE_STATUS.observed_generation),
-        robot.get(keys.ROBOT.reachable),
-        robot.get(keys.ROBOT.node_ready),
-        tuple((c.get(kind), c.get(state)) for c in conditions),
-        stalled.get(why) if stalled.get(state) == "True" else None,
-    )
-
-
-def stale_status_says_as_much(
-    current: Mapping[str, Any], new: Mapping[str, Any], generation: int | None
-) -> bool:
-    """Whether writing `new` would tell no reader more than `current` already does.
-
-    `current` was written for an older generation, which kstatus, Argo CD's health check and the
-    system's rollout (`kube.observing.observed_instance`) all read as "in progress"; `new` says
-    only that this generation is progressing (Ready and Stalled both False) and leaves the robot's
-    reachability as it was. Such a write can wait like progress, so an update costs one status
-    write, when the robot is Ready or Stalled at its new revision, instead of two.
-    """
-    written = transitions.written_generation(current)
-    if written is None or generation is None or written >= generation:
-        return False
-    before = _mapping(current.get(keys.INSTANCE_STATUS.robot))
-    after = _mapping(new.get(keys.INSTANCE_STATUS.robot))
-    return _only_progressing(new) and all(
-        before.get(key) == after.get(key) for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready)
-    )
-
-
-def pending_status_says_as_much(current: Mapping[str, Any], new: Mapping[str, Any]) -> bool:
-    """Whether `current` is still the CRD's default for a new instance (`api.common.pending_status`:
-    Reconciling=True, no `observedGeneration`), which every client reads as in progress, and
-    `new` says only that the robot is starting: Ready and Stalled False, the robot reachable and
-    its Node Ready. Such a write can wait like progress, so a robot that starts within
-    `PROGRESS_INTERVAL_S` costs one status write, when it is Ready or Stalled, instead of two.
-    A status-less instance (a CRD from before the default) is not covered: kstatus reads it as
-    Current.
-    """
-    if current.get(keys.INSTANCE_STATUS.observed_generation) is not None:
-        return False
-    reconciling = find(_entries(current.get(keys.INSTANCE_STATUS.conditions)), C.RECONCILING) or {}
-    if reconciling.get(keys.CONDITION.status) != "True":
-        return False
-    robot = new.get(keys.INSTANCE_STATUS.robot) or {}
-    return _only_progressing(new) and all(
-        robot.get(key) is True for key in (keys.ROBOT.reachable, keys.ROBOT.node_ready)
-    )
-
-
-def _only_progressing(status: Mapping[str, Any]) -> bool:
-    conditions = _entries(status.get(keys.INSTANCE_STATUS.conditions))
-    return all(
-        (find(conditions, ctype) or {}).get(keys.CONDITION.status) == "False"
-        for ctype in (C.READY, C.STALLED)
-    )
-
-
-# `current` may hold what an executor wrote over the operator's fields: read, never trusted.
-def _entries(value: Any) -> list[dict[str, Any]]:
-    return [entry for entry in value if isinstance(entry, dict)] if isinstance(value, list) else []
-
-
-def _mapping(value: Any) -> Mapping[str, Any]:
-    return value if isinstance(value, Mapping) else {}

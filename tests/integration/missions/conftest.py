@@ -12,6 +12,19 @@ from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.missions import MissionView, following
 from coral_testbed.missions.stack import operator_policy
 
+
+def real_robot_marks(*, timeout_s: int) -> list[pytest.MarkDecorator]:
+    """The marks of a mission test on real robots: it needs the cluster, ROS and the robots, and is
+    slow, within `timeout_s`."""
+    return [
+        pytest.mark.cluster,
+        pytest.mark.slow,
+        pytest.mark.ros,
+        pytest.mark.real_robots,
+        pytest.mark.timeout(timeout_s),
+    ]
+
+
 # Short bags keep the tests quick on a shared 2-core machine; the demo plays the full 300 scans.
 TEST_SCANS = 40
 

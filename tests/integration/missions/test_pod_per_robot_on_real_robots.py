@@ -27,15 +27,9 @@ from coral_testbed.waiting import wait_for
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
-from .conftest import first_real_robot
+from .conftest import first_real_robot, real_robot_marks
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(600),
-]
+pytestmark = real_robot_marks(timeout_s=600)
 
 EXAMPLE = "examples/lidar-slam/mission.yaml"
 GROUP, VERSION = "coral.dev", "v1alpha1"

@@ -13,22 +13,15 @@ until the restarted skillset answers.
 
 from __future__ import annotations
 
-import pytest
 from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.waiting import wait_for
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
 from . import realsystems as rs
-from .conftest import first_real_robot
+from .conftest import first_real_robot, real_robot_marks
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(420),
-]
+pytestmark = real_robot_marks(timeout_s=420)
 
 SYSTEM = "inspection"
 # The pause before counting again lets the Fallback's report reach the instance's status (the

@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import pytest
 from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import picture
@@ -24,15 +23,9 @@ from fixtures import pictures
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
-from .conftest import TEST_SCANS, first_real_robot
+from .conftest import TEST_SCANS, first_real_robot, real_robot_marks
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(600),
-]
+pytestmark = real_robot_marks(timeout_s=600)
 
 GROUP, VERSION = "coral.dev", "v1alpha1"
 

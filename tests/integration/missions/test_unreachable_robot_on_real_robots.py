@@ -12,21 +12,15 @@ from __future__ import annotations
 
 from typing import Any
 
-import pytest
 from coral_testbed.cluster import Cluster, realrobots, robots
 from coral_testbed.waiting import wait_for
 from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
 
 from . import realsystems as rs
+from .conftest import real_robot_marks
 
-pytestmark = [
-    pytest.mark.cluster,
-    pytest.mark.slow,
-    pytest.mark.ros,
-    pytest.mark.real_robots,
-    pytest.mark.timeout(420),
-]
+pytestmark = real_robot_marks(timeout_s=420)
 
 SYSTEM = "patrol"
 # A mission that outlasts the outage: it waits on the skillset's count topic for ten minutes.

@@ -9,18 +9,19 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import GROUP, VERSION, Coral, fleet_mission, is_current_and_true
-from coral_operator.status import instance_status, ownership
+from coral_api import GROUP, VERSION, is_current_and_true
+from coral_operator.planning import status_pacing
+from coral_operator.status import ownership
 from kubernetes import client as k8s
 from kubernetes import watch
+from scenarios import Scenario
 from urllib3.exceptions import ProtocolError
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
-# Progress alone is written at most this often (reconcile.instances.progress_interval: 10 s, then
+# Progress alone is written at most this often (planning.status_pacing.progress_interval: 10 s, then
 # longer), less the time a watch event takes to arrive.
 PROGRESS_WRITE_S = 9.0
 
@@ -32,16 +33,11 @@ def _events(cluster: Any, namespace: str, name: str, reason: str) -> list[Any]:
 
 
 def test_a_system_deploys_counts_its_robots_in_one_event_and_follows_a_spec_change(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    scenario: Scenario,
 ) -> None:
-    fleet = robots(3, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    coral.create_system(fleet_mission("fleet", fleet_label))
+    cluster, namespace, coral, wait = scenario.cluster, scenario.namespace, scenario.coral, scenario.wait
+    fleet = scenario.robots(3)
+    coral.create_system(scenario.mission("fleet"))
     system = wait(
         lambda: (s := coral.system("fleet")) and is_current_and_true(s, "Ready") and s,
         "the system to become Ready",
@@ -125,17 +121,12 @@ class StatusRecorder:
 
 
 def test_an_instance_starts_its_robot_and_writes_status_once_per_verdict_change(
-    cluster: Any,
-    namespace: str,
-    coral_operator: Any,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    scenario: Scenario,
 ) -> None:
-    (robot,) = robots(1, {"fleet": fleet_label})
-    coral = Coral(cluster.api_client, namespace)
-    with StatusRecorder(cluster, namespace) as recorder:
-        coral.create_system(fleet_mission("solo", fleet_label))
+    coral, wait = scenario.coral, scenario.wait
+    (robot,) = scenario.robots(1)
+    with StatusRecorder(scenario.cluster, scenario.namespace) as recorder:
+        coral.create_system(scenario.mission("solo"))
         instance = wait(
             lambda: (i := coral.instances().get(f"solo-{robot}")) and is_current_and_true(i, "Ready") and i,
             "the robot's instance to become Ready",
@@ -157,7 +148,7 @@ def test_an_instance_starts_its_robot_and_writes_status_once_per_verdict_change(
     history = [entry for entry in recorder.seen[name] if entry[1]]
     assert len(history) >= 2, "the first status and the Ready one were not both seen"
     for (before_at, before), (after_at, after) in zip(history, history[1:], strict=False):
-        verdict_changed = instance_status.verdict_of(before) != instance_status.verdict_of(after)
+        verdict_changed = status_pacing.verdict_of(before) != status_pacing.verdict_of(after)
         assert verdict_changed or after_at - before_at >= PROGRESS_WRITE_S, (
             "a status write without a verdict change came early",
             before,

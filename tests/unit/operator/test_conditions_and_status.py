@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 from coral_operator.api import common
+from coral_operator.planning import status_pacing
 from coral_operator.planning.observed import ObservedInstance
 from coral_operator.status import instance_status, system_status
 from coral_operator.status.conditions import ConditionType, Reason
@@ -271,7 +272,7 @@ def _written(
 def test_a_status_of_an_older_generation_stands_for_progressing_until_a_verdict_arrives(
     current: dict[str, Any], new: dict[str, Any], generation: int, waits: bool
 ) -> None:
-    assert instance_status.stale_status_says_as_much(current, new, generation) is waits
+    assert status_pacing.stale_status_says_as_much(current, new, generation) is waits
 
 
 @pytest.mark.parametrize(
@@ -294,4 +295,4 @@ def test_a_status_of_an_older_generation_stands_for_progressing_until_a_verdict_
 def test_the_pending_status_of_a_new_instance_stands_for_starting_until_a_verdict_arrives(
     current: dict[str, Any], new: dict[str, Any], waits: bool
 ) -> None:
-    assert instance_status.pending_status_says_as_much(current, new) is waits
+    assert status_pacing.pending_status_says_as_much(current, new) is waits

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 from coral_operator.api import keys
 from coral_operator.kube import observing
+from coral_operator.planning import status_pacing
 from coral_operator.status import executor_report, instance_status, transitions
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -105,9 +106,9 @@ def _status_pass(status: dict[str, Any], *, ready: bool) -> dict[str, Any]:
         generation=3,
         now=NOW,
     )
-    instance_status.verdict_of(status)
-    instance_status.stale_status_says_as_much(status, new, 3)
-    instance_status.pending_status_says_as_much(status, new)
+    status_pacing.verdict_of(status)
+    status_pacing.stale_status_says_as_much(status, new, 3)
+    status_pacing.pending_status_says_as_much(status, new)
     observed = observing.observed_instance({"metadata": {"generation": 3}, "spec": {}, "status": status})
     assert observed.root_status in (None, *executor_report.ROOT_STATUSES)
     return new

@@ -15,14 +15,28 @@ from coral_operator.reconcile.trimming import Trimmer
 
 def test_a_deleted_systems_status_and_history_are_forgotten() -> None:
     memory = Memory()
-    memory.remember_status("uid-1", "7", {"conditions": []})
-    memory.remember_revisions(("ns", "s", "uid-1"), [])
-    memory.expect_instances("uid-1", ["s-r1"])
+    memory.statuses.remember("uid-1", "7", {"conditions": []})
+    memory.histories.remember(("ns", "s", "uid-1"), [])
+    memory.creates.expect("uid-1", ["s-r1"])
     memory.forget_system("uid-1", "ns", "s")
-    assert memory.status_written("uid-1")[0] is None
-    assert memory.deferred_writes("uid-1") == 0
-    assert memory.instances_in_flight("uid-1", set()) == set()
-    assert not memory._history
+    assert memory.statuses.last("uid-1")[0] is None
+    assert memory.creates.in_flight("uid-1", {}) == (set(), set())
+    assert len(memory.histories) == 0
+
+
+def test_a_deleted_instances_writes_and_derived_pods_are_forgotten() -> None:
+    memory = Memory()
+    memory.statuses.remember("uid-1", "7", {"conditions": []})
+    memory.pacing.wrote("uid-1", deferred=True)
+    memory.desired_pods.get("uid-1", 1, lambda: [{"metadata": {"name": "s-r1-slam"}}])
+    memory.creates.expect("uid-1", ["s-r1-slam"])
+    memory.vetted.add("uid-1", 1, "uid-s")
+    memory.forget_instance("uid-1", "ns", "s-r1")
+    assert memory.statuses.last("uid-1")[0] is None
+    assert memory.pacing.deferred_writes("uid-1") == 0
+    assert memory.desired_pods.get("uid-1", 1, list) == [], "built again"
+    assert memory.creates.in_flight("uid-1", {}) == (set(), set())
+    assert not memory.vetted.has("uid-1", 1, "uid-s")
 
 
 def test_a_burst_of_deletions_ends_in_one_trim() -> None:

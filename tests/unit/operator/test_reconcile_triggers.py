@@ -74,7 +74,7 @@ def test_the_echo_of_its_own_status_write_costs_an_instance_no_pass() -> None:
     controller = _controller()
     instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
     written = {**_instance(), "metadata": {"generation": 1, "labels": {}, "resourceVersion": "7"}}
-    controller.memory.remember_status("i1", "7", written["status"])
+    controller.memory.statuses.remember("i1", "7", written["status"])
     controller.on_instance(**instance, body=written)
     assert (INSTANCE, "ns", "fleet-r1") not in _drain(controller), "the pass that wrote it saw it all"
     changed = {**written, "metadata": {**written["metadata"], "resourceVersion": "8"}}
@@ -148,7 +148,7 @@ def test_the_echo_of_its_own_status_write_queues_no_system_pass_either() -> None
     controller.on_instance(**instance, body=_instance())
     _drain(controller)
     ready = _instance(ready="True")
-    controller.memory.remember_status("i1", "7", ready["status"])
+    controller.memory.statuses.remember("i1", "7", ready["status"])
     controller.on_instance(
         **instance, body={**ready, "metadata": {**ready["metadata"], "resourceVersion": "7"}}
     )
@@ -164,7 +164,7 @@ def test_the_echo_of_a_move_handed_over_at_once_costs_its_instance_no_pass() -> 
     instance = dict(deleted=False, namespace="ns", name="fleet-r1", uid="i1")
     body = {**_instance(), "metadata": {"name": "fleet-r1", "namespace": "ns", "uid": "i1", "generation": 2}}
     answered = {**body, "metadata": {**body["metadata"], "resourceVersion": "9"}}
-    controller.memory.remember_record(observing.instance_record(answered))
+    controller.memory.moved.remember(observing.instance_record(answered))
     controller.on_instance(**instance, body=answered)
     assert _drain(controller) == {(SYSTEM, "ns", "fleet")}, "its system learns of it as of any instance"
     controller.on_instance(

@@ -1,182 +1,47 @@
 """One reconcile pass per verdict, for both kinds, without a cluster.
 
 The reconcilers run as the operator runs them, on indexes filled with records and against an
-in-memory stand-in for `kube` (`FakeKube`, which keeps what was written and can refuse a write as
-an admission controller would). Each test names the verdict a user would read with `kubectl get`.
+in-memory writer (`fake_writer.FakeWriter`, which keeps what was written and can refuse a write
+as an admission controller would). Each test names the verdict a user would read with `kubectl get`.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
-import json
 from collections.abc import Callable, Iterator
-from datetime import timedelta
 from typing import Any
 
 import pytest
 from coral_core import names
 from coral_operator.api import common
 from coral_operator.api.system import CoralSystemSpec
-from coral_operator.kube import applying, leases, observing
-from coral_operator.kube import revisions as stored_revisions
+from coral_operator.kube import observing
 from coral_operator.planning import instances, naming, revisions
 from coral_operator.planning.observed import InstanceRecord, ObservedInstance, RobotNode, SystemRecord
 from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.revisions import StoredRevision
+from coral_operator.planning.status_pacing import PROGRESS_INTERVAL_S, progress_interval
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
-from coral_operator.reconcile.instances import (
-    PROGRESS_INTERVAL_S,
-    InstanceReconciler,
-    progress_interval,
-)
+from coral_operator.reconcile.instances import InstanceReconciler
 from coral_operator.reconcile.memory import Memory
 from coral_operator.reconcile.systems import SystemReconciler
-from kubernetes.client.exceptions import ApiException
+from fake_writer import FakeWriter
 from operator_specs import BASE_SPEC, NOW, robot
 
 NS = "ns"
 
 
-class FakeKube:
-    """In-memory stand-in for the API writes of `kube.applying` and `kube.revisions`.
-
-    A refusal (Pod Security, say) is simulated with the 403 and message the API server would send;
-    that fault cannot be caused without a cluster.
-    """
-
-    def __init__(self) -> None:
-        self.writes: list[tuple[str, str]] = []
-        self.pods: dict[str, dict[str, Any]] = {}
-        self.instances: dict[str, dict[str, Any]] = {}
-        self.status: dict[str, dict[str, Any]] = {}
-        self.config_maps: dict[str, dict[str, str]] = {}
-        self.config_map_labels: dict[str, dict[str, str]] = {}
-        """Labels of `config_maps` by name; unset, a ConfigMap is marked as a Coral source."""
-        self.refuse_config_maps: tuple[int, str] | None = None
-        self.revisions: list[StoredRevision] = []
-        self.refuse_pods = ""
-        self.refuse_instances = ""
-        self.taken_by = ""
-        """Set: every instance name is another owner's (`applying.NameTaken` naming it)."""
-        self.renewed = NOW - timedelta(minutes=3)
-        self._version = 100
-
-    def _refused(self, message: str) -> ApiException:
-        error = ApiException(status=403, reason="Forbidden")
-        error.body = json.dumps({"message": message})
-        return error
-
-    def install(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        def create_pod(manifest: dict[str, Any]) -> bool:
-            if self.refuse_pods:
-                raise self._refused(self.refuse_pods)
-            self.writes.append(("create pod", manifest["metadata"]["name"]))
-            self.pods[manifest["metadata"]["name"]] = manifest
-            return True
-
-        def delete_pod(namespace: str, name: str) -> None:
-            self.writes.append(("delete pod", name))
-            self.pods.pop(name, None)
-
-        def delete_pods(namespace: str, labels: dict[str, str]) -> None:
-            for name, manifest in list(self.pods.items()):
-                if labels.items() <= manifest["metadata"]["labels"].items():
-                    delete_pod(namespace, name)
-
-        def patch_status(namespace: str, name: str, changes: dict[str, Any]) -> str:
-            self.writes.append(("patch status", name))
-            merged = self.status.setdefault(name, {})
-            for key, value in changes.items():
-                if isinstance(value, dict) and isinstance(merged.get(key), dict):
-                    merged[key] = {k: v for k, v in {**merged[key], **value}.items() if v is not None}
-                elif value is None:
-                    merged.pop(key, None)
-                else:
-                    merged[key] = value
-            self._version += 1
-            return str(self._version)
-
-        def write_instance(verb: str, manifest: dict[str, Any], generation: int) -> dict[str, Any]:
-            """Stores the instance and answers as the API server would."""
-            name = manifest["metadata"]["name"]
-            self.writes.append((verb, name))
-            self.instances[name] = manifest
-            self._version += 1
-            metadata = {**manifest["metadata"], "uid": "uid-" + name, "resourceVersion": str(self._version)}
-            return {**manifest, "metadata": {**metadata, "generation": generation}}
-
-        def create_instance(manifest: dict[str, Any]) -> dict[str, Any]:
-            if self.refuse_instances:
-                raise self._refused(self.refuse_instances)
-            if self.taken_by:
-                metadata = manifest["metadata"]
-                raise applying.NameTaken(
-                    "CoralInstance", metadata["namespace"], metadata["name"], self.taken_by
-                )
-            return write_instance("create instance", manifest, 1)
-
-        def read_config_map_key(namespace: str, name: str, key: str) -> applying.SourceKey | None:
-            if self.refuse_config_maps is not None:
-                code, message = self.refuse_config_maps
-                error = ApiException(status=code, reason="Refused")
-                error.body = json.dumps({"message": message})
-                raise error
-            if name not in self.config_maps:
-                return None
-            labels = self.config_map_labels.get(name, {names.LABEL_SOURCE: "true"})
-            return applying.SourceKey(text=self.config_maps[name].get(key), labels=labels)
-
-        def record(verb: str) -> Callable[..., None]:
-            return lambda *args: self.writes.append((verb, str(args[-1] if verb != "apply rbac" else "")))
-
-        patches = {
-            "create_pod": create_pod,
-            "delete_pod": delete_pod,
-            "delete_pods": delete_pods,
-            "patch_pod_labels": lambda ns, name, labels: self.writes.append(("relabel pod", name)),
-            "patch_pod": lambda ns, name, patch: self.writes.append(("patch pod", name)),
-            "apply_rbac": lambda objects: self.writes.append(("apply rbac", objects[0]["metadata"]["name"])),
-            "patch_instance_status": patch_status,
-            "patch_system_status": patch_status,
-            "delete_instance": lambda ns, name: self.writes.append(("delete instance", name)),
-            "create_instance": create_instance,
-            "update_instance": lambda manifest: write_instance("update instance", manifest, 2),
-            "retire_instance": lambda ns, name: self.writes.append(("retire instance", name)),
-            "create_config_map": lambda manifest: self.writes.append(
-                ("create configmap", manifest["metadata"]["name"])
-            ),
-            "delete_config_map": lambda ns, name: self.writes.append(("delete configmap", name)),
-            "read_config_map_key": read_config_map_key,
-        }
-        for name, fake in patches.items():
-            monkeypatch.setattr(applying, name, fake)
-        monkeypatch.setattr(leases, "read_renew_time", lambda node: self.renewed)
-        monkeypatch.setattr(stored_revisions, "read_revisions", lambda ns, system, uid: list(self.revisions))
-        monkeypatch.setattr(
-            stored_revisions, "create_revision", lambda manifest: self.writes.append(("create revision", ""))
-        )
-        monkeypatch.setattr(stored_revisions, "renumber_revision", record("renumber revision"))
-        monkeypatch.setattr(stored_revisions, "delete_revision", record("delete revision"))
-
-    def of(self, verb: str) -> list[str]:
-        """Names written with `verb`; a pod by its instance and component (its suffix is a hash)."""
-        names = [name for done, name in self.writes if done == verb]
-        return [name.rsplit("-", 1)[0] for name in names] if verb.endswith("pod") else names
-
-
 @pytest.fixture
-def kube(monkeypatch: pytest.MonkeyPatch) -> FakeKube:
-    fake = FakeKube()
-    fake.install(monkeypatch)
-    return fake
+def kube() -> FakeWriter:
+    return FakeWriter()
 
 
 class Harness:
     """Both reconcilers over hand-filled indexes; `requeued` and `events` record what they asked for."""
 
-    def __init__(self, kube: FakeKube) -> None:
+    def __init__(self, kube: FakeWriter) -> None:
         self.kube = kube
         self.memory = Memory(clock=lambda: self.seconds)
         self.seconds = 1000.0
@@ -190,6 +55,7 @@ class Harness:
         common: dict[str, Any] = {
             "memory": self.memory,
             "indexes": self.indexes,
+            "writer": kube,
             "post": lambda ref, kind, reason, message: self.events.append(
                 (ref["metadata"]["name"], kind, reason, message)
             ),
@@ -246,7 +112,7 @@ class Harness:
                 generation=generation,
                 spec=spec,
                 status=copy.deepcopy(status),
-                resource_version=str(self.kube._version),
+                resource_version=str(self.kube.version),
                 owners=(owner,) if by_hand is None else by_hand,
             )
         ]
@@ -254,7 +120,7 @@ class Harness:
         # same resourceVersion (what it shows of the status stays as `instances_are` set it).
         views = self.tables["coral_instances"].get(instances_of_system(NS, system), [])
         self.tables["coral_instances"][instances_of_system(NS, system)] = [
-            dataclasses.replace(view, resource_version=str(self.kube._version))
+            dataclasses.replace(view, resource_version=str(self.kube.version))
             if isinstance(view, ObservedInstance) and view.name == name
             else view
             for view in views
@@ -303,7 +169,7 @@ class Harness:
                 generation=1,
                 spec=spec,
                 status=copy.deepcopy(self.kube.status.get(name, {})),
-                resource_version=str(self.kube._version),
+                resource_version=str(self.kube.version),
             )
         ]
 
@@ -318,7 +184,7 @@ class Harness:
                         **manifest["metadata"],
                         "generation": 1,
                         "uid": "uid-" + manifest["metadata"]["name"],
-                        "resourceVersion": str(self.kube._version),  # noqa: SLF001
+                        "resourceVersion": str(self.kube.version),  # noqa: SLF001
                     },
                     "spec": manifest["spec"],
                     "status": {"conditions": conditions, "robot": {"reachable": True, "nodeReady": True}},
@@ -342,7 +208,7 @@ class _Inline:
 
 
 @pytest.fixture
-def harness(kube: FakeKube) -> Harness:
+def harness(kube: FakeWriter) -> Harness:
     made = Harness(kube)
     made.add_robot(robot("r1"))
     return made
@@ -768,7 +634,7 @@ def test_an_update_answered_for_an_instance_deleted_since_brings_nothing_back(ha
     answered = observing.instance_record(
         {"metadata": {"name": "sys-r1", "namespace": NS, "uid": "uid-sys-r1", "resourceVersion": "7"}}
     )
-    harness.memory.remember_record(answered)
+    harness.memory.moved.remember(answered)
     harness.instances.reconcile((NS, "sys-r1"))  # the index no longer holds it
     assert harness.kube.writes == []
 
@@ -826,7 +692,7 @@ def test_a_config_map_its_owners_did_not_mark_as_a_source_is_not_read(harness: H
 
 def test_a_refused_read_of_a_source_is_a_status_not_a_retried_error(harness: Harness) -> None:
     # A name the schema admits now; one written before it had a pattern got a 400 retried forever.
-    harness.kube.refuse_config_maps = (400, 'invalid resource name "params": may not contain \'%\'')
+    harness.kube.refuse_config_maps = (400, "invalid resource name \"params\": may not contain '%'")
     status = harness.pass_system(_spec(parameters={"configMapRef": {"name": "params", "key": "p.yaml"}}))
     stalled = next(c for c in status["conditions"] if c["type"] == "Stalled")
     assert (stalled["status"], stalled["reason"]) == ("True", "ConfigMapUnreadable")

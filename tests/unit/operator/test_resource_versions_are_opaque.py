@@ -15,7 +15,7 @@ from pathlib import Path
 import coral_operator
 import pytest
 from coral_operator.planning.observed import InstanceRecord
-from coral_operator.reconcile.memory import Memory
+from coral_operator.reconcile.unseen_writes import MovedInstances, StatusWrites
 
 PACKAGE = Path(coral_operator.__file__).parent
 OURS = {"conditions": [{"type": "Ready", "status": "True"}]}
@@ -23,32 +23,32 @@ FORGED = {"conditions": [{"type": "Ready", "status": "False"}]}
 
 
 def test_an_index_still_at_the_version_the_write_replaced_is_shown_the_write() -> None:
-    memory = Memory()
-    memory.remember_status("i1", "qx", OURS, replaced="mb")
-    assert memory.status_unseen("i1", "mb") == OURS
-    assert memory.observed_status("i1", "mb", FORGED) == OURS
+    statuses = StatusWrites()
+    statuses.remember("i1", "qx", OURS, replaced="mb")
+    assert statuses.unseen("i1", "mb") == OURS
+    assert statuses.observed("i1", "mb", FORGED) == OURS
 
 
 def test_the_written_version_or_any_later_one_is_the_truth() -> None:
-    memory = Memory()
-    memory.remember_status("i1", "qx", OURS, replaced="mb")
-    assert memory.status_unseen("i1", "qx") is None
+    statuses = StatusWrites()
+    statuses.remember("i1", "qx", OURS, replaced="mb")
+    assert statuses.unseen("i1", "qx") is None
     # An executor that forged the operator's part after the write is seen, and corrected.
-    assert memory.observed_status("i1", "zz", FORGED) == FORGED
+    assert statuses.observed("i1", "zz", FORGED) == FORGED
 
 
 def test_a_second_write_before_the_index_caught_up_keeps_both_hidden_versions() -> None:
-    memory = Memory()
-    memory.remember_status("i1", "v1", {"step": 1}, replaced="v0")
+    statuses = StatusWrites()
+    statuses.remember("i1", "v1", {"step": 1}, replaced="v0")
     # The next pass read the index still at v0: the index may show v0, then v1, before v2.
-    memory.remember_status("i1", "v2", OURS, replaced="v0")
-    assert memory.status_unseen("i1", "v0") == OURS
-    assert memory.status_unseen("i1", "v1") == OURS
-    assert memory.status_unseen("i1", "v2") is None
+    statuses.remember("i1", "v2", OURS, replaced="v0")
+    assert statuses.unseen("i1", "v0") == OURS
+    assert statuses.unseen("i1", "v1") == OURS
+    assert statuses.unseen("i1", "v2") is None
     # Once a pass read the index at the write's version, only that version is from before.
-    memory.remember_status("i1", "v3", {"step": 3}, replaced="v2")
-    assert memory.status_unseen("i1", "v1") is None
-    assert memory.status_unseen("i1", "v2") == {"step": 3}
+    statuses.remember("i1", "v3", {"step": 3}, replaced="v2")
+    assert statuses.unseen("i1", "v1") is None
+    assert statuses.unseen("i1", "v2") == {"step": 3}
 
 
 def _record(version: str, uid: str = "i1") -> InstanceRecord:
@@ -58,14 +58,14 @@ def _record(version: str, uid: str = "i1") -> InstanceRecord:
 
 
 def test_a_moved_instance_counts_until_the_index_leaves_the_version_it_had_before() -> None:
-    memory = Memory(clock=lambda: 0.0)
+    moved_instances = MovedInstances(clock=lambda: 0.0)
     key = ("ns", "sys-r1")
     moved = _record("qx")
-    memory.remember_record(moved, replaced="mb")
-    assert memory.latest_record(key, _record("mb")) is moved
+    moved_instances.remember(moved, replaced="mb")
+    assert moved_instances.latest(key, _record("mb")) is moved
     later = _record("zz")
-    assert memory.latest_record(key, later) is later
-    assert memory.latest_record(key, _record("mb")).resource_version == "mb", "forgotten once caught up"
+    assert moved_instances.latest(key, later) is later
+    assert moved_instances.latest(key, _record("mb")).resource_version == "mb", "forgotten once caught up"
 
 
 ORDERING = (ast.Lt, ast.LtE, ast.Gt, ast.GtE)

@@ -54,6 +54,7 @@ def _plan(
     return system_pass.plan_system(
         system_pass.SystemObservation(
             system=record,
+            spec=spec,
             tree=(spec.tree.inline or "", "tree"),
             parameters=(spec.parameters.inline or "", "params"),
             robots=nodes,
