@@ -15,9 +15,10 @@ from typing import Any
 import pytest
 import yaml
 from coral_core import names
+from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
-from coral_operator.planning import effective, system_pass
+from coral_operator.planning import effective, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, RobotNode
 from coral_operator.planning.overrides import BaseConfig, ConfigError, EffectiveConfig, effective_config
 from coral_operator.planning.policy import Policy
@@ -458,3 +459,15 @@ def test_systems_without_overrides_keep_their_revision() -> None:
     assert all(m["spec"]["configHash"] == revision for m in plan.changes.create)
     assert names.LABEL_SYSTEM  # the instance labels are the system's, as without overrides
     assert effective.OVERRIDES not in plan.stored_after[0].template
+
+
+def test_an_instance_with_its_overrides_is_served_and_one_edited_by_hand_is_not() -> None:
+    plan = _observe(_fleet_spec(), [], [])
+    manifest = next(m for m in plan.changes.create if m["spec"]["robot"] == "arm-0")
+    spec = CoralInstanceSpec.model_validate(manifest["spec"])
+    node = next(n for n in FLEET if n.robot == "arm-0")
+    assert provenance.evaluate_revision(spec, plan.stored_after, node) is None
+    edited = spec.model_copy(update={"drivers": [d.model_copy(update={"image": "evil:1"}) for d in spec.drivers]})
+    assert "differs from revision" in (provenance.evaluate_revision(edited, plan.stored_after, node) or "")
+    as_a_spot = dataclasses.replace(node, labels={**node.labels, "coral.dev/model": "spot"})
+    assert provenance.evaluate_revision(spec, plan.stored_after, as_a_spot) is not None
