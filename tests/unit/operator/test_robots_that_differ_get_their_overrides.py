@@ -467,7 +467,9 @@ def test_an_instance_with_its_overrides_is_served_and_one_edited_by_hand_is_not(
     spec = CoralInstanceSpec.model_validate(manifest["spec"])
     node = next(n for n in FLEET if n.robot == "arm-0")
     assert provenance.evaluate_revision(spec, plan.stored_after, node) is None
-    edited = spec.model_copy(update={"drivers": [d.model_copy(update={"image": "evil:1"}) for d in spec.drivers]})
+    edited = spec.model_copy(
+        update={"drivers": [d.model_copy(update={"image": "evil:1"}) for d in spec.drivers]}
+    )
     assert "differs from revision" in (provenance.evaluate_revision(edited, plan.stored_after, node) or "")
     as_a_spot = dataclasses.replace(node, labels={**node.labels, "coral.dev/model": "spot"})
     assert provenance.evaluate_revision(spec, plan.stored_after, as_a_spot) is not None
