@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 import yaml
 from coral_core import names
+from coral_operator import config_cli, robot_config
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
@@ -473,3 +474,36 @@ def test_an_instance_with_its_overrides_is_served_and_one_edited_by_hand_is_not(
     assert "differs from revision" in (provenance.evaluate_revision(edited, plan.stored_after, node) or "")
     as_a_spot = dataclasses.replace(node, labels={**node.labels, "coral.dev/model": "spot"})
     assert provenance.evaluate_revision(spec, plan.stored_after, as_a_spot) is not None
+
+
+def _system_body(spec: dict[str, Any]) -> dict[str, Any]:
+    return {"metadata": {"name": "site", "namespace": "ns", "uid": "u-site"}, "spec": spec}
+
+
+def test_coral_config_shows_what_a_robot_runs_with_the_operators_hash() -> None:
+    plan = _observe(_fleet_spec(), [], [])
+    instance = next(m for m in plan.changes.create if m["spec"]["robot"] == "server-0")
+    server = next(n for n in FLEET if n.robot == "server-0")
+    said = robot_config.explain(
+        system=_system_body(_fleet_spec()),
+        node=server,
+        tree=TREE,
+        parameters=BASE_SPEC["parameters"]["inline"],
+        instance=instance,
+    )
+    assert said.valid and said.runs_it and said.overrides == ("server",)
+    text = config_cli.render(said)
+    assert "running: this configuration" in text
+    assert "executor  executor             example/executor:1  [IP=10.0.0.1]" in text
+    assert "rate: 10" in text and "<AlwaysSuccess/>" in text
+
+
+def test_coral_config_names_what_is_wrong_and_that_the_robot_keeps_what_it_runs() -> None:
+    spec = _fleet_spec()
+    spec["overrides"][2]["env"] = [{"name": "IP", "value": "${robot.annotations['vpn']}"}]
+    server = next(n for n in FLEET if n.robot == "server-0")
+    said = robot_config.explain(system=_system_body(spec), node=server, tree=TREE, parameters="a: 1\n")
+    assert not said.valid
+    text = config_cli.render(said)
+    assert "INVALID" in text and "robot server-0: spec.overrides[server].env[IP]" in text
+    assert "running: no CoralInstance yet" in text
