@@ -36,18 +36,16 @@ def with_overrides(
     template: dict[str, Any], spec: CoralSystemSpec, tree: str, parameters: str
 ) -> dict[str, Any]:
     """The revision template of `spec`: `template` as before, plus its overrides when it has any (so
-    systems without overrides keep their revision hashes)."""
+    systems without overrides keep their revision hashes), with only the system files they change:
+    the revision must fit in one object."""
     if not spec.overrides:
         return template
-    return {
-        **template,
-        OVERRIDES: {
-            "rules": [o.to_wire() for o in spec.overrides],
-            "tree": tree,
-            "files": dict(spec.tree.files),
-            "parameters": parameters,
-        },
-    }
+    section: dict[str, Any] = {"rules": [o.to_wire() for o in spec.overrides]}
+    if any(o.tree is not None for o in spec.overrides):
+        section.update(tree=tree, files=dict(spec.tree.files))
+    if any(o.parameters is not None for o in spec.overrides):
+        section["parameters"] = parameters
+    return {**template, OVERRIDES: section}
 
 
 def validate_changed(
@@ -140,10 +138,10 @@ class EffectiveTemplates:
         if known is None:
             rules = [Override.model_validate(rule) for rule in section["rules"]]
             base = BaseConfig(
-                tree=section["tree"],
+                tree=section.get("tree", ""),
                 tree_files=dict(section.get("files") or {}),
                 main_tree_id=(template.get("tree") or {}).get("mainTreeId"),
-                parameters=section["parameters"],
+                parameters=section.get("parameters", ""),
                 drivers=[Component.model_validate(c) for c in template.get("drivers") or []],
                 skillsets=[Component.model_validate(c) for c in template.get("skillsets") or []],
                 executors=[ExecutorComponent.model_validate(c) for c in template.get("executors") or []],
@@ -165,14 +163,13 @@ class EffectiveTemplates:
             return problem
         resolved = {k: v for k, v in template.items() if k not in (OVERRIDES, CONFIG_HASH)}
         common = {"system": self.system, "namespace": self.namespace, "system_uid": self.system_uid}
-        if "tree" in config.changed or config.main_tree_id != base.main_tree_id:
+        if "tree" in config.changed:
             tree = dict(resolved["tree"])
-            if "tree" in config.changed:
-                manifest = configmaps.build_config_map(
-                    **common, kind="tree", key=configmaps.TREE_KEY, text=config.tree, beside=config.tree_files
-                )
-                self.config_maps[manifest["metadata"]["name"]] = manifest
-                tree["configMap"] = manifest["metadata"]["name"]
+            manifest = configmaps.build_config_map(
+                **common, kind="tree", key=configmaps.TREE_KEY, text=config.tree, beside=config.tree_files
+            )
+            self.config_maps[manifest["metadata"]["name"]] = manifest
+            tree["configMap"] = manifest["metadata"]["name"]
             tree.pop("mainTreeId", None)
             if config.main_tree_id is not None:
                 tree["mainTreeId"] = config.main_tree_id

@@ -198,7 +198,11 @@ def effective_config(
         executors=components["executors"],  # type: ignore[arg-type]
         applied=tuple(o.name for o in matching),
         changed=frozenset({"parameters"} if params_changed else set())
-        | ({"tree"} if (tree, files) != (base.tree, dict(base.tree_files)) else set()),
+        | (
+            {"tree"}
+            if (tree, files, main_tree_id) != (base.tree, dict(base.tree_files), base.main_tree_id)
+            else set()
+        ),
     )
 
 

@@ -507,3 +507,11 @@ def test_coral_config_names_what_is_wrong_and_that_the_robot_keeps_what_it_runs(
     text = config_cli.render(said)
     assert "INVALID" in text and "robot server-0: spec.overrides[server].env[IP]" in text
     assert "running: no CoralInstance yet" in text
+
+
+def test_an_override_naming_a_main_tree_the_document_lacks_is_refused_for_its_robots() -> None:
+    spec = _fleet_spec()
+    spec["overrides"][0]["tree"] = {"mainTreeId": "Nowhere"}
+    plan = _observe(spec, [], [])
+    assert sorted(e.robot for e in plan.config_errors) == ["spot-0", "spot-1", "spot-2"]
+    assert "Nowhere" in str(plan.config_errors[0])
