@@ -231,7 +231,8 @@ def _components(base: BaseConfig, matching: list[Override], robot: RobotNode) ->
     result: dict[str, list[Component]] = {
         kind: [c for c in getattr(base, kind) if c.name not in removed] for kind in KINDS
     }
-    for _, _, (kind, wire) in added.items():
+    # Sorted, as everything an override adds, so that the overrides' order changes nothing.
+    for _, _, (kind, wire) in sorted(added.items(), key=lambda item: item[0]):
         model = ExecutorComponent if kind == "executors" else Component
         result[kind].append(model.model_validate(wire))
     names = {c.name for kind in KINDS for c in result[kind]}
@@ -246,7 +247,7 @@ def _components(base: BaseConfig, matching: list[Override], robot: RobotNode) ->
             where = f"spec.overrides[{override.name}].env[{variable.name}]"
             env.claim(override.name, f"env[{variable.name}]", substitute(variable.value, robot, where))
     image_of = {what[len("images[") : -1]: (owner, value) for what, owner, value in images.items()}
-    variables = [(what[len("env[") : -1], owner, value) for what, owner, value in env.items()]
+    variables = sorted((what[len("env[") : -1], owner, value) for what, owner, value in env.items())
     for kind in KINDS:
         result[kind] = [_with(c, image_of.get(c.name), variables) for c in result[kind]]
     return result
@@ -325,7 +326,7 @@ def _parameters(text: str, matching: list[Override], robot: RobotNode) -> tuple[
     merged = parsing.load_bounded_yaml(text) or {}
     for document in documents:
         merged = merge(merged, document)
-    return yaml.safe_dump(merged, sort_keys=False, default_flow_style=False, allow_unicode=True), True
+    return yaml.safe_dump(merged, sort_keys=True, default_flow_style=False, allow_unicode=True), True
 
 
 def _tree(base: BaseConfig, matching: list[Override]) -> tuple[str, dict[str, str], str | None]:

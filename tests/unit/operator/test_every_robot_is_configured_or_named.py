@@ -10,19 +10,16 @@ overrides changes nothing (they never outrank each other).
 from __future__ import annotations
 
 import copy
-from datetime import UTC, datetime
 from typing import Any
 
 import yaml
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
-from coral_operator.kube import observing
 from coral_operator.planning import system_pass, validation
 from coral_operator.planning.observed import RobotNode
-from coral_operator.planning.policy import Policy
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from operator_specs import BASE_SPEC, TREE
+from operator_specs import BASE_SPEC, TREE, plan_pass
 from pydantic import ValidationError
 
 MODELS = ["spot", "arm", "server"]
@@ -100,25 +97,10 @@ def fleets(draw: st.DrawFn) -> list[RobotNode]:
 
 
 def _plan(spec: dict[str, Any], robots: list[RobotNode]) -> system_pass.SystemPlan:
-    record = observing.system_record({"metadata": {"name": "s", "namespace": "ns", "uid": "u"}, "spec": spec})
-    parsed = CoralSystemSpec.model_validate(spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            tree=(parsed.tree.inline or "", "tree"),
-            parameters=(parsed.parameters.inline or "", "params"),
-            robots=robots,
-            instances=[],
-            stored_revisions=[],
-            expected={},
-            previous_rollout=None,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
-            now=datetime(2026, 1, 1, tzinfo=UTC),
-        )
-    )
+    return plan_pass(spec, robots, name="s")
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules=overrides(), robots=fleets())
 def test_every_robot_is_configured_or_named_with_its_field(
     rules: list[dict[str, Any]], robots: list[RobotNode]
@@ -137,7 +119,7 @@ def test_every_robot_is_configured_or_named_with_its_field(
     assert not set(created) & set(failed)
     event("some robots named" if failed else "every robot configured")
     config_maps = {cm["metadata"]["name"]: cm["data"] for cm in plan.config_maps}
-    for robot, instance in created.items():
+    for instance in created.values():
         CoralInstanceSpec.model_validate(instance)
         tree = config_maps[instance["tree"]["configMap"]]
         assert (

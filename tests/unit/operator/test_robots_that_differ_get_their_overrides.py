@@ -9,7 +9,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Callable
-from datetime import UTC, datetime
 from typing import Any
 
 import pytest
@@ -18,13 +17,11 @@ from coral_core import names
 from coral_operator import config_cli, robot_config
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
-from coral_operator.kube import observing
 from coral_operator.planning import effective, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, RobotNode
 from coral_operator.planning.overrides import BaseConfig, ConfigError, EffectiveConfig, effective_config
-from coral_operator.planning.policy import Policy
 from coral_operator.status.conditions import Reason
-from operator_specs import BASE_SPEC, TREE
+from operator_specs import BASE_SPEC, TREE, observed_from, plan_pass
 
 NAV = '<root BTCPP_format="4"><BehaviorTree ID="Nav"><AlwaysSuccess/></BehaviorTree></root>'
 ARM_TREE = TREE.replace("<AlwaysSuccess/>", "<AlwaysFailure/>")
@@ -334,38 +331,14 @@ def _fleet_spec(spot_rate: int = 20) -> dict[str, Any]:
 def _observe(
     spec: dict[str, Any], instances: list[ObservedInstance], stored: list[Any]
 ) -> system_pass.SystemPlan:
-    record = observing.system_record(
-        {"metadata": {"name": "site", "namespace": "ns", "uid": "u-site", "generation": 1}, "spec": spec}
-    )
-    parsed = CoralSystemSpec.model_validate(spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            tree=(parsed.tree.inline or "", "tree"),
-            parameters=(parsed.parameters.inline or "", "params"),
-            robots=FLEET,
-            instances=instances,
-            stored_revisions=stored,
-            expected={},
-            previous_rollout=None,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
-            now=datetime(2026, 1, 1, tzinfo=UTC),
-        )
-    )
+    return plan_pass(spec, FLEET, instances, stored)
 
 
 def _applied(plan: system_pass.SystemPlan, before: list[ObservedInstance]) -> list[ObservedInstance]:
     """The instances once `plan` is written and every robot reports Ready."""
     by_name = {i.name: i for i in before}
     for manifest in plan.changes.create + plan.changes.update:
-        by_name[manifest["metadata"]["name"]] = ObservedInstance(
-            name=manifest["metadata"]["name"],
-            robot=manifest["spec"]["robot"],
-            spec=copy.deepcopy(manifest["spec"]),
-            revision=manifest["spec"]["revision"],
-            labels=manifest["metadata"]["labels"],
-            controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
-        )
+        by_name[manifest["metadata"]["name"]] = observed_from(manifest)
     return [dataclasses.replace(i, ready=True) for i in by_name.values()]
 
 
