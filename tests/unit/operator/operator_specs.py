@@ -120,11 +120,18 @@ def plan_pass(
     instances: list[ObservedInstance] | None = None,
     stored: list[Any] | None = None,
     name: str = "site",
+    annotations: dict[str, str] | None = None,
 ) -> system_pass.SystemPlan:
-    """One system pass of `spec` (inline files) over `robots`, with a policy that allows the host network."""
-    record = observing.system_record(
-        {"metadata": {"name": name, "namespace": "ns", "uid": f"u-{name}", "generation": 1}, "spec": spec}
-    )
+    """One system pass of `spec` (inline files) over `robots`, with a policy that allows the host
+    network and nothing else."""
+    metadata = {
+        "name": name,
+        "namespace": "ns",
+        "uid": f"u-{name}",
+        "generation": 1,
+        "annotations": annotations,
+    }
+    record = observing.system_record({"metadata": metadata, "spec": spec})
     parsed = CoralSystemSpec.model_validate(spec)
     return system_pass.plan_system(
         system_pass.SystemObservation(

@@ -488,3 +488,35 @@ def test_an_override_naming_a_main_tree_the_document_lacks_is_refused_for_its_ro
     plan = _observe(spec, [], [])
     assert sorted(e.robot for e in plan.config_errors) == ["spot-0", "spot-1", "spot-2"]
     assert "Nowhere" in str(plan.config_errors[0])
+
+
+def test_an_undo_returns_each_robot_to_what_the_earlier_revision_gave_it() -> None:
+    first, stored = _deployed(_fleet_spec(spot_rate=20))
+    change = _observe(_fleet_spec(spot_rate=30), first, stored)
+    second = _applied(change, first)
+    newest = change.rollout.target  # type: ignore[union-attr]
+    undone = {names.ANNOTATION_ROLLOUT_UNDO: newest}
+    undo = plan_pass(_fleet_spec(spot_rate=30), FLEET, second, change.stored_after, annotations=undone)
+    assert undo.rollout is not None and undo.rollout.target != newest
+    back = {m["spec"]["robot"]: m["spec"] for m in undo.changes.update}
+    assert set(back) == {r.robot for r in FLEET}
+    was = {i.robot: i.spec for i in first}
+    for robot, spec in back.items():
+        assert spec["configHash"] == was[robot]["configHash"]
+    rate = yaml.safe_load(
+        next(
+            cm["data"]["params.yaml"]
+            for cm in undo.config_maps
+            if cm["metadata"]["name"] == back["spot-1"]["parameters"]["configMap"]
+        )
+    )["driver"]["ros__parameters"]["rate"]
+    assert rate == 20
+
+
+def test_components_an_override_adds_are_held_to_the_privilege_policy() -> None:
+    spec = _fleet_spec()
+    spec["overrides"][1]["add"]["drivers"][0]["privileged"] = True
+    plan = plan_pass(spec, FLEET)
+    assert plan.problem is not None and plan.problem.reason == Reason.POLICY_DENIED
+    assert "spec.overrides[arm].add.drivers[0] (gripper)" in plan.problem.message
+    assert not plan.changes.create
