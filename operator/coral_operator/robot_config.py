@@ -151,6 +151,7 @@ class ConfigReader:
     """Reads what `explain` needs from the cluster, with the user's identity."""
 
     def __init__(self, api_client: k8s.ApiClient, namespace: str) -> None:
+        self.api_client = api_client
         self.custom = k8s.CustomObjectsApi(api_client)
         self.core = k8s.CoreV1Api(api_client)
         self.namespace = namespace
@@ -177,7 +178,7 @@ class ConfigReader:
         record = observing.robot_node(
             node.metadata.name,
             node.metadata.labels or {},
-            k8s.ApiClient().sanitize_for_serialization(node.status) or {},
+            self.api_client.sanitize_for_serialization(node.status) or {},
             None,
             node.metadata.annotations or {},
         )

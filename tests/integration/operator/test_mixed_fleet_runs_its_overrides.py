@@ -101,6 +101,10 @@ def test_each_model_runs_its_own_and_an_override_change_reaches_its_model_only(s
         "max_range: 60.0" in said["parameters"] and '<BehaviorTree ID="Patrol">' in said["tree"]["tree.xml"]
     )
     assert _coral_config(scenario, server)["components"][0]["env"]["ROBOT_IP"] == "10.1.2.3"
+    argv = [sys.executable, "-m", "coral", "config", "site", arms[0], "-n", scenario.namespace]
+    text = subprocess.run(argv, env=scenario.cluster.env(), capture_output=True, text=True, timeout=60).stdout
+    assert "overrides: arm" in text and "running: this configuration" in text
+    assert "driver    gripper" in text and "lidar-driver" not in text
 
     # Only the spots' override changes: only their slam pods are replaced.
     generation = scenario.coral.system("site")["metadata"]["generation"]
