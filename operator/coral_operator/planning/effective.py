@@ -22,6 +22,7 @@ from coral_operator.planning.overrides import (
     BaseConfig,
     ConfigError,
     EffectiveConfig,
+    ParsedDocuments,
     effective_config,
     node_value,
     references,
@@ -97,6 +98,7 @@ class EffectiveTemplates:
         self._plain: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
         self._rules: dict[int, tuple[BaseConfig, list[Override], list[set[str]]]] = {}
         self._resolved: dict[tuple[Any, ...], dict[str, Any] | ConfigError] = {}
+        self._documents = ParsedDocuments()
 
     def plain(self, template: dict[str, Any]) -> dict[str, Any]:
         """`template` for a robot no override matches."""
@@ -155,7 +157,7 @@ class EffectiveTemplates:
     def _build(
         self, template: dict[str, Any], base: BaseConfig, rules: list[Override], robot: RobotNode
     ) -> dict[str, Any] | ConfigError:
-        config = effective_config(base, rules, robot)
+        config = effective_config(base, rules, robot, self._documents)
         if isinstance(config, ConfigError):
             return config
         problem = validate_changed(config, robot.robot, f"coralsystem/{self.system}", self.verdicts)

@@ -171,17 +171,23 @@ class _Claims:
 
 
 def effective_config(
-    base: BaseConfig, overrides: Sequence[Override], robot: RobotNode
+    base: BaseConfig,
+    overrides: Sequence[Override],
+    robot: RobotNode,
+    parsed: ParsedDocuments | None = None,
 ) -> EffectiveConfig | ConfigError:
     """The configuration `robot` runs, or why it has none (see the module docstring for the rules).
 
     Only the composition is checked here; the changed tree and parameters documents are validated
-    by `planning.effective`, as the system's own are.
+    by `planning.effective`, as the system's own are. `parsed` shares parsed documents between
+    the robots of one pass.
     """
     matching = [o for o in overrides if selection.matches(o.robots, robot.labels)]
     try:
         components = _components(base, matching, robot)
-        parameters, params_changed = _parameters(base.parameters, matching, robot)
+        parameters, params_changed = _parameters(
+            base.parameters, matching, robot, parsed or ParsedDocuments()
+        )
         tree, files, main_tree_id = _tree(base, matching)
     except _Unresolved as error:
         return ConfigError(robot.robot, error.where, error.message)
@@ -291,7 +297,37 @@ def merge(base: Any, update: Any) -> Any:
     return update
 
 
-def _parameters(text: str, matching: list[Override], robot: RobotNode) -> tuple[str, bool]:
+class ParsedDocuments:
+    """Parameters documents parsed once for every robot they reach (a fleet resolves the same
+    override for hundreds of robots); read only, as robots' documents are built anew from them."""
+
+    def __init__(self) -> None:
+        self._parsed: dict[tuple[str, str], Any] = {}
+
+    def parse(self, text: str, where: str) -> Any:
+        """The mapping `text` holds ({} for none).
+
+        Raises:
+            _Unresolved: not YAML, or not a mapping; names `where`.
+        """
+        key = (where, text)
+        if key not in self._parsed:
+            try:
+                document = parsing.load_bounded_yaml(text) or {}
+                if not isinstance(document, dict):
+                    kind = type(document).__name__
+                    document = _Unresolved(where, f"parameters must be a mapping of node names, got {kind}")
+            except yaml.YAMLError as error:
+                document = _Unresolved(where, f"invalid YAML: {getattr(error, 'problem', None) or error}")
+            self._parsed[key] = document
+        if isinstance(self._parsed[key], _Unresolved):
+            raise self._parsed[key]
+        return self._parsed[key]
+
+
+def _parameters(
+    text: str, matching: list[Override], robot: RobotNode, parsed: ParsedDocuments
+) -> tuple[str, bool]:
     given = [o for o in matching if o.parameters is not None]
     if not given:
         return text, False
@@ -299,16 +335,9 @@ def _parameters(text: str, matching: list[Override], robot: RobotNode) -> tuple[
     documents = []
     for override in given:
         where = f"spec.overrides[{override.name}].parameters"
-        try:
-            document = parsing.load_bounded_yaml(override.parameters or "")
-        except yaml.YAMLError as error:
-            raise _Unresolved(where, f"invalid YAML: {getattr(error, 'problem', None) or error}") from None
+        document = parsed.parse(override.parameters or "", where)
         if not document:
             continue
-        if not isinstance(document, dict):
-            raise _Unresolved(
-                where, f"parameters must be a mapping of node names, got {type(document).__name__}"
-            )
         document = _substitute_tree(document, robot, where)
         for path, value in _leaves(document):
             # Equal paths clash on a different value; a leaf of one override inside a leaf of another
@@ -323,7 +352,7 @@ def _parameters(text: str, matching: list[Override], robot: RobotNode) -> tuple[
                     raise _Unresolved(f"{where}.{'.'.join(path)}", CONFLICT.format(other=owner))
             claims.setdefault(path, (override.name, value))
         documents.append(document)
-    merged = parsing.load_bounded_yaml(text) or {}
+    merged = parsed.parse(text, "spec.parameters")
     for document in documents:
         merged = merge(merged, document)
     return yaml.safe_dump(merged, sort_keys=True, default_flow_style=False, allow_unicode=True), True
