@@ -17,6 +17,7 @@ from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.overrides import Override
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import configmaps, naming, selection, validation
+from coral_operator.planning.node_values import node_value, references
 from coral_operator.planning.observed import RobotNode
 from coral_operator.planning.overrides import (
     BaseConfig,
@@ -24,8 +25,6 @@ from coral_operator.planning.overrides import (
     EffectiveConfig,
     ParsedDocuments,
     effective_config,
-    node_value,
-    references,
 )
 
 OVERRIDES = "overrides"

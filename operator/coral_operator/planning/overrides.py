@@ -12,15 +12,14 @@ the robot and the field. The rules (docs/overrides.md), stated once here:
   the result (so they reach added components), then parameters deep-merged (mappings key by key,
   anything else replaced), then tree documents replaced by name.
 - `${robot.name}`, `${robot.labels['KEY']}` and `${robot.annotations['KEY']}` are substituted in
-  the overrides' parameter strings, env values and images; `$${` stands for a literal `${`. A
-  missing key is an error naming the robot, the field and the key.
+  the overrides' parameter strings, env values and images (`planning.node_values`); `$${` stands
+  for a literal `${`. A missing key is an error naming the robot, the field and the key.
 
 Called by `planning.effective` (the system pass) and `coral config`.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,10 +32,9 @@ from coral_operator.api.components import Component, EnvVar, ExecutorComponent
 from coral_operator.api.overrides import Override
 from coral_operator.api.system import CoralSystemSpec, groot2_ports_overlap
 from coral_operator.planning import selection
+from coral_operator.planning.node_values import Unresolved, substitute, substitute_values
 from coral_operator.planning.observed import RobotNode
 
-NODE_VALUE = re.compile(r"\$\$\{|\$\{([^}]*)\}")
-_REFERENCE = re.compile(r"robot\.(?:(name)|(labels|annotations)\['([^'\]]+)'\])")
 KINDS = ("drivers", "skillsets", "executors")
 CONFLICT = "conflicts with override {other}, which also matches this robot and sets it differently"
 
@@ -96,64 +94,6 @@ class EffectiveConfig:
     """Which of `tree` and `parameters` differ from the system's (they need validating again)."""
 
 
-class _Unresolved(Exception):
-    def __init__(self, where: str, message: str) -> None:
-        super().__init__(message)
-        self.where = where
-        self.message = message
-
-
-def references(text: str) -> set[str]:
-    """The Node references (`robot.name`, `robot.labels['k']`, ...) written in `text`."""
-    return {m.group(1) for m in NODE_VALUE.finditer(text) if m.group(1) is not None}
-
-
-def node_value(reference: str, robot: RobotNode) -> str | None:
-    """The value a reference stands for on `robot`; None when the Node lacks the key.
-
-    Raises:
-        ValueError: not a reference this syntax knows.
-    """
-    parsed = _REFERENCE.fullmatch(reference.strip())
-    if parsed is None:
-        raise ValueError(
-            f"unknown reference ${{{reference}}}; use ${{robot.name}}, ${{robot.labels['KEY']}} "
-            "or ${robot.annotations['KEY']}"
-        )
-    if parsed.group(1):
-        return robot.robot
-    source = robot.labels if parsed.group(2) == "labels" else robot.annotations
-    return source.get(parsed.group(3))
-
-
-def substitute(text: str, robot: RobotNode, where: str) -> str:
-    """`text` with the robot's Node values put in for its references."""
-
-    def replace(match: re.Match[str]) -> str:
-        if match.group(1) is None:
-            return "${"
-        try:
-            value = node_value(match.group(1), robot)
-        except ValueError as error:
-            raise _Unresolved(where, str(error)) from None
-        if value is None:
-            kind = "label" if "labels" in match.group(1) else "annotation"
-            raise _Unresolved(where, f"${{{match.group(1)}}}: the robot's Node has no {kind} of that key")
-        return value
-
-    return NODE_VALUE.sub(replace, text)
-
-
-def _substitute_tree(value: Any, robot: RobotNode, where: str) -> Any:
-    if isinstance(value, str):
-        return substitute(value, robot, where)
-    if isinstance(value, dict):
-        return {k: _substitute_tree(v, robot, f"{where}.{k}") for k, v in value.items()}
-    if isinstance(value, list):
-        return [_substitute_tree(v, robot, f"{where}[{i}]") for i, v in enumerate(value)]
-    return value
-
-
 class _Claims:
     """Values set by overrides, by the field they set: a second, different value is a conflict."""
 
@@ -163,7 +103,7 @@ class _Claims:
     def claim(self, owner: str, what: str, value: Any) -> None:
         known = self._by_field.get(what)
         if known is not None and known[0] != owner and known[1] != value:
-            raise _Unresolved(f"spec.overrides[{owner}].{what}", CONFLICT.format(other=known[0]))
+            raise Unresolved(f"spec.overrides[{owner}].{what}", CONFLICT.format(other=known[0]))
         self._by_field.setdefault(what, (owner, value))
 
     def items(self) -> list[tuple[str, str, Any]]:
@@ -189,7 +129,7 @@ def effective_config(
             base.parameters, matching, robot, parsed or ParsedDocuments()
         )
         tree, files, main_tree_id = _tree(base, matching)
-    except _Unresolved as error:
+    except Unresolved as error:
         return ConfigError(robot.robot, error.where, error.message)
     problem = _composition_problem(components)
     if problem is not None:
@@ -218,7 +158,7 @@ def _components(base: BaseConfig, matching: list[Override], robot: RobotNode) ->
     for override in matching:
         for name in override.remove:
             if name not in known:
-                raise _Unresolved(
+                raise Unresolved(
                     f"spec.overrides[{override.name}].remove", f"the system has no component {name!r}"
                 )
             removed.setdefault(name, override.name)
@@ -228,7 +168,7 @@ def _components(base: BaseConfig, matching: list[Override], robot: RobotNode) ->
             for component in getattr(override.add, kind):
                 what = f"add.{kind}[{component.name}]"
                 if component.name in known and removed.get(component.name) != override.name:
-                    raise _Unresolved(
+                    raise Unresolved(
                         f"spec.overrides[{override.name}].{what}",
                         f"the robot already runs a component {component.name!r}; remove it in the same "
                         "override to replace it, or set its image or env",
@@ -247,7 +187,7 @@ def _components(base: BaseConfig, matching: list[Override], robot: RobotNode) ->
         for name, image in override.images.items():
             where = f"spec.overrides[{override.name}].images[{name}]"
             if name not in names:
-                raise _Unresolved(where, f"this robot runs no component {name!r}")
+                raise Unresolved(where, f"this robot runs no component {name!r}")
             images.claim(override.name, f"images[{name}]", substitute(image, robot, where))
         for variable in override.env:
             where = f"spec.overrides[{override.name}].env[{variable.name}]"
@@ -278,7 +218,7 @@ def _with(
     except ValidationError as error:
         owner = image[0] if image is not None else variables[0][1]
         detail = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in error.errors())
-        raise _Unresolved(f"spec.overrides[{owner}]", f"component {component.name}: {detail}") from None
+        raise Unresolved(f"spec.overrides[{owner}]", f"component {component.name}: {detail}") from None
 
 
 def _leaves(document: Any, path: tuple[str, ...] = ()) -> list[tuple[tuple[str, ...], Any]]:
@@ -308,7 +248,7 @@ class ParsedDocuments:
         """The mapping `text` holds ({} for none).
 
         Raises:
-            _Unresolved: not YAML, or not a mapping; names `where`.
+            Unresolved: not YAML, or not a mapping; names `where`.
         """
         key = (where, text)
         if key not in self._parsed:
@@ -316,11 +256,11 @@ class ParsedDocuments:
                 document = parsing.load_bounded_yaml(text) or {}
                 if not isinstance(document, dict):
                     kind = type(document).__name__
-                    document = _Unresolved(where, f"parameters must be a mapping of node names, got {kind}")
+                    document = Unresolved(where, f"parameters must be a mapping of node names, got {kind}")
             except yaml.YAMLError as error:
-                document = _Unresolved(where, f"invalid YAML: {getattr(error, 'problem', None) or error}")
+                document = Unresolved(where, f"invalid YAML: {getattr(error, 'problem', None) or error}")
             self._parsed[key] = document
-        if isinstance(self._parsed[key], _Unresolved):
+        if isinstance(self._parsed[key], Unresolved):
             raise self._parsed[key]
         return self._parsed[key]
 
@@ -338,7 +278,7 @@ def _parameters(
         document = parsed.parse(override.parameters or "", where)
         if not document:
             continue
-        document = _substitute_tree(document, robot, where)
+        document = substitute_values(document, robot, where)
         for path, value in _leaves(document):
             # Equal paths clash on a different value; a leaf of one override inside a leaf of another
             # (a mapping against a scalar) clashes whatever the values.
@@ -349,7 +289,7 @@ def _parameters(
                     and other[:shorter] == path[:shorter]
                     and (other != path or known != value)
                 ):
-                    raise _Unresolved(f"{where}.{'.'.join(path)}", CONFLICT.format(other=owner))
+                    raise Unresolved(f"{where}.{'.'.join(path)}", CONFLICT.format(other=owner))
             claims.setdefault(path, (override.name, value))
         documents.append(document)
     merged = parsed.parse(text, "spec.parameters")
