@@ -238,6 +238,8 @@ def _plan_deployment(
         and name not in errors
         and instance.spec.get(effective.CONFIG_HASH) == wanted[name][effective.CONFIG_HASH]  # type: ignore[index]
     }
+    # Moved so by an earlier pass, not yet in the index: written already, and as available as before.
+    moving = {name for name in unchanged if observation.expected.get(name) != revision}
     decision = rollout.plan_rollout(
         rollout.RolloutRequest(
             desired=revision,
@@ -260,7 +262,7 @@ def _plan_deployment(
     desired = []
     for robot in robots:
         instance = by_robot.get(robot.robot)
-        if robot.robot in unchanged and decision.target == revision:
+        if robot.robot in moving and decision.target == revision:
             chosen = revision
         else:
             chosen = decision.moves.get(robot.robot) or (
@@ -298,7 +300,10 @@ def _plan_deployment(
         rollout=RolloutPlan(
             status=decision.status,
             target=decision.target,
-            moves={robot: decision.moves[robot] for robot in decision.moves},
+            moves={
+                **({name: revision for name in moving} if decision.target == revision else {}),
+                **decision.moves,
+            },
             events=list(decision.events),
             wake_at=decision.wake_at,
         ),

@@ -121,6 +121,8 @@ def plan_pass(
     stored: list[Any] | None = None,
     name: str = "site",
     annotations: dict[str, str] | None = None,
+    expected: dict[str, str] | None = None,
+    previous_rollout: Any = None,
 ) -> system_pass.SystemPlan:
     """One system pass of `spec` (inline files) over `robots`, with a policy that allows the host
     network and nothing else."""
@@ -141,8 +143,8 @@ def plan_pass(
             robots=robots,
             instances=instances or [],
             stored_revisions=stored or [],
-            expected={},
-            previous_rollout=None,
+            expected=expected or {},
+            previous_rollout=previous_rollout,
             policy=Policy(host_network_namespaces=frozenset({"*"})),
             now=NOW,
         )
