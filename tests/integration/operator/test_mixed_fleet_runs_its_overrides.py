@@ -9,7 +9,7 @@ import sys
 from typing import Any
 
 import pytest
-from coral_api import is_current_and_true
+from coral_api import condition, is_current_and_true
 from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
@@ -136,3 +136,31 @@ def test_each_model_runs_its_own_and_an_override_change_reaches_its_model_only(s
     said = _coral_config(scenario, spots[0])
     assert said["configHash"] == said["running"]["configHash"]
     assert {c["name"]: c["image"] for c in said["components"]}["slam"] == "coral/slam-skillset:spot-2"
+
+    # A second override that sets the server's variable differently: the server keeps what it
+    # runs and the system names it with both overrides, while the others stay as they are.
+    conflicting = {
+        "name": "lab",
+        "robots": {"matchLabels": {"coral.dev/model": "server"}},
+        "env": [{"name": "ROBOT_IP", "value": "10.9.9.9"}],
+    }
+    overrides = [*_overrides("coral/slam-skillset:spot-2"), conflicting]
+    scenario.coral.patch_system("site", {"spec": {"overrides": overrides}})
+
+    def stalled() -> dict[str, Any] | None:
+        system = scenario.coral.system("site")
+        return system if is_current_and_true(system, "Stalled") else None
+
+    system = scenario.wait(stalled, "the system to be Stalled naming the server")
+    message = condition(system, "Stalled")["message"]
+    assert condition(system, "Stalled")["reason"] == "InvalidRobotConfig"
+    assert f"robot {server}: spec.overrides[lab].env[ROBOT_IP]" in message and "override server" in message
+    assert _running(scenario) == after
+    said = subprocess.run(
+        [sys.executable, "-m", "coral", "config", "site", server, "-n", scenario.namespace],
+        env=scenario.cluster.env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert said.returncode == 1 and "INVALID" in said.stdout
