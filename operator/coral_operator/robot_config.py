@@ -202,6 +202,12 @@ class ConfigReader:
             raise ConfigReadError(
                 f"spec.{field}.configMapRef: ConfigMap {ref.name} cannot be read"
             ) from error
+        # What the operator refuses to read, it deploys nothing from: say so rather than show it.
+        refused = configmaps.source_refusal(
+            f"spec.{field}.configMapRef", ref.name, (found.metadata.labels or {}) if found.metadata else {}
+        )
+        if refused is not None:
+            raise ConfigReadError(refused)
         text = (found.data or {}).get(ref.key)
         if text is None:
             raise ConfigReadError(f"spec.{field}.configMapRef: ConfigMap {ref.name} has no key {ref.key}")

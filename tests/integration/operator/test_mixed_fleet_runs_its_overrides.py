@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 from coral_api import condition, is_current_and_true
+from coral_core import names
 from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
@@ -164,3 +165,30 @@ def test_each_model_runs_its_own_and_an_override_change_reaches_its_model_only(s
         timeout=60,
     )
     assert said.returncode == 1 and "INVALID" in said.stdout
+
+
+def test_coral_config_reads_parameters_from_a_source_config_map_and_only_from_one(scenario: Scenario) -> None:
+    (robot,) = scenario.make_robots(1, {"fleet": scenario.fleet_label, "coral.dev/model": "spot"})
+    manifest = scenario.mission("site")
+    parameters = manifest["spec"]["parameters"].pop("inline")
+    manifest["spec"]["parameters"]["configMapRef"] = {"name": "site-params", "key": "params.yaml"}
+    manifest["spec"]["overrides"] = _overrides(SPOT_SLAM)[:1]
+    scenario.coral.core.create_namespaced_config_map(
+        scenario.namespace,
+        {
+            "metadata": {"name": "site-params", "labels": {names.LABEL_SOURCE: "true"}},
+            "data": {"params.yaml": parameters},
+        },
+    )
+    scenario.deploy(manifest)
+    said = _coral_config(scenario, robot)
+    assert "max_range: 60.0" in said["parameters"] and "done_topic: /bag_player/done" in said["parameters"]
+    assert said["configHash"] == said["running"]["configHash"]
+
+    # Without its owners' consent the operator reads nothing from it, and neither does `coral config`.
+    scenario.coral.core.patch_namespaced_config_map(
+        "site-params", scenario.namespace, {"metadata": {"labels": {names.LABEL_SOURCE: None}}}
+    )
+    argv = [sys.executable, "-m", "coral", "config", "site", robot, "-n", scenario.namespace]
+    done = subprocess.run(argv, env=scenario.cluster.env(), capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0 and "not marked as a Coral source" in done.stderr
