@@ -58,6 +58,7 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "rollout = coral_operator.rollout_cli:rollout",
             "groot2 = coral_operator.groot2_cli:groot2_command",
             "tree = coral_operator.tree_cli:tree_group",
+            "config = coral_operator.config_cli:config_command",
         ],
     },
     "coral_testbed": {

@@ -30,6 +30,7 @@ from coral_operator.api.components import (
     Resources,
 )
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
+from coral_operator.api.overrides import ComponentsAdded, Override, TreeOverride
 from coral_operator.api.rollout import (
     CanaryStatus,
     RolledBack,
@@ -63,6 +64,7 @@ __all__ = [
     "CamelModel",
     "CanarySpec",
     "Component",
+    "ComponentsAdded",
     "ComponentState",
     "Condition",
     "ConfigMapKeyRef",
@@ -80,6 +82,7 @@ __all__ = [
     "LabelSelector",
     "LabelSelectorRequirement",
     "NoProgress",
+    "Override",
     "PluginState",
     "PluginsSpec",
     "Readiness",
@@ -92,6 +95,7 @@ __all__ = [
     "StartupSpec",
     "TreeCounts",
     "TreeFailure",
+    "TreeOverride",
     "TreeSpec",
     "TreeState",
 ]

@@ -257,6 +257,7 @@ def build_crds() -> dict[str, dict[str, Any]]:
             _column("Active", "string", keys.INSTANCE_STATUS.tree, keys.TREE.active_path, wide=True),
             _column("Ticks", "integer", keys.INSTANCE_STATUS.tree, keys.TREE.tick_count, wide=True),
             {"name": "Revision", "type": "string", "jsonPath": ".spec.revision", "priority": 1},
+            {"name": "Config", "type": "string", "jsonPath": ".spec.configHash", "priority": 1},
             {"name": "Node", "type": "string", "jsonPath": ".spec.nodeName", "priority": 1},
         ],
     )

@@ -43,6 +43,10 @@ class CoralInstanceSpec(CamelModel):
     """The robot's Node; every pod is pinned to it."""
     revision: str = Field(min_length=1, max_length=64)
     """Hash of the system revision this instance runs; rollouts move instances between revisions."""
+    config_hash: str | None = Field(default=None, max_length=64)
+    """Hash of this robot's effective configuration (the revision with the overrides that match
+    the robot resolved): robots with equal hashes run the same thing; a new revision that leaves it
+    unchanged moves the robot without restarting anything."""
     ros: RosSpec = Field(default_factory=RosSpec)
     """ROS 2 settings."""
     parameters: ConfigRef

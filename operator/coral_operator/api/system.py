@@ -17,6 +17,13 @@ from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.common import ConfigMapKeyRef, LabelSelector
 from coral_operator.api.components import Component, ExecutorComponent
+from coral_operator.api.overrides import (
+    MAX_OVERRIDES,
+    OVERRIDE_NAMES_UNIQUE,
+    OVERRIDE_SELECTS,
+    Override,
+    check_overrides,
+)
 from coral_operator.api.rollout import RolloutStatus
 
 MAX_COMPONENTS = 32
@@ -311,6 +318,18 @@ class CoralSystemSpec(CamelModel):
                     ROBOT_POD_BLOCKS,
                     ".startup.onTimeout",
                 ),
+                _cel(
+                    "!has(self.overrides) "
+                    "|| self.overrides.all(o, self.overrides.exists_one(p, p.name == o.name))",
+                    OVERRIDE_NAMES_UNIQUE,
+                    ".overrides",
+                ),
+                _cel(
+                    "!has(self.overrides) || self.overrides.all(o, size(o.robots.matchLabels) > 0 "
+                    "|| size(o.robots.matchExpressions) > 0)",
+                    OVERRIDE_SELECTS,
+                    ".overrides",
+                ),
             ]
         }
     }
@@ -340,6 +359,9 @@ class CoralSystemSpec(CamelModel):
     """Plugin delivery settings."""
     rollout: RolloutSpec = Field(default_factory=RolloutSpec)
     """Fleet rollout settings."""
+    overrides: list[Override] = Field(default_factory=list, max_length=MAX_OVERRIDES)
+    """What differs per robot selector: parameters, env, images, components, tree files
+    (docs/overrides.md). `coral config SYSTEM ROBOT` prints what one robot runs."""
 
     @model_validator(mode="after")
     def _rules(self) -> CoralSystemSpec:
@@ -358,6 +380,9 @@ class CoralSystemSpec(CamelModel):
             raise ValueError(GROOT2_PORTS_APART)
         if self.layout == "PodPerRobot" and self.startup.on_timeout == "Proceed":
             raise ValueError(ROBOT_POD_BLOCKS)
+        refused = check_overrides(self.overrides)
+        if refused:
+            raise ValueError(refused)
         return self
 
 

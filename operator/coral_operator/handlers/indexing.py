@@ -29,9 +29,14 @@ from coral_operator.reconcile.indexes import (
 
 @kopf.index("nodes", labels=ROBOT_NODE_LABELS)
 async def robot_nodes(
-    name: str, labels: kopf.Labels, spec: kopf.Spec, status: kopf.Status, **_: Any
+    name: str,
+    labels: kopf.Labels,
+    annotations: kopf.Annotations,
+    spec: kopf.Spec,
+    status: kopf.Status,
+    **_: Any,
 ) -> dict[Any, Any]:
-    robot = observing.robot_node(name, labels, status, spec)
+    robot = observing.robot_node(name, labels, status, spec, annotations)
     if robot is None:
         return {}
     return {ALL_ROBOTS: robot, ("node", name): robot}

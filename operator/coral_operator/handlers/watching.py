@@ -60,13 +60,14 @@ async def robot_node_changed(
     type: str | None,
     name: str,
     labels: kopf.Labels,
+    annotations: kopf.Annotations,
     spec: kopf.Spec,
     status: kopf.Status,
     memo: kopf.Memo,
     **kwargs: Any,
 ) -> None:
     _controller(memo, kwargs).on_robot_node(
-        deleted=type == "DELETED", name=name, labels=labels, spec=spec, status=status
+        deleted=type == "DELETED", name=name, labels=labels, spec=spec, status=status, annotations=annotations
     )
 
 

@@ -7,6 +7,7 @@ but it knows API shapes, so it lives beside the client.
 from __future__ import annotations
 
 import dataclasses
+import re
 import threading
 import weakref
 from collections.abc import Mapping
@@ -56,8 +57,22 @@ UNREACHABLE_TAINT = "node.kubernetes.io/unreachable"
 """Set by the node-lifecycle controller when a Node's heartbeats (its Lease) stop."""
 
 
+def robot_annotations(annotations: Mapping[str, str] | None) -> dict[str, str]:
+    """The annotations a robot record keeps: all but Kubernetes' own (`*kubernetes.io/`, `*k8s.io/`),
+    which no override needs and which would cost memory on every robot of a large fleet."""
+    return {
+        key: value
+        for key, value in (annotations or {}).items()
+        if not re.match(r"^([^/]*\.)?(kubernetes\.io|k8s\.io)/", key)
+    }
+
+
 def robot_node(
-    name: str, labels: Mapping[str, str], status: Mapping[str, Any], spec: Mapping[str, Any] | None = None
+    name: str,
+    labels: Mapping[str, str],
+    status: Mapping[str, Any],
+    spec: Mapping[str, Any] | None = None,
+    annotations: Mapping[str, str] | None = None,
 ) -> RobotNode | None:
     """A robot record for a Node labelled `coral.dev/robot`, else None.
 
@@ -78,6 +93,7 @@ def robot_node(
         reachable=bool(ready and ready.get("status") in ("True", "False"))
         and UNREACHABLE_TAINT not in taints,
         ready_message=str((ready or {}).get("message") or ""),
+        annotations=robot_annotations(annotations),
         ready_since=parse_time((ready or {}).get(keys.CONDITION.last_transition_time))
         if (ready or {}).get("status") == "True"
         else None,

@@ -84,10 +84,19 @@ class InstanceBuilder:
             self._specs[id(template)] = known
         return {**known[1], "robot": robot.robot, "nodeName": robot.node_name}, known[2]
 
+    def keep(self, robot: RobotNode, spec: dict[str, Any]) -> dict[str, Any]:
+        """The manifest of `robot`'s instance with the spec it has: a robot whose configuration
+        cannot be resolved keeps what it runs."""
+        return self._manifest(robot, spec)
+
     def build(self, robot: RobotNode, template: dict[str, Any]) -> dict[str, Any]:
         """The full CoralInstance manifest of `robot` at `template`'s revision."""
+        spec, key = self._spec(robot, template)
+        self.shared_keys[naming.instance_name(self.system, robot.robot)] = key
+        return self._manifest(robot, spec)
+
+    def _manifest(self, robot: RobotNode, spec: dict[str, Any]) -> dict[str, Any]:
         name = naming.instance_name(self.system, robot.robot)
-        spec, self.shared_keys[name] = self._spec(robot, template)
         return {
             "apiVersion": API_VERSION,
             "kind": names.INSTANCE_KIND,

@@ -37,6 +37,9 @@ class RobotNode:
     ready_since: datetime | None = None
     """When the Node last turned Ready (its Ready condition's transition), if it is Ready: a robot
     back from a reboot or an outage starts its components over from then."""
+    annotations: dict[str, str] = field(default_factory=dict)
+    """The Node's own annotations (`kube.observing.robot_annotations`), which overrides may
+    substitute (`${robot.annotations['KEY']}`)."""
 
 
 @dataclass(frozen=True)

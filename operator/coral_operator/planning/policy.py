@@ -192,4 +192,10 @@ def evaluate_policy(namespace: str, spec: CoralSystemSpec | CoralInstanceSpec, p
         for index, component in enumerate(components):
             where = f"spec.{group}[{index}] ({component.name})"
             problems += _component_problems(where, component, namespace, policy)
+    # What an override adds reaches some robot's pods just as well.
+    for override in getattr(spec, "overrides", []):
+        for group in ("drivers", "skillsets", "executors"):
+            for index, component in enumerate(getattr(override.add, group)):
+                where = f"spec.overrides[{override.name}].add.{group}[{index}] ({component.name})"
+                problems += _component_problems(where, component, namespace, policy)
     return problems

@@ -26,8 +26,9 @@ from coral_core import names
 from pydantic import ValidationError
 
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.planning import naming, policy
+from coral_operator.planning import effective, naming, policy, validation
 from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
+from coral_operator.planning.overrides import ConfigError
 from coral_operator.planning.revisions import StoredRevision, template_of_instance
 
 
@@ -92,11 +93,18 @@ def evaluate_ownership(
     return problems
 
 
-def evaluate_revision(spec: CoralInstanceSpec, stored: list[StoredRevision]) -> str | None:
+def evaluate_revision(
+    spec: CoralInstanceSpec,
+    stored: list[StoredRevision],
+    node: RobotNode | None = None,
+    system: SystemRecord | None = None,
+    verdicts: validation.Verdicts | None = None,
+) -> str | None:
     """Why the spec is not what its system's revision `spec.revision` gives its robot; None if it is.
 
     `stored` is the system's revision history; a revision no robot runs any more may have been
-    pruned from it, and an instance still asking for it is not served.
+    pruned from it, and an instance still asking for it is not served. A revision with overrides
+    is resolved for the robot's Node (`planning.effective`), as the system pass resolved it.
     """
     revision = next((s for s in stored if s.revision == spec.revision), None)
     if revision is None:
@@ -107,13 +115,30 @@ def evaluate_revision(spec: CoralInstanceSpec, stored: list[StoredRevision]) -> 
         "nodeName": spec.node_name,
         "revision": spec.revision,
     }
+    resolver = effective.EffectiveTemplates(
+        system=spec.system,
+        namespace=system.namespace if system else "",
+        system_uid=system.uid if system else "",
+        verdicts=verdicts,
+    )
+    robot = node or RobotNode(node_name=spec.node_name, robot=spec.robot, labels={}, ready=False)
     try:
-        wanted = CoralInstanceSpec.model_validate({**revision.template, **robot_fields}).to_wire()
-    except (ValidationError, TypeError):
+        template = resolver.resolve(revision.template, robot)
+        if isinstance(template, ConfigError):
+            return (
+                f"spec.revision: revision {spec.revision} gives this robot no valid configuration: {template}"
+            )
+        wanted = CoralInstanceSpec.model_validate({**template, **robot_fields}).to_wire()
+    except (ValidationError, TypeError, KeyError):
         return f"spec.revision: the stored revision {spec.revision} cannot be read"
-    if template_of_instance(wanted) != template_of_instance(spec.to_wire()):
+    # The hash only names the rest, and instances written before it existed lack it.
+    if _without_hash(wanted) != _without_hash(spec.to_wire()):
         return f"spec: differs from revision {spec.revision} of CoralSystem {spec.system}"
     return None
+
+
+def _without_hash(spec: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in template_of_instance(spec).items() if k != effective.CONFIG_HASH}
 
 
 def evaluate_instance_policy(namespace: str, spec: CoralInstanceSpec, rules: policy.Policy) -> list[str]:

@@ -293,9 +293,7 @@ def _plan_robot_pod(
         members = [slot for slot in slots if slot.role == stage and slot.component not in transient]
         records = {slot.component: current_record(slot, live) for slot in members}
         unready = [c for c, pod in records.items() if not counts_as_ready(pod, c in transient)]
-        if unready and _wait(
-            plan, stage, unready, [records[c] for c in unready], startup, now, robot_since
-        ):
+        if unready and _wait(plan, stage, unready, [records[c] for c in unready], startup, now, robot_since):
             break
     return plan
 

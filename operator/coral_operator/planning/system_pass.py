@@ -22,6 +22,7 @@ from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import (
     budgets,
     configmaps,
+    effective,
     instances,
     policy,
     rbac,
@@ -31,6 +32,7 @@ from coral_operator.planning import (
     validation,
 )
 from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
+from coral_operator.planning.overrides import ConfigError
 from coral_operator.status.conditions import Reason
 from coral_operator.status.system_status import Problem
 
@@ -101,6 +103,9 @@ class SystemPlan:
     rollout: RolloutPlan | None = None
     stored_after: list[revisions.StoredRevision] = field(default_factory=list)
     """The revision history once `history` is applied."""
+    config_errors: list[ConfigError] = field(default_factory=list)
+    """Robots whose effective configuration (the spec with their overrides) is invalid: they keep
+    what they run, and the system names each with the field at fault."""
 
 
 def format_validation(error: ValidationError) -> str:
@@ -152,6 +157,18 @@ def validate_files(observation: SystemObservation, spec: CoralSystemSpec) -> tup
     return tree[0], params[0]
 
 
+def config_problem(plan: SystemPlan) -> Problem | None:
+    """What makes the system Stalled when some robots' effective configurations are invalid (the
+    others deploy): each such robot with the field at fault."""
+    if not plan.config_errors:
+        return None
+    return Problem(
+        Reason.INVALID_ROBOT_CONFIG,
+        f"{len(plan.config_errors)} robots have no valid configuration and keep what they run: "
+        + listed([str(error) for error in plan.config_errors], shown=10),
+    )
+
+
 def plan_system(observation: SystemObservation) -> SystemPlan:
     """Decide one pass of a CoralSystem (see the module docstring).
 
@@ -181,7 +198,11 @@ def _plan_deployment(
         **common, kind="tree", key=configmaps.TREE_KEY, text=files[0], beside=spec.tree.files
     )
     params_cm = configmaps.build_config_map(**common, kind="params", key=configmaps.PARAMS_KEY, text=files[1])
-    template = instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"])
+    template = effective.with_overrides(
+        instances.build_template(spec, tree_cm["metadata"]["name"], params_cm["metadata"]["name"]),
+        spec,
+        *files,
+    )
     revision = instances.revision_of(template)
     robots = selection.select_robots(spec.robots, observation.robots)
     too_large = _check_budgets(observation, len(robots))
@@ -205,11 +226,32 @@ def _plan_deployment(
         # system controls: one written or edited by hand must not become a revision of it.
         if instance.revision != revision and instance.controller_uid == system.uid:
             templates.setdefault(instance.revision, revisions.template_of_instance(instance.spec))
+    resolver = effective.EffectiveTemplates(**common, verdicts=observation.verdicts)
+    wanted = {robot.robot: resolver.resolve(template, robot) for robot in robots}
+    errors = {name: w for name, w in wanted.items() if isinstance(w, ConfigError)}
+    # A robot whose configuration the new revision leaves as it is moves to it at once, costing no
+    # budget and restarting nothing: a change to one model's override rolls out to that model only.
+    unchanged = {
+        name
+        for name, instance in by_robot.items()
+        if instance.revision != revision
+        and name in wanted
+        and name not in errors
+        and instance.spec.get(effective.CONFIG_HASH) == wanted[name][effective.CONFIG_HASH]  # type: ignore[index]
+    }
+    # Moved so by an earlier pass, not yet in the index: written already, and as available as before.
+    moving = {name for name in unchanged if observation.expected.get(name) != revision}
     decision = rollout.plan_rollout(
         rollout.RolloutRequest(
             desired=revision,
             history=history.order,
-            robots=_views(spec, robots, by_robot, observation.expected),
+            robots=_views(
+                spec,
+                [r for r in robots if r.robot not in errors],
+                by_robot,
+                observation.expected,
+                {name: revision for name in unchanged},
+            ),
             policy=spec.rollout,
             previous=observation.previous_rollout,
             now=observation.now,
@@ -221,17 +263,26 @@ def _plan_deployment(
     desired = []
     for robot in robots:
         instance = by_robot.get(robot.robot)
-        chosen = decision.moves.get(robot.robot) or (
-            instance.revision if instance is not None else decision.create_revision
-        )
+        if robot.robot in moving and decision.target == revision:
+            chosen = revision
+        else:
+            chosen = decision.moves.get(robot.robot) or (
+                instance.revision if instance is not None else decision.create_revision
+            )
         if chosen not in templates:
             chosen = revision
-        manifest = builder.build(robot, templates[chosen])
+        resolved = wanted[robot.robot] if chosen == revision else resolver.resolve(templates[chosen], robot)
+        if isinstance(resolved, ConfigError):
+            errors.setdefault(robot.robot, resolved)
+            if instance is not None:
+                desired.append(builder.keep(robot, instance.spec))
+            continue
+        manifest = builder.build(robot, resolved)
         manifest["spec"]["revision"] = chosen
         desired.append(manifest)
     reachable = {node.node_name for node in observation.robots if node.ready}
     in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}
-    for kept in [*templates.values(), *(i.spec for i in observed)]:
+    for kept in [*templates.values(), *(i.spec for i in observed), *(m["spec"] for m in desired)]:
         in_use.add((kept.get("tree") or {}).get("configMap", ""))
         in_use.add((kept.get("parameters") or {}).get("configMap", ""))
     changes = instances.plan_instances(desired, observed, reachable, builder.shared_keys, system.uid)
@@ -243,18 +294,22 @@ def _plan_deployment(
     return SystemPlan(
         matched=len(robots),
         history=history,
-        config_maps=[tree_cm, params_cm],
+        config_maps=[tree_cm, params_cm, *resolver.config_maps.values()],
         changes=changes,
         identity=identity,
         in_use=in_use,
         rollout=RolloutPlan(
             status=decision.status,
             target=decision.target,
-            moves={robot: decision.moves[robot] for robot in decision.moves},
+            moves={
+                **({name: revision for name in moving} if decision.target == revision else {}),
+                **decision.moves,
+            },
             events=list(decision.events),
             wake_at=decision.wake_at,
         ),
         stored_after=stored,
+        config_errors=[errors[name] for name in sorted(errors)],
     )
 
 
@@ -293,12 +348,13 @@ def _views(
     robots: list[RobotNode],
     by_robot: Mapping[str, ObservedInstance],
     expected: Mapping[str, str],
+    moved_free: Mapping[str, str],
 ) -> list[rollout.RobotView]:
     canary = spec.rollout.canary
     views = []
     for robot in robots:
         instance = by_robot.get(robot.robot)
-        revision = instance.revision if instance else None
+        revision = moved_free.get(robot.robot) or (instance.revision if instance else None)
         ready = bool(instance and instance.ready)
         if robot.robot in expected and expected[robot.robot] != revision:
             # Moved by an earlier pass, not yet in the index: it is on its way and unavailable.

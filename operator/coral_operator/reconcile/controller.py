@@ -166,10 +166,21 @@ class Controller:
         labels: Mapping[str, str],
         spec: Mapping[str, Any],
         status: Mapping[str, Any],
+        annotations: Mapping[str, str] | None = None,
     ) -> None:
-        """A robot came, went, changed labels or reachability; heartbeats alone change nothing."""
-        robot = None if deleted else observing.robot_node(name, labels, status, spec)
-        summary = None if robot is None else (tuple(sorted(labels.items())), robot.ready, robot.reachable)
+        """A robot came, went, changed labels, annotations or reachability; heartbeats alone change
+        nothing."""
+        robot = None if deleted else observing.robot_node(name, labels, status, spec, annotations)
+        summary = (
+            None
+            if robot is None
+            else (
+                tuple(sorted(labels.items())),
+                tuple(sorted(robot.annotations.items())),
+                robot.ready,
+                robot.reachable,
+            )
+        )
         if not self.memory.seen.changed(("Node", name), summary):
             return
         if deleted:

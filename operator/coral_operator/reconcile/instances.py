@@ -133,7 +133,9 @@ class InstanceReconciler(Reconciler):
         assert system is not None
         if spec.retiring or self.memory.vetted.has(record.uid, record.generation, system.uid):
             return None  # stopping builds nothing; a vetted generation's spec cannot have changed
-        problem = provenance.evaluate_revision(spec, self._history(system, spec.revision))
+        problem = provenance.evaluate_revision(
+            spec, self._history(system, spec.revision), node, system, self.memory.verdicts
+        )
         if problem is not None:
             return Reason.FOREIGN_INSTANCE, _not_served([problem])
         denied = provenance.evaluate_instance_policy(record.namespace, spec, self.pod_settings.policy)

@@ -115,7 +115,7 @@ class SystemReconciler(Reconciler):
             verdicts=self.memory.verdicts,
         )
         plan = system_pass.plan_system(observation)
-        problem = plan.problem
+        problem = plan.problem or system_pass.config_problem(plan)
         if plan.rollout is not None:
             self._apply_history(system, plan)
             self.memory.rollouts.remember(system.uid, plan.rollout.status)

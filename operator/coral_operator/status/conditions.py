@@ -45,6 +45,9 @@ class Reason(StrEnum):
     """The behavior tree failed validation."""
     INVALID_PARAMETERS = "InvalidParameters"
     """The parameters YAML failed validation."""
+    INVALID_ROBOT_CONFIG = "InvalidRobotConfig"
+    """Some robots' effective configurations (the spec with the overrides that match them) are
+    invalid or conflict; those robots keep what they run."""
     CONFIG_MAP_NOT_FOUND = "ConfigMapNotFound"
     """A referenced ConfigMap or key does not exist."""
     CONFIG_MAP_NOT_A_SOURCE = "ConfigMapNotASource"

@@ -96,6 +96,18 @@ REJECTIONS = [
         lambda s: s["tree"].update(files={"tree.xml": "<root/>"}),
         "tree.files names must be file names",
     ),
+    (
+        "two overrides of one name",
+        lambda s: s.update(
+            overrides=[{"name": "spot", "robots": {"matchLabels": {"m": "a"}}, "env": []}] * 2
+        ),
+        "overrides must have unique names",
+    ),
+    (
+        "an override selecting nothing",
+        lambda s: s.update(overrides=[{"name": "spot", "robots": {}}]),
+        "overrides[].robots must select with at least one label or expression",
+    ),
 ]
 
 

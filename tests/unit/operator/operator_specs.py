@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import copy
 from datetime import UTC, datetime
 from typing import Any
 
 from coral_core import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
-from coral_operator.planning import instances, pods
+from coral_operator.kube import observing
+from coral_operator.planning import instances, pods, system_pass
 from coral_operator.planning import startup as startup_planning
-from coral_operator.planning.observed import ObservedPod, RobotNode
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.policy import Policy
 from coral_operator.status import instance_status
 
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -108,4 +111,54 @@ def view_with_pods_running(
         node=robot("r1", ready=node_ready),
         tree=tree,
         plugins=plugins,
+    )
+
+
+def plan_pass(
+    spec: dict[str, Any],
+    robots: list[RobotNode],
+    instances: list[ObservedInstance] | None = None,
+    stored: list[Any] | None = None,
+    name: str = "site",
+    annotations: dict[str, str] | None = None,
+    expected: dict[str, str] | None = None,
+    previous_rollout: Any = None,
+) -> system_pass.SystemPlan:
+    """One system pass of `spec` (inline files) over `robots`, with a policy that allows the host
+    network and nothing else."""
+    metadata = {
+        "name": name,
+        "namespace": "ns",
+        "uid": f"u-{name}",
+        "generation": 1,
+        "annotations": annotations,
+    }
+    record = observing.system_record({"metadata": metadata, "spec": spec})
+    parsed = CoralSystemSpec.model_validate(spec)
+    return system_pass.plan_system(
+        system_pass.SystemObservation(
+            system=record,
+            tree=(parsed.tree.inline or "", "tree"),
+            parameters=(parsed.parameters.inline or "", "params"),
+            robots=robots,
+            instances=instances or [],
+            stored_revisions=stored or [],
+            expected=expected or {},
+            previous_rollout=previous_rollout,
+            policy=Policy(host_network_namespaces=frozenset({"*"})),
+            now=NOW,
+        )
+    )
+
+
+def observed_from(manifest: dict[str, Any], ready: bool = False) -> ObservedInstance:
+    """The instance as the system wrote it from `manifest` (owned by the system)."""
+    return ObservedInstance(
+        name=manifest["metadata"]["name"],
+        robot=manifest["spec"]["robot"],
+        spec=copy.deepcopy(manifest["spec"]),
+        revision=manifest["spec"]["revision"],
+        labels=manifest["metadata"]["labels"],
+        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
+        ready=ready,
     )

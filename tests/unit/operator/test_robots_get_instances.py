@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from collections.abc import Callable
 from typing import Any
@@ -11,7 +10,7 @@ from coral_operator.api.common import LabelSelector
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import instances, selection
 from coral_operator.planning.observed import ObservedInstance
-from operator_specs import robot
+from operator_specs import observed_from, robot
 
 
 def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
@@ -22,16 +21,7 @@ def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
     ]
 
 
-def _existing(manifest: dict[str, Any]) -> ObservedInstance:
-    """The instance as the system created it from `manifest` (owned by the system)."""
-    return ObservedInstance(
-        name=manifest["metadata"]["name"],
-        robot=manifest["spec"]["robot"],
-        spec=copy.deepcopy(manifest["spec"]),
-        revision=manifest["spec"]["revision"],
-        labels=manifest["metadata"]["labels"],
-        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
-    )
+_existing = observed_from
 
 
 def _as_the_api_server_renders_it(manifest: dict[str, Any]) -> ObservedInstance:

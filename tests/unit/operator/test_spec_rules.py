@@ -41,6 +41,25 @@ CASES = [
         r"tree\.configMapRef\.key\n  String should match pattern",
     ),
     (
+        "refuse two overrides of one name",
+        {"overrides": [{"name": "a", "robots": {"matchLabels": {"m": "x"}}}] * 2},
+        system.OVERRIDE_NAMES_UNIQUE,
+    ),
+    (
+        "refuse an override selecting nothing",
+        {"overrides": [{"name": "a", "robots": {}}]},
+        "must select with at least one label",
+    ),
+    (
+        "refuse an override tree file under the tree's own name",
+        {
+            "overrides": [
+                {"name": "a", "robots": {"matchLabels": {"m": "x"}}, "tree": {"files": {"tree.xml": "x"}}}
+            ]
+        },
+        "tree file names are file names",
+    ),
+    (
         "refuse a component name that is not a DNS label",
         {"drivers": [{"name": "Lidar_1", "image": "l"}]},
         "String should match pattern",
