@@ -56,6 +56,8 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "convert = coral_operator.convert.cli:convert_command",
             "crds = coral_operator.crds_cli:crds_command",
             "rollout = coral_operator.rollout_cli:rollout",
+            "halt = coral_operator.halt_cli:halt_command",
+            "resume = coral_operator.halt_cli:resume_command",
             "groot2 = coral_operator.groot2_cli:groot2_command",
             "tree = coral_operator.tree_cli:tree_group",
         ],

@@ -47,7 +47,7 @@ def test_a_copy_without_the_testbed_registers_none_of_its_verbs() -> None:
     """What an image installs: its roots only (the operator image has no testbed, no robot side)."""
     roots = ["coral_core", "coral_operator"]
     verbs = SETUP["entry_points"](roots)["coral.verbs"]
-    operator_verbs = {"operator", "convert", "crds", "rollout", "groot2", "tree"}
+    operator_verbs = {"operator", "convert", "crds", "rollout", "halt", "resume", "groot2", "tree"}
     assert {verb.split(" = ")[0] for verb in verbs} == operator_verbs
     assert "coral.components" not in SETUP["entry_points"](roots)
     assert SETUP["entry_points"](roots)["console_scripts"] == ["coral = coral_core.command:main"]

@@ -22,6 +22,7 @@ from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import (
     budgets,
     configmaps,
+    halting,
     instances,
     policy,
     rbac,
@@ -227,6 +228,9 @@ def _plan_deployment(
             chosen = revision
         manifest = builder.build(robot, templates[chosen])
         manifest["spec"]["revision"] = chosen
+        halt = halting.halt_of_robot(spec.halt, robot.robot)
+        if halt is not None:
+            manifest["spec"]["halt"] = halt
         desired.append(manifest)
     reachable = {node.node_name for node in observation.robots if node.ready}
     in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}

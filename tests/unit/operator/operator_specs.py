@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from datetime import UTC, datetime
 from typing import Any
 
@@ -10,7 +11,7 @@ from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
 from coral_operator.planning import instances, pods
 from coral_operator.planning import startup as startup_planning
-from coral_operator.planning.observed import ObservedPod, RobotNode
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
 from coral_operator.status import instance_status
 
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -42,6 +43,18 @@ def robot(name: str, ready: bool = True, **labels: str) -> RobotNode:
         ready=ready,
         last_seen=NOW,
         reachable=ready,
+    )
+
+
+def observed_instance(manifest: dict[str, Any]) -> ObservedInstance:
+    """The instance as the system created it from `manifest` (owned by the system)."""
+    return ObservedInstance(
+        name=manifest["metadata"]["name"],
+        robot=manifest["spec"]["robot"],
+        spec=copy.deepcopy(manifest["spec"]),
+        revision=manifest["spec"]["revision"],
+        labels=manifest["metadata"]["labels"],
+        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
     )
 
 
