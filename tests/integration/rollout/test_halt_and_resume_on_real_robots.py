@@ -3,25 +3,26 @@ no pod restarts, kstatus, Flux and Argo CD read the halted fleet as healthy, an 
 and started again while the fleet is halted keeps it halted, and `coral resume --wait` starts
 every tree again.
 
-Issue 50, acceptance 5, on the session's real robots (two kubelets with their containerds, the
-fixture's whole fleet; the acceptance asks for three).
+Issue 50, acceptance 5, on three real robots (kubelets with their containerds): the session's
+two and a third the test adds and removes.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
 import verdict_clients
 from click.testing import CliRunner
 from coral_operator import halt_control
-from coral_operator.halt_cli import resume_command
+from coral_operator.halt_cli import halt_command, resume_command
 from coral_testbed.cluster import Cluster, realrobots
 from coral_testbed.images import catalog
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, pull_images
+from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, REAL_ROBOTS, pull_images
 from kubernetes import client as k8s
 
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
@@ -29,10 +30,11 @@ pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
 GROUP, VERSION = "coral.dev", "v1alpha1"
 SYSTEM = "halting"
 HALT_WITHIN_S = 2.0
+FLEET_SIZE = 3
 # The mission waits long enough that only a halt ends it; the park tree is short, as driving to a
 # nearby safe spot would be, so the halt still lands within HALT_WITHIN_S. Built-in nodes only:
-# both robots share the test's ROS domain on one host, so each executor would hear the other
-# robot's skillset as its own restarting one.
+# the robots share the system's ROS domain on one host, so an executor would hear the other
+# robots' skillsets (same component names, other processes) as its own restarting one.
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
     <Sequence>
@@ -45,6 +47,19 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   </BehaviorTree>
 </root>
 """
+
+
+@pytest.fixture
+def three_robots(real_robots: realrobots.RealRobots) -> Iterator[list[str]]:
+    """The session's real robots and as many more as make three, removed after the test so the
+    session's other tests find the fleet they expect."""
+    added = [f"real-{index}" for index in range(len(REAL_ROBOTS) + 1, FLEET_SIZE + 1)]
+    added = [name for name in added if name not in real_robots.names()]
+    real_robots.add(added, {REAL_ROBOT_LABEL: "real"})
+    try:
+        yield sorted(real_robots.names())
+    finally:
+        real_robots.remove(added)
 
 
 def _system(domain: int) -> dict[str, Any]:
@@ -85,11 +100,12 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
     cluster: Cluster,
     namespace: str,
     built_images: dict[str, Any],
-    real_robots: realrobots.RealRobots,
+    three_robots: list[str],
     coral_operator: OperatorProcess,
     ros_env: dict[str, str],
 ) -> None:
-    robots = sorted(real_robots.names())
+    robots = three_robots
+    assert len(robots) == FLEET_SIZE, robots
     custom, core = k8s.CustomObjectsApi(cluster.api_client), k8s.CoreV1Api(cluster.api_client)
     control = halt_control.HaltControl(cluster.api_client, namespace)
     manifest = _system(int(ros_env["ROS_DOMAIN_ID"]))
@@ -143,9 +159,13 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
     )
     pods = _pods(core, namespace)
 
-    # Halt, as GitOps or `coral halt` writes it, and time every robot's acknowledgement.
+    # `coral halt`, and time every robot's acknowledgement from the moment it was typed.
+    runner = CliRunner(env={"KUBECONFIG": str(cluster.kubeconfig)})
     asked = time.monotonic()
-    control.change(SYSTEM, lambda current: halt_control.halted(current, None, "Park", 10))
+    result = runner.invoke(
+        halt_command, [SYSTEM, "-n", namespace, "--park-tree", "Park", "--park-timeout", "10"]
+    )
+    assert result.exit_code == 0, f"{result.output}\n{report()}"
     acknowledged_at: dict[str, float] = {}
 
     def every_robot_acknowledged() -> bool:
@@ -156,9 +176,9 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
         return sorted(acknowledged_at) == robots
 
     wait_for(every_robot_acknowledged, timeout=30, interval=0.05, message=lambda: f"the halt:\n{report()}")
-    slowest = max(acknowledged_at.values())
-    print(f"halt acknowledged by {len(robots)} robots in {sorted(acknowledged_at.values())} s")
-    assert slowest <= HALT_WITHIN_S, f"acknowledged after {acknowledged_at} s"
+    print("halt acknowledged: " + ", ".join(f"{r} {s:.2f} s" for r, s in sorted(acknowledged_at.items())))
+    late = {robot: s for robot, s in acknowledged_at.items() if s > HALT_WITHIN_S}
+    assert not late, f"acknowledged after more than {HALT_WITHIN_S} s: {late} (all: {acknowledged_at})"
 
     halted = instances()
     for item in halted:
@@ -208,7 +228,6 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
     # A restarted operator passes every system and instance again at once; the halt is spec.
     holds_for(still_halted, 10.0, message="the halt after the operator restarted")
 
-    runner = CliRunner(env={"KUBECONFIG": str(cluster.kubeconfig)})
     result = runner.invoke(resume_command, [SYSTEM, "-n", namespace, "--wait", "--timeout", "30"])
     assert result.exit_code == 0, f"{result.output}\n{report()}"
 
