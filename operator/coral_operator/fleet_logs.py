@@ -114,7 +114,7 @@ def prefixed(stream: Stream, line: str, width: int, colour: bool) -> str:
     return f"{robot}/{component}{pad} | {line}"
 
 
-def _lines(response: Any) -> Iterator[str]:
+def lines_of(response: Any) -> Iterator[str]:
     """The lines of a streamed log response as they arrive; a partial last line is kept until its
     end comes (or the stream ends)."""
     pending = b""
@@ -176,7 +176,7 @@ class FleetLogs:
                 _preload_content=False,
             )
             try:
-                for line in _lines(response):
+                for line in lines_of(response):
                     out.put((stream, line))
             finally:
                 response.release_conn()
