@@ -3,14 +3,12 @@ no pod restarts, kstatus, Flux and Argo CD read the halted fleet as healthy, an 
 and started again while the fleet is halted keeps it halted, and `coral resume --wait` starts
 every tree again.
 
-Issue 50, acceptance 5, on three real robots (kubelets with their containerds): the session's
-two and a third the test adds and removes.
+Issue 50, acceptance 5, on three real robots (kubelets with their containerds, `three_real_robots`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -18,11 +16,11 @@ import verdict_clients
 from click.testing import CliRunner
 from coral_operator import halt_control
 from coral_operator.halt_cli import halt_command, resume_command
-from coral_testbed.cluster import Cluster, realrobots
+from coral_testbed.cluster import Cluster
 from coral_testbed.images import catalog
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, REAL_ROBOTS, pull_images
+from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, pull_images
 from kubernetes import client as k8s
 
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
@@ -47,19 +45,6 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   </BehaviorTree>
 </root>
 """
-
-
-@pytest.fixture
-def three_robots(real_robots: realrobots.RealRobots) -> Iterator[list[str]]:
-    """The session's real robots and as many more as make three, removed after the test so the
-    session's other tests find the fleet they expect."""
-    added = [f"real-{index}" for index in range(len(REAL_ROBOTS) + 1, FLEET_SIZE + 1)]
-    added = [name for name in added if name not in real_robots.names()]
-    real_robots.add(added, {REAL_ROBOT_LABEL: "real"})
-    try:
-        yield sorted(real_robots.names())
-    finally:
-        real_robots.remove(added)
 
 
 def _system(domain: int) -> dict[str, Any]:
@@ -100,11 +85,11 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
     cluster: Cluster,
     namespace: str,
     built_images: dict[str, Any],
-    three_robots: list[str],
+    three_real_robots: list[str],
     coral_operator: OperatorProcess,
     ros_env: dict[str, str],
 ) -> None:
-    robots = three_robots
+    robots = three_real_robots
     assert len(robots) == FLEET_SIZE, robots
     custom, core = k8s.CustomObjectsApi(cluster.api_client), k8s.CoreV1Api(cluster.api_client)
     control = halt_control.HaltControl(cluster.api_client, namespace)
