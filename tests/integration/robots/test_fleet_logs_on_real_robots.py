@@ -21,7 +21,7 @@ from coral_testbed.cluster import Cluster
 from coral_testbed.images import catalog
 from coral_testbed.waiting import wait_for
 from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, pull_images
+from fixtures.robots import REAL_ROBOT_MARKS, pull_system_images, real_fleet_system
 from kubernetes import client as k8s
 
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
@@ -39,29 +39,6 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
 </root>
 """
 PREFIX = re.compile(r"^(?P<robot>[a-z0-9-]+)/(?P<component>[a-z0-9-]+) *\| (?P<line>.*)$")
-
-
-def _system(domain: int) -> dict[str, Any]:
-    images = catalog.by_name()
-    return {
-        "apiVersion": f"{GROUP}/{VERSION}",
-        "kind": "CoralSystem",
-        "metadata": {"name": SYSTEM},
-        "spec": {
-            "robots": {"matchLabels": {REAL_ROBOT_LABEL: "real"}},
-            "ros": {"domainId": domain},
-            "parameters": {"inline": "examples:\n  ros__parameters: {}\n"},
-            "tree": {"tickRateHz": 5.0, "inline": TREE},
-            "drivers": [
-                {
-                    "name": "counter",
-                    "image": images["examples-skillset"].reference,
-                    "command": ["sh", "-c", COUNTER],
-                }
-            ],
-            "executors": [{"name": "executor", "image": images["executor"].reference}],
-        },
-    }
 
 
 class Followed:
@@ -111,15 +88,13 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
 ) -> None:
     robots = three_real_robots
     custom, core = k8s.CustomObjectsApi(cluster.api_client), k8s.CoreV1Api(cluster.api_client)
-    manifest = _system(int(ros_env["ROS_DOMAIN_ID"]))
-    images = {c["image"] for kind in ("drivers", "executors") for c in manifest["spec"][kind]}
-    for robot in robots:
-        pull_images(
-            cluster, namespace, robot, sorted(images | {coral_operator.extra_env["CORAL_HELPER_IMAGE"]})
-        )
-        wait_for(
-            lambda: not core.list_namespaced_pod(namespace).items, timeout=60, message="the pull pods gone"
-        )
+    counter = {
+        "name": "counter",
+        "image": catalog.by_name()["examples-skillset"].reference,
+        "command": ["sh", "-c", COUNTER],
+    }
+    manifest = real_fleet_system(SYSTEM, int(ros_env["ROS_DOMAIN_ID"]), TREE, drivers=[counter])
+    pull_system_images(cluster, namespace, robots, manifest, coral_operator.extra_env["CORAL_HELPER_IMAGE"])
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
 
     def running_pods() -> list[str]:

@@ -17,10 +17,9 @@ from click.testing import CliRunner
 from coral_operator import halt_control
 from coral_operator.halt_cli import halt_command, resume_command
 from coral_testbed.cluster import Cluster
-from coral_testbed.images import catalog
 from coral_testbed.waiting import holds_for, wait_for
 from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_LABEL, REAL_ROBOT_MARKS, pull_images
+from fixtures.robots import REAL_ROBOT_MARKS, pull_system_images, real_fleet_system
 from kubernetes import client as k8s
 
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
@@ -45,22 +44,6 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   </BehaviorTree>
 </root>
 """
-
-
-def _system(domain: int) -> dict[str, Any]:
-    images = catalog.by_name()
-    return {
-        "apiVersion": f"{GROUP}/{VERSION}",
-        "kind": "CoralSystem",
-        "metadata": {"name": SYSTEM},
-        "spec": {
-            "robots": {"matchLabels": {REAL_ROBOT_LABEL: "real"}},
-            "ros": {"domainId": domain},
-            "parameters": {"inline": "examples:\n  ros__parameters: {}\n"},
-            "tree": {"tickRateHz": 10.0, "inline": TREE},
-            "executors": [{"name": "executor", "image": images["executor"].reference}],
-        },
-    }
 
 
 def _tree(instance: dict[str, Any]) -> dict[str, Any]:
@@ -93,16 +76,9 @@ def test_a_fleet_halts_within_two_seconds_stays_halted_across_an_operator_restar
     assert len(robots) == FLEET_SIZE, robots
     custom, core = k8s.CustomObjectsApi(cluster.api_client), k8s.CoreV1Api(cluster.api_client)
     control = halt_control.HaltControl(cluster.api_client, namespace)
-    manifest = _system(int(ros_env["ROS_DOMAIN_ID"]))
-    images = {c["image"] for c in manifest["spec"]["executors"]}
-    for robot in robots:  # a cold pull would count against the startup's health timeout
-        pull_images(
-            cluster, namespace, robot, sorted(images | {coral_operator.extra_env["CORAL_HELPER_IMAGE"]})
-        )
-        # The next robot's pull pods take the same names.
-        wait_for(
-            lambda: not core.list_namespaced_pod(namespace).items, timeout=60, message="the pull pods gone"
-        )
+    manifest = real_fleet_system(SYSTEM, int(ros_env["ROS_DOMAIN_ID"]), TREE)
+    # A cold pull would count against the startup's health timeout.
+    pull_system_images(cluster, namespace, robots, manifest, coral_operator.extra_env["CORAL_HELPER_IMAGE"])
     custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
 
     def instances() -> list[dict[str, Any]]:
