@@ -110,26 +110,24 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
 
     env = {**os.environ, "KUBECONFIG": str(cluster.kubeconfig)}
     env.pop("CORAL_STATE_DIR", None)
-    started = time.monotonic()
     followed = Followed([SYSTEM, "-n", namespace, "-f"], env)
+
+    def followed_live(robot: str) -> bool:
+        # Lines kept coming for a while, not one batch of what the log held when it was read.
+        counted = followed.counts().get(robot, [])
+        return len(counted) >= LINES_PER_ROBOT and counted[-1][0] - counted[0][0] >= FOLLOWED_FOR_S
+
     try:
         wait_for(
-            lambda: (
-                all(len(followed.counts().get(r, [])) >= LINES_PER_ROBOT for r in robots)
-                and all(
-                    arrived - started >= FOLLOWED_FOR_S
-                    for arrived, _ in (followed.counts()[r][-1] for r in robots)
-                )
-            ),
+            lambda: all(followed_live(r) for r in robots),
             timeout=120,
             interval=0.2,
-            message=lambda: f"{LINES_PER_ROBOT} counter lines of every robot, live: {followed.lines[-20:]}",
+            message=lambda: f"every robot's counter followed live: {followed.lines[-20:]}",
         )
     finally:
         code, stderr = followed.interrupt()
-    print(
-        f"followed {len(followed.lines)} lines of {len(robots)} robots in {time.monotonic() - started:.1f} s"
-    )
+    spans = {r: round(c[-1][0] - c[0][0], 1) for r, c in followed.counts().items()}
+    print(f"followed {len(followed.lines)} lines of {len(robots)} robots, counters live for {spans} s")
     assert code in (0, 130), f"exit {code}: {stderr}"
     assert "Traceback" not in stderr and "Aborted" not in stderr, stderr
 
@@ -143,8 +141,6 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
         numbers = [n for _, n in counted]
         # In order and none lost: the counter's own sequence, from its first line.
         assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), (robot, numbers)
-        # Live: lines kept arriving while it followed, not one batch of what was there.
-        assert counted[-1][0] - counted[0][0] >= FOLLOWED_FOR_S - 1, (robot, counted[0][0], counted[-1][0])
 
     # One robot's one component, without -f: what its log holds, and it ends by itself.
     one = subprocess.run(
