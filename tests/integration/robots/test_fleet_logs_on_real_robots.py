@@ -127,7 +127,10 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
     finally:
         code, stderr = followed.interrupt()
     spans = {r: round(c[-1][0] - c[0][0], 1) for r, c in followed.counts().items()}
-    print(f"followed {len(followed.lines)} lines of {len(robots)} robots, counters live for {spans} s")
+    print(
+        f"followed {len(followed.lines)} lines of {len(robots)} robots, counters live for {spans} s;"
+        f" exit {code} on SIGINT"
+    )
     assert code in (0, 130), f"exit {code}: {stderr}"
     assert "Traceback" not in stderr and "Aborted" not in stderr, stderr
 
