@@ -21,16 +21,19 @@ PACKAGE_ROOTS = {
 }
 
 # Entry points by the root that holds them: the `coral` script, `coral.verbs` are the `coral` command's verbs
-# (`coral_core.command`), `coral.components` how `coral run` finds an installed component from the
+# (`coral_core.command`), `coral.logs` how each side reads logs for `coral logs` (`coral_core.logs_verb`),
+# `coral.components` how `coral run` finds an installed component from the
 # image name in a compose file.
 ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
-    "coral_core": {"console_scripts": ["coral = coral_core.command:main"]},
+    "coral_core": {
+        "console_scripts": ["coral = coral_core.command:main"],
+        "coral.verbs": ["logs = coral_core.logs_verb:logs_command"],
+    },
     "coral": {
         "coral.verbs": [
             "run = coral.local.cli:run_command",
             "ps = coral.local.cli:ps_command",
             "stop = coral.local.cli:stop_command",
-            "logs = coral.local.cli:logs_command",
             "validate = coral.local.cli:validate_command",
             "verify = coral.local.cli:verify_command",
             "nodes-model = coral.local.cli:nodes_model_command",
@@ -40,6 +43,7 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "skillset = coral.sdk.cli:skillset_command",
             "plugins = coral.plugins.cli:plugins_command",
         ],
+        "coral.logs": ["run = coral.local.cli:LOGS_OF_RUNS"],
     },
     "coral_skillsets": {
         "coral.components": [
@@ -56,10 +60,13 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "convert = coral_operator.convert.cli:convert_command",
             "crds = coral_operator.crds_cli:crds_command",
             "rollout = coral_operator.rollout_cli:rollout",
+            "halt = coral_operator.halt_cli:halt_command",
+            "resume = coral_operator.halt_cli:resume_command",
             "groot2 = coral_operator.groot2_cli:groot2_command",
             "tree = coral_operator.tree_cli:tree_group",
             "config = coral_operator.config_cli:config_command",
         ],
+        "coral.logs": ["system = coral_operator.logs_cli:LOGS_OF_SYSTEMS"],
     },
     "coral_testbed": {
         "coral.verbs": [

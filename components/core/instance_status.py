@@ -75,6 +75,21 @@ class NoProgress(CamelModel):
     """When it started failing so (RFC 3339)."""
 
 
+ParkStatus = Literal["SUCCESS", "FAILURE", "TIMEOUT", "MISSING"]
+"""How a park tree ended: its root's status, out of time, or not in the tree document."""
+
+
+class TreeHalt(CamelModel):
+    """The executor's acknowledgement of a halt: its tree is halted and no longer ticks."""
+
+    since: str | None = None
+    """When the tree was halted (RFC 3339)."""
+    park_tree: str | None = None
+    """The park tree ticked before halting, if the halt named one."""
+    park_status: ParkStatus | None = None
+    """How the park tree ended."""
+
+
 class TreeState(CamelModel):
     """Behavior-tree status, written by the robot's executor."""
 
@@ -90,6 +105,8 @@ class TreeState(CamelModel):
     """The last node failure."""
     no_progress: NoProgress | None = None
     """Set while one node keeps failing the same way (`tree.noProgressSeconds`)."""
+    halted: TreeHalt | None = None
+    """Set while the tree is halted on request (`spec.halt`); cleared when it ticks again."""
     message: str = ""
     """Executor message, for example which node types are missing."""
     updated_at: str | None = None
@@ -116,7 +133,7 @@ class CoralInstanceStatus(CamelModel):
     """The generation this status was computed from."""
     conditions: list[Condition] = Field(default_factory=list)
     """Ready, Reconciling, Stalled, RobotReachable, ComponentsReady, PluginsReady, LibraryDegraded,
-    TreeHealthy."""
+    TreeHealthy; Halted while a halt is asked for or acknowledged."""
     revision: str | None = None
     """Revision every component pod runs; empty while pods of several revisions coexist."""
     robot: RobotState = Field(default_factory=RobotState)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from coral_core import instance_status, wire
+from coral_core import halt, instance_status, wire
 from pydantic import BaseModel
 
 
@@ -39,6 +39,8 @@ INSTANCE_STATUS = WireNames(instance_status.CoralInstanceStatus)
 TREE = WireNames(instance_status.TreeState)
 TREE_FAILURE = WireNames(instance_status.TreeFailure)
 NO_PROGRESS = WireNames(instance_status.NoProgress)
+TREE_HALT = WireNames(instance_status.TreeHalt)
+HALT = WireNames(halt.HaltRequest)
 PLUGINS = WireNames(instance_status.PluginState)
 ROBOT = WireNames(instance_status.RobotState)
 COMPONENT = WireNames(instance_status.ComponentState)

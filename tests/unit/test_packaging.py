@@ -47,8 +47,10 @@ def test_a_copy_without_the_testbed_registers_none_of_its_verbs() -> None:
     """What an image installs: its roots only (the operator image has no testbed, no robot side)."""
     roots = ["coral_core", "coral_operator"]
     verbs = SETUP["entry_points"](roots)["coral.verbs"]
-    operator_verbs = {"operator", "convert", "crds", "rollout", "groot2", "tree", "config"}
-    assert {verb.split(" = ")[0] for verb in verbs} == operator_verbs
+    operator_verbs = {"operator", "convert", "crds", "rollout", "halt", "resume", "groot2", "tree", "config"}
+    # `logs` is coral_core's: it offers whichever side's logs are installed (coral_core.logs_verb).
+    assert {verb.split(" = ")[0] for verb in verbs} == operator_verbs | {"logs"}
+    assert SETUP["entry_points"](roots)["coral.logs"] == ["system = coral_operator.logs_cli:LOGS_OF_SYSTEMS"]
     assert "coral.components" not in SETUP["entry_points"](roots)
     assert SETUP["entry_points"](roots)["console_scripts"] == ["coral = coral_core.command:main"]
 
@@ -62,7 +64,5 @@ def test_each_entry_point_names_a_module_of_the_root_that_registers_it() -> None
 
 
 def test_an_unknown_verb_is_refused() -> None:
-    result = subprocess.run(
-        [sys.executable, "-m", "coral", "no-such-verb"], capture_output=True, text=True
-    )
+    result = subprocess.run([sys.executable, "-m", "coral", "no-such-verb"], capture_output=True, text=True)
     assert result.returncode == 2 and "No such command 'no-such-verb'" in result.stderr

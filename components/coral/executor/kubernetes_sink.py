@@ -50,6 +50,9 @@ _STOPPED_BY_SIGNAL = 128
 # also stops the executor), the identity may not write it, or the body is refused. Retrying them
 # would only hold a stopping pod.
 _FINAL_REFUSALS = frozenset({400, 403, 404, 422})
+# Records someone waits on (`coral halt --wait`): patched at once rather than after the interval,
+# unless a failure's pause holds the sink. Two per halt, so the rate limit keeps its purpose.
+_URGENT_EVENTS = frozenset({"halted", "resumed"})
 
 
 def _rfc3339(seconds: float | None) -> str | None:
@@ -112,6 +115,15 @@ def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
     elif event == "condition" and record.get("type") == "LibraryDegraded":
         degraded = record.get("status") == "True"
         plugins[keys.PLUGINS.degraded] = [str(record.get("message", ""))] if degraded else []
+    elif event == "halted":
+        halted = {
+            keys.TREE_HALT.since: _rfc3339(record.get("since")),
+            keys.TREE_HALT.park_tree: record.get("park_tree"),
+            keys.TREE_HALT.park_status: record.get("park_status"),
+        }
+        tree[keys.TREE.halted] = {key: value for key, value in halted.items() if value is not None}
+    elif event == "resumed":
+        tree[keys.TREE.halted] = None  # a merge patch's null clears the field
     elif event in ("finished", "error"):
         if record.get("status"):
             tree[keys.TREE.root_status] = str(record["status"])
@@ -171,6 +183,8 @@ class KubernetesStatusSink:
     def emit(self, record: dict[str, Any]) -> None:
         with self._lock:
             self._state = summarize(self._state, record)
+            if record.get("event") in _URGENT_EVENTS and not self._failures:
+                self._not_before = float("-inf")
             if record.get("event") == "finished":
                 self._ended_by_itself = int(record.get("exit_code") or 0) < _STOPPED_BY_SIGNAL
         if self._thread is not None:
@@ -318,26 +332,39 @@ def build_patcher(
     return patch
 
 
-def create_sink(options: dict[str, Any]) -> KubernetesStatusSink:
-    """Factory for the executor's `--sink`: instance from CORAL_INSTANCE / CORAL_NAMESPACE, credentials
-    from the pod's ServiceAccount (or KUBECONFIG outside a cluster)."""
-    from kubernetes import client, config
-    from kubernetes.config.config_exception import ConfigException
-
+def instance_address(options: dict[str, Any]) -> tuple[str, str]:
+    """(namespace, instance) of the executor's own CoralInstance, from `options` or CORAL_NAMESPACE
+    and CORAL_INSTANCE (the operator sets both in every component's environment)."""
     instance = options.get("instance") or os.environ.get("CORAL_INSTANCE")
     namespace = options.get("namespace") or os.environ.get("CORAL_NAMESPACE")
     if not instance or not namespace:
         raise ValueError(
             "the Kubernetes status sink needs CORAL_INSTANCE and CORAL_NAMESPACE in the environment"
         )
+    return namespace, instance
+
+
+def executor_api_client() -> Any:
+    """An API client with the pod's ServiceAccount (or KUBECONFIG outside a cluster), named as the
+    executor in audit logs and as the field manager of its writes in managedFields."""
+    from kubernetes import client, config
+    from kubernetes.config.config_exception import ConfigException
+
     configuration = client.Configuration()
     try:
         config.load_incluster_config(client_configuration=configuration)
     except ConfigException:
         config.load_kube_config(client_configuration=configuration)
     api = client.ApiClient(configuration)
-    # Named in audit logs and as the field manager of its writes in managedFields.
     api.user_agent = names.EXECUTOR_MANAGER
+    return api
+
+
+def create_sink(options: dict[str, Any]) -> KubernetesStatusSink:
+    """Factory for the executor's `--sink`: instance from CORAL_INSTANCE / CORAL_NAMESPACE, credentials
+    from the pod's ServiceAccount (or KUBECONFIG outside a cluster)."""
+    namespace, instance = instance_address(options)
+    api = executor_api_client()
     interval = float(options.get("min_interval_s") or os.environ.get("CORAL_STATUS_MIN_INTERVAL_S", "1.0"))
     finished_grace = float(
         options.get("finished_grace_s") or os.environ.get("CORAL_STATUS_FINISHED_GRACE_S", FINISHED_GRACE_S)

@@ -8,6 +8,7 @@ behavior raised), 4 internal error, 5 node types still missing after `--wait-tim
 
 from __future__ import annotations
 
+import logging
 import os
 import socket
 import threading
@@ -20,16 +21,21 @@ from typing import Any
 from coral_core.limits import DEFAULT_NO_PROGRESS_S
 
 from coral.executor import plugins_phase, records, sinks
+from coral.executor.halting import HaltSignal, park_builder
 from coral.executor.ticking import TickLoop
 from coral.sdk.heap import freeze_startup_heap
 from coral.stop_signals import relay_stop_signals
 
+LOG = logging.getLogger(__name__)
 EXIT_SUCCESS = 0
 EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2
 EXIT_TICK_ERROR = 3
 EXIT_INTERNAL = 4
 EXIT_WAIT_TIMEOUT = 5
+# Before the first tick, how long to wait for the instance's `spec.halt`: a robot halted before
+# its executor (re)started must not tick once; a robot out of reach starts after this.
+FIRST_HALT_READING_S = 5.0
 
 
 @dataclass
@@ -159,6 +165,8 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
 
     stop.wake = wake_up
     publisher = None
+    halts = HaltSignal(wake_up)
+    follower = _follow_halts(halts)
     context = ExecutorContext(
         node_name=options.node_name, hostname=options.hostname, params_file=options.params, wake_up=wake_up
     )
@@ -200,7 +208,14 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
         calls.open_clients(tree.nodes)
         waker["tree"] = tree
         loop = TickLoop(
-            tree, context, fanout, state, rate_hz=options.rate_hz, no_progress_s=options.no_progress_s
+            tree,
+            context,
+            fanout,
+            state,
+            rate_hz=options.rate_hz,
+            no_progress_s=options.no_progress_s,
+            halts=halts,
+            build_park=park_builder(document, registry, context),
         )
         publisher = _start_groot2(options, tree, fanout)
         if publisher is not None:
@@ -212,17 +227,39 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             stop.wake = release_and_wake
         freeze_startup_heap()  # the tree and its plugins are built: nothing of them is garbage
         loop.wait_for_components(options.liveness_wait_s, stop.event)
+        if follower is not None:
+            halts.wait_known(FIRST_HALT_READING_S)
         if publisher is not None and options.groot2_wait_s > 0:
             connected = publisher.wait_for_client(options.groot2_wait_s, stop.event)
             _emit(fanout, "groot2", port=options.groot2_port, client_connected=connected)
         return loop.run(stop.event, lambda: 128 + stop.signum)
     finally:
+        if follower is not None:
+            follower.stop()
         if publisher is not None:
             publisher.close()
         # The ROS sink goes first, while its node still exists, so tools get the final records.
         fanout.remove(ros_sink)
         ros_sink.close()
         context.shutdown()
+
+
+def _follow_halts(halts: HaltSignal) -> Any:
+    """In a cluster (CORAL_INSTANCE and CORAL_NAMESPACE set), a started watch of the instance's
+    `spec.halt`; None elsewhere (`coral run`, a tree run by hand), where nothing halts the tree."""
+    if not (os.environ.get("CORAL_INSTANCE") and os.environ.get("CORAL_NAMESPACE")):
+        return None
+    from coral.executor.halt_watch import InstanceHaltWatch
+    from coral.executor.kubernetes_sink import executor_api_client, instance_address
+
+    namespace, instance = instance_address({})
+    try:
+        follower = InstanceHaltWatch(executor_api_client(), namespace, instance, halts)
+    except Exception as error:  # noqa: BLE001 - without credentials the tree runs, unhaltable
+        LOG.warning("Not following spec.halt of CoralInstance %s/%s: %s", namespace, instance, error)
+        return None
+    follower.start()
+    return follower
 
 
 def _start_groot2(options: ExecutorOptions, tree: Any, fanout: sinks.SinkFanout) -> Any:

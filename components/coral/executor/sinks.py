@@ -66,7 +66,7 @@ class TerminalSink:
         elif event == "groot2":
             details = {k: v for k, v in record.items() if k not in ("ts", "event")}
             self._line(f"Groot2 publisher: {json.dumps(details, sort_keys=True)}")
-        elif event in ("started", "finished", "error"):
+        elif event in ("started", "finished", "error", "halted", "resumed"):
             details = {k: v for k, v in record.items() if k not in ("ts", "event")}
             self._line(f"Executor {event}: {json.dumps(details, sort_keys=True)}")
 
@@ -110,7 +110,7 @@ class JsonLinesSink:
 class RosTopicSink:
     """Publishes status, condition and finish records (not transitions) as JSON `std_msgs/String`."""
 
-    EVENTS = {"status", "condition", "component", "finished", "waiting", "plugins"}
+    EVENTS = {"status", "condition", "component", "finished", "waiting", "plugins", "halted", "resumed"}
 
     def __init__(self, node: Any, topic: str) -> None:
         from rclpy.qos import DurabilityPolicy, QoSProfile

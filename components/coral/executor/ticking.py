@@ -18,6 +18,10 @@ every node transition, `component` records when a loaded component's liveness ch
 5 per second, plus one per second as a heartbeat), and `condition` records for `LibraryDegraded`.
 A `status` record's `no_progress` names the node that keeps failing the same way
 (`coral.executor.progress`), or is null.
+
+While its `HaltSignal` holds a request, the loop halts the tree (`coral.executor.halting`), reports
+a `halted` record and ticks no more; when the request is lifted it reports `resumed` and ticks the
+tree again from its start.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from typing import Any
 from coral_core.limits import DEFAULT_NO_PROGRESS_S
 
 from coral.executor import plugins_phase, records, sinks
+from coral.executor.halting import HaltOutcome, HaltSignal, ParkBuilder, halt_tree
 from coral.executor.progress import ProgressWatch
 
 STATUS_MIN_INTERVAL_S = 0.2
@@ -46,6 +51,8 @@ class TickLoop:
         *,
         rate_hz: float,
         no_progress_s: float = DEFAULT_NO_PROGRESS_S,
+        halts: HaltSignal | None = None,
+        build_park: ParkBuilder | None = None,
     ) -> None:
         self.tree = tree
         self.context = context
@@ -60,6 +67,10 @@ class TickLoop:
         self._last_status: dict[str, Any] | None = None
         self._last_status_at = 0.0
         self.progress = ProgressWatch(no_progress_s)
+        self.halts = halts
+        self.build_park = build_park
+        self.halted: HaltOutcome | None = None
+        """Set while the tree is halted on request."""
         tree.add_transition_listener(self._on_transition)
 
     def _emit(self, event: str, **fields: Any) -> None:
@@ -173,6 +184,11 @@ class TickLoop:
         root: Any = bt.Status.IDLE
         try:
             while not stop.is_set():
+                if self._follow_halt(stop):
+                    root = bt.Status.IDLE
+                    # The halt signal wakes the tree when it changes; the heartbeat is a backstop.
+                    self.tree.wait_for_wake_up(STATUS_HEARTBEAT_S)
+                    continue
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
                 self.fanout.end_tick()
@@ -201,6 +217,29 @@ class TickLoop:
             "finished", root_status=records.status_name(root), exit_code=code, tick_count=self.tree.tick_count
         )
         return code
+
+    def _follow_halt(self, stop: threading.Event) -> bool:
+        """Halts or resumes as the halt signal asks; True while the tree stays halted.
+
+        A halt reports an IDLE status and then `halted` once done; a resume reports `resumed`, and
+        the next tick starts the tree from its beginning, as the halt reset every node.
+        """
+        from coral_core import bt
+
+        request = self.halts.current() if self.halts is not None else None
+        if request is None:
+            if self.halted is not None:
+                self.halted = None
+                self._emit("resumed")
+            return False
+        if self.halted is None:
+            self.halted = halt_tree(self.tree, request, self.build_park, period_s=self.period_s, stop=stop)
+            if self.halted.error:
+                self._emit("error", message=f"halt (park tree {request.park_tree}): {self.halted.error}")
+            # The IDLE status first, so the acknowledgement (written at once) carries it along.
+            self._report(bt.Status.IDLE, force=True)
+            self._emit("halted", **self.halted.record_fields())
+        return True
 
     def _sleep_s(self, tick_started: float) -> float:
         """How long to wait for a wake-up before ticking anyway."""

@@ -10,11 +10,11 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import click
-from coral_core import parsing, polling
+from coral_core import logs_verb, parsing, polling
 from rich.text import Text
 
 from coral.executor.cli import check_groot2_options, groot2_options
@@ -236,6 +236,22 @@ def logs_command(handle: str, services: tuple[str, ...], follow: bool) -> None:
         if not follow or not state.pid_alive(run.supervisor_pid):
             return
         time.sleep(0.2)  # tailing files: no event to wait on
+
+
+def _names_a_run(args: Sequence[str]) -> bool:
+    """`coral logs ARGS` is about a run on this machine: they parse as this verb's and name its handle."""
+    try:
+        with logs_command.make_context("logs", list(args), resilient_parsing=True) as ctx:
+            handle = ctx.params.get("handle")
+    except click.ClickException:
+        return False
+    return bool(handle) and bool(
+        state.select_runs(state.load_runs(), handle=handle, group=None, everything=False)
+    )
+
+
+LOGS_OF_RUNS = logs_verb.LogsSource(command=logs_command, claims=_names_a_run)
+"""`coral logs HANDLE`: registered in `coral_core.logs_verb.LOGS_GROUP` (setup.py)."""
 
 
 def _user_text(data: bytes, source: str) -> str:

@@ -6,6 +6,7 @@ contract with the robot side and are defined in `coral_core`; they are re-export
 operator's API is one surface.
 """
 
+from coral_core.halt import HaltRequest
 from coral_core.instance_status import (
     ComponentState,
     CoralInstanceStatus,
@@ -13,6 +14,7 @@ from coral_core.instance_status import (
     PluginState,
     RobotState,
     TreeFailure,
+    TreeHalt,
     TreeState,
 )
 from coral_core.names import API_VERSION, GROUP, VERSION
@@ -42,6 +44,7 @@ from coral_operator.api.system import (
     CanarySpec,
     CoralSystemSpec,
     CoralSystemStatus,
+    HaltSpec,
     PluginsSpec,
     RobotCounts,
     RolloutSpec,
@@ -77,6 +80,8 @@ __all__ = [
     "ExecutorComponent",
     "Groot2Spec",
     "EnvVar",
+    "HaltRequest",
+    "HaltSpec",
     "HostPathMount",
     "InstanceTree",
     "LabelSelector",
@@ -96,6 +101,7 @@ __all__ = [
     "TreeCounts",
     "TreeFailure",
     "TreeOverride",
+    "TreeHalt",
     "TreeSpec",
     "TreeState",
 ]

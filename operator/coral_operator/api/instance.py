@@ -7,6 +7,7 @@ Built by `planning.instances` from a CoralSystem and a robot Node; its pods are 
 
 from __future__ import annotations
 
+from coral_core.halt import HaltRequest
 from coral_core.wire import CamelModel
 from pydantic import Field
 
@@ -65,6 +66,9 @@ class CoralInstanceSpec(CamelModel):
     """Ordered startup settings."""
     plugins: PluginsSpec = Field(default_factory=PluginsSpec)
     """Plugin delivery settings."""
+    halt: HaltRequest | None = None
+    """Set while the system halts this robot (`CoralSystem.spec.halt`): the executor halts its tree
+    and ticks it no more. Not part of the revision: pods do not change."""
     retiring: bool = False
     """The robot left the system's selector: stop executors, then skillsets, then drivers, then remove
     this instance."""

@@ -16,6 +16,7 @@ from coral_core.keys import (
     ROBOT,
     TREE,
     TREE_FAILURE,
+    TREE_HALT,
     WireNames,
 )
 
@@ -39,6 +40,7 @@ __all__ = [
     "TREE",
     "TREE_COUNTS",
     "TREE_FAILURE",
+    "TREE_HALT",
     "WireNames",
 ]
 

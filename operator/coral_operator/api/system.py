@@ -11,6 +11,7 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
+from coral_core.halt import HaltRequest
 from coral_core.limits import MAX_TICK_RATE_HZ
 from coral_core.wire import CamelModel, Condition
 from pydantic import Field, field_validator, model_validator
@@ -291,6 +292,24 @@ def groot2_ports_overlap(executors: list[ExecutorComponent]) -> bool:
     return any(later - earlier < 2 for earlier, later in zip(ports, ports[1:], strict=False))
 
 
+MAX_HALTED_ROBOTS = 1000
+
+
+class HaltSpec(HaltRequest):
+    """Halt the missions of the system's robots: an operational stop, not a safety stop.
+
+    Each selected robot's executor halts its tree as BT.CPP's `haltTree()` does (every running
+    node halted, every status reset), after ticking `parkTree` to its end if one is named, and
+    acknowledges on its CoralInstance (`Halted=True`). No pod restarts. Removing the field (or a
+    robot from `robots`) makes the tree tick again from its start (`coral halt`, `coral resume`).
+    """
+
+    robots: list[Annotated[str, Field(max_length=63)]] = Field(
+        default_factory=list, max_length=MAX_HALTED_ROBOTS
+    )
+    """Robot names (their `coral.dev/robot` label) to halt; empty halts every robot of the system."""
+
+
 _ALL_NAMES = "(self.drivers.map(c, c.name) + self.skillsets.map(c, c.name) + self.executors.map(c, c.name))"
 
 
@@ -362,6 +381,8 @@ class CoralSystemSpec(CamelModel):
     overrides: list[Override] = Field(default_factory=list, max_length=MAX_OVERRIDES)
     """What differs per robot selector: parameters, env, images, components, tree files
     (docs/overrides.md). `coral config SYSTEM ROBOT` prints what one robot runs."""
+    halt: HaltSpec | None = None
+    """Halt the trees of every robot, or of the robots listed; unset, the trees run."""
 
     @model_validator(mode="after")
     def _rules(self) -> CoralSystemSpec:

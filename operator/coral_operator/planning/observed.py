@@ -14,8 +14,9 @@ from coral_core import names
 
 from coral_operator.planning import naming
 
-ROBOT_SPEC_FIELDS = ("robot", "nodeName", "revision")
-"""The fields of a CoralInstance spec that differ between the robots of one system at one revision."""
+ROBOT_SPEC_FIELDS = ("robot", "nodeName", "revision", "halt")
+"""The fields of a CoralInstance spec that differ between the robots of one system at one revision
+(`halt` only some robots may carry)."""
 
 
 @dataclass(frozen=True)

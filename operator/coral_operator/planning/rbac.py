@@ -5,7 +5,8 @@ instance, no spec, no pods, no secrets, no CoralSystems). RBAC alone could scope
 one Role per instance (`resourceNames`), three objects per robot. Instead:
 
 - each system has one ServiceAccount, Role and RoleBinding, owned by the CoralSystem; the Role
-  allows `patch` on `coralinstances/status` in the namespace and nothing else;
+  allows `patch` on `coralinstances/status` and reading `coralinstances` (an executor follows its
+  instance's `spec.halt`) in the namespace, and nothing else;
 - one cluster-wide ValidatingAdmissionPolicy (with its binding) narrows that to one instance: the
   request must come from the account of the instance's system (its `coral.dev/system` label) and
   from a token bound to a pod on the instance's Node. The kubelet's projected token carries that
@@ -62,7 +63,11 @@ def build_executor_rbac(*, system: str, namespace: str, system_uid: str) -> list
             "apiVersion": "rbac.authorization.k8s.io/v1",
             "kind": "Role",
             "metadata": dict(metadata),
-            "rules": [{"apiGroups": [GROUP], "resources": ["coralinstances/status"], "verbs": ["patch"]}],
+            "rules": [
+                {"apiGroups": [GROUP], "resources": ["coralinstances/status"], "verbs": ["patch"]},
+                # The executor follows its instance's `spec.halt` (`coral.executor.halt_watch`).
+                {"apiGroups": [GROUP], "resources": ["coralinstances"], "verbs": ["get", "list", "watch"]},
+            ],
         },
         {
             "apiVersion": "rbac.authorization.k8s.io/v1",

@@ -18,7 +18,7 @@ from coral_operator.planning import naming
 
 HISTORY_LIMIT = 10
 """Revisions kept per system, besides any a robot still runs."""
-_ROBOT_FIELDS = ("system", "robot", "nodeName", "revision", "retiring")
+_ROBOT_FIELDS = ("system", "robot", "nodeName", "revision", "retiring", "halt")
 
 
 @dataclass(frozen=True)

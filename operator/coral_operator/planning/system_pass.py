@@ -23,6 +23,7 @@ from coral_operator.planning import (
     budgets,
     configmaps,
     effective,
+    halting,
     instances,
     policy,
     rbac,
@@ -279,6 +280,9 @@ def _plan_deployment(
             continue
         manifest = builder.build(robot, resolved)
         manifest["spec"]["revision"] = chosen
+        halt = halting.halt_of_robot(spec.halt, robot.robot)
+        if halt is not None:
+            manifest["spec"]["halt"] = halt
         desired.append(manifest)
     reachable = {node.node_name for node in observation.robots if node.ready}
     in_use = {tree_cm["metadata"]["name"], params_cm["metadata"]["name"]}

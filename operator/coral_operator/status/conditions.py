@@ -32,6 +32,9 @@ class ConditionType(StrEnum):
     """A skillset died under a loaded behavior."""
     TREE_HEALTHY = "TreeHealthy"
     """The tree's root has not returned FAILURE, and the tree makes progress."""
+    HALTED = "Halted"
+    """The robot's executor halted its tree on request (`spec.halt`); present only while a halt is
+    asked for or still acknowledged."""
 
 
 class Reason(StrEnum):
@@ -126,6 +129,12 @@ class Reason(StrEnum):
     """The tree's root has not failed."""
     NO_PROGRESS = "NoProgress"
     """One node keeps failing the same way (`tree.noProgressSeconds`): the robot loops."""
+    HALT_ACKNOWLEDGED = "HaltAcknowledged"
+    """The executor halted the tree as asked and ticks it no more."""
+    HALT_REQUESTED = "HaltRequested"
+    """A halt is asked for; the executor has not acknowledged it yet."""
+    RESUME_REQUESTED = "ResumeRequested"
+    """The halt was lifted; the executor has not acknowledged that its tree ticks again."""
     INSTANCES_FAILED = "InstancesFailed"
     """Some reachable robots' CoralInstances are Stalled (a component or the tree failed)."""
     ROLLED_BACK = "RolledBack"

@@ -14,7 +14,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, get_args
+
+from coral_core.instance_status import ParkStatus
 
 from coral_operator.api import keys
 from coral_operator.status.transitions import parse_rfc3339
@@ -96,6 +98,15 @@ _is_no_progress = _is_object_of(
     }
 )
 
+PARK_STATUSES = frozenset(get_args(ParkStatus))
+_is_halt = _is_object_of(
+    {
+        keys.TREE_HALT.since: _is_optional_time,
+        keys.TREE_HALT.park_tree: lambda v: v is None or _is_text(v),
+        keys.TREE_HALT.park_status: lambda v: v is None or v in PARK_STATUSES,
+    }
+)
+
 
 _TREE_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
     keys.TREE.root_status: (
@@ -107,6 +118,7 @@ _TREE_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
     keys.TREE.last_transition_time: (_is_optional_time, "an RFC 3339 time"),
     keys.TREE.last_failure: (_is_failure, "an object of path, message and RFC 3339 time"),
     keys.TREE.no_progress: (_is_no_progress, "an object of path, message and RFC 3339 time"),
+    keys.TREE.halted: (_is_halt, "an object of RFC 3339 time, park tree and park status"),
     keys.TREE.message: (_is_text, "a string"),
     keys.TREE.updated_at: (_is_optional_time, "an RFC 3339 time"),
 }

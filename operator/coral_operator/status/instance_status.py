@@ -233,6 +233,51 @@ def _tree_not_failed(view: InstanceView) -> Verdict:
     return verdict if verdict.status is False else Verdict(C.TREE_HEALTHY, True, R.TREE_OK)
 
 
+def _halt_acknowledged(view: InstanceView) -> dict[str, Any] | None:
+    """The executor's halt acknowledgement, unless it came from an executor that has since restarted."""
+    if not view.tree or _tree_is_stale(view):
+        return None
+    halted = view.tree.get(keys.TREE.halted)
+    return halted if isinstance(halted, Mapping) else None
+
+
+def _halt_verdict(view: InstanceView) -> Verdict | None:
+    """`Halted`: present while a halt is asked for (`spec.halt`) or the executor still says so.
+
+    A halted robot is where its spec asks it to be, so it reads Ready (and kstatus Current), not
+    failed; while the executor has not acknowledged a halt or a resume yet, the robot is on its way.
+    """
+    asked = view.spec.halt is not None
+    acknowledged = _halt_acknowledged(view)
+    if not asked and acknowledged is None:
+        return None
+    if asked and acknowledged is None:
+        message = "A halt is asked for; the executor has not acknowledged it yet."
+        return Verdict(C.HALTED, False, R.HALT_REQUESTED, message)
+    assert acknowledged is not None
+    since = acknowledged.get(keys.TREE_HALT.since) or "an unknown time"
+    park = acknowledged.get(keys.TREE_HALT.park_tree)
+    ended = acknowledged.get(keys.TREE_HALT.park_status) or "unknown"
+    parked = f"; park tree {park} ended {ended}" if park else ""
+    if not asked:
+        return Verdict(
+            C.HALTED,
+            True,
+            R.RESUME_REQUESTED,
+            f"The halt was lifted; the executor has not resumed the tree yet (halted since {since}).",
+        )
+    message = f"The tree is halted on request since {since}{parked}."
+    return Verdict(C.HALTED, True, R.HALT_ACKNOWLEDGED, message)
+
+
+def _halt_settled(view: InstanceView) -> Verdict:
+    """The halt link of the Ready chain: broken only while a halt or a resume is on its way."""
+    verdict = _halt_verdict(view)
+    if verdict is None or verdict.reason == R.HALT_ACKNOWLEDGED:
+        return Verdict(C.HALTED, True, R.READY)
+    return Verdict(C.HALTED, False, verdict.reason, verdict.message)
+
+
 # Ready = the first failing link of this chain; reachability comes first because nothing else
 # observed about an unreachable robot is current.
 _READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [
@@ -240,6 +285,7 @@ _READY_CHAIN: list[Callable[[InstanceView], Verdict]] = [
     _node_ready,
     _components_verdict,
     _tree_not_failed,
+    _halt_settled,
 ]
 
 
@@ -249,7 +295,10 @@ def evaluate_ready(view: InstanceView) -> Verdict:
         verdict = check(view)
         if verdict.status is not True:
             return Verdict(C.READY, False, verdict.reason, verdict.message)
-    return Verdict(C.READY, True, R.READY, f"Robot {view.spec.robot} runs revision {view.spec.revision}.")
+    halted = " (its tree halted on request)" if view.spec.halt is not None else ""
+    return Verdict(
+        C.READY, True, R.READY, f"Robot {view.spec.robot} runs revision {view.spec.revision}{halted}."
+    )
 
 
 def build_components(view: InstanceView) -> list[dict[str, Any]]:
@@ -336,6 +385,9 @@ def build_instance_status(
         _library_verdict(view),
         tree,
     ]
+    halt = _halt_verdict(view)
+    if halt is not None:
+        verdicts.append(halt)
     revisions = {p.revision for p in view.pods if not p.deleting}
     node = view.node
     return {

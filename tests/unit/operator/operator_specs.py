@@ -48,6 +48,19 @@ def robot(name: str, ready: bool = True, **labels: str) -> RobotNode:
     )
 
 
+def observed_instance(manifest: dict[str, Any], ready: bool = False) -> ObservedInstance:
+    """The instance as the system wrote it from `manifest` (owned by the system)."""
+    return ObservedInstance(
+        name=manifest["metadata"]["name"],
+        robot=manifest["spec"]["robot"],
+        spec=copy.deepcopy(manifest["spec"]),
+        revision=manifest["spec"]["revision"],
+        labels=manifest["metadata"]["labels"],
+        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
+        ready=ready,
+    )
+
+
 def instance_view(
     spec: CoralInstanceSpec,
     desired: list[dict[str, Any]],
@@ -148,17 +161,4 @@ def plan_pass(
             policy=Policy(host_network_namespaces=frozenset({"*"})),
             now=NOW,
         )
-    )
-
-
-def observed_from(manifest: dict[str, Any], ready: bool = False) -> ObservedInstance:
-    """The instance as the system wrote it from `manifest` (owned by the system)."""
-    return ObservedInstance(
-        name=manifest["metadata"]["name"],
-        robot=manifest["spec"]["robot"],
-        spec=copy.deepcopy(manifest["spec"]),
-        revision=manifest["spec"]["revision"],
-        labels=manifest["metadata"]["labels"],
-        controller_uid=manifest["metadata"]["ownerReferences"][0]["uid"],
-        ready=ready,
     )

@@ -7,13 +7,15 @@ from coral_core.names import LABEL_SYSTEM
 from coral_operator.planning import naming, rbac
 
 
-def test_every_executor_of_a_system_shares_one_account_with_only_status_patch() -> None:
+def test_every_executor_of_a_system_shares_one_account_that_writes_only_status() -> None:
     objects = rbac.build_executor_rbac(system="mission", namespace="fleet", system_uid="uid-1")
     assert [o["kind"] for o in objects] == ["ServiceAccount", "Role", "RoleBinding"]
     assert {o["metadata"]["name"] for o in objects} == {naming.executor_account_name("mission")}
     role = objects[1]
+    # Reading instances lets an executor follow its own `spec.halt`; it writes nothing but status.
     assert role["rules"] == [
-        {"apiGroups": ["coral.dev"], "resources": ["coralinstances/status"], "verbs": ["patch"]}
+        {"apiGroups": ["coral.dev"], "resources": ["coralinstances/status"], "verbs": ["patch"]},
+        {"apiGroups": ["coral.dev"], "resources": ["coralinstances"], "verbs": ["get", "list", "watch"]},
     ]
     owner = objects[0]["metadata"]["ownerReferences"][0]
     assert (owner["kind"], owner["name"], owner["uid"]) == ("CoralSystem", "mission", "uid-1")

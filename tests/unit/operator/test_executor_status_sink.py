@@ -93,6 +93,20 @@ def test_it_patches_on_change_only_and_at_most_once_per_interval() -> None:
     assert len(patches) == 2, "an unchanged summary is not written again"
 
 
+def test_a_halt_acknowledgement_is_written_at_once_despite_the_interval() -> None:
+    """`coral halt --wait` waits on it: the rate limit must not add up to a second to a halt."""
+    patches: list[dict[str, Any]] = []
+    clock = Clock()
+    status_sink = _sink(patches, clock)
+    status_sink.emit(_status("RUNNING", 1))
+    status_sink.emit({"event": "halted", "since": 0.0, "park_tree": None, "park_status": None})
+    assert len(patches) == 2 and patches[1]["status"]["tree"]["halted"] == {"since": "1970-01-01T00:00:00Z"}
+    status_sink.emit(_status("IDLE", 1))
+    assert len(patches) == 2, "what follows the acknowledgement waits for the interval again"
+    status_sink.emit({"event": "resumed"})
+    assert len(patches) == 3 and patches[2]["status"]["tree"]["halted"] is None
+
+
 def test_close_flushes_the_last_pending_summary() -> None:
     patches: list[dict[str, Any]] = []
     status_sink = _sink(patches, Clock())

@@ -10,7 +10,7 @@ from coral_operator.api.common import LabelSelector
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import instances, selection
 from coral_operator.planning.observed import ObservedInstance
-from operator_specs import observed_from, robot
+from operator_specs import observed_instance, robot
 
 
 def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
@@ -21,14 +21,11 @@ def _desired(spec: dict[str, Any], robots: list[Any]) -> list[dict[str, Any]]:
     ]
 
 
-_existing = observed_from
-
-
 def _as_the_api_server_renders_it(manifest: dict[str, Any]) -> ObservedInstance:
     """The instance of `manifest` as read back: the API server gives `tickRateHz: 10.0` as 10."""
     spec = manifest["spec"]
     stored = {**spec, "tree": {**spec["tree"], "tickRateHz": 10}}
-    return dataclasses.replace(_existing(manifest), spec=stored, revision="x")
+    return dataclasses.replace(observed_instance(manifest), spec=stored, revision="x")
 
 
 def test_the_selector_matches_robots_by_labels_and_expressions() -> None:
@@ -64,7 +61,7 @@ def test_one_instance_per_robot_owned_by_the_system(spec_dict: Callable[..., dic
 
 def test_nothing_to_do_when_instances_match(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired = _desired(spec_dict(), [robot("r1")])
-    assert instances.plan_instances(desired, [_existing(m) for m in desired]).empty
+    assert instances.plan_instances(desired, [observed_instance(m) for m in desired]).empty
 
 
 def test_a_spec_change_updates_every_instance_to_a_new_revision(
@@ -72,7 +69,7 @@ def test_a_spec_change_updates_every_instance_to_a_new_revision(
 ) -> None:
     old = _desired(spec_dict(), [robot("r1")])
     new = _desired(spec_dict(ros={"domainId": 7}), [robot("r1")])
-    plan = instances.plan_instances(new, [_existing(m) for m in old])
+    plan = instances.plan_instances(new, [observed_instance(m) for m in old])
     assert [m["spec"]["revision"] for m in plan.update] == [new[0]["spec"]["revision"]]
     assert new[0]["spec"]["revision"] != old[0]["spec"]["revision"]
 
@@ -88,9 +85,9 @@ def test_a_reachable_robot_leaving_the_selector_retires_its_instance(
 ) -> None:
     before = _desired(spec_dict(), [robot("r1"), robot("r2")])
     after = _desired(spec_dict(), [robot("r1")])
-    plan = instances.plan_instances(after, [_existing(m) for m in before], {"r1", "r2"})
+    plan = instances.plan_instances(after, [observed_instance(m) for m in before], {"r1", "r2"})
     assert plan.retire == ["sys-r2"] and not plan.delete and not plan.create and not plan.update
-    retiring = [_existing(m) for m in before]
+    retiring = [observed_instance(m) for m in before]
     retiring[1].spec["retiring"] = True
     assert instances.plan_instances(after, retiring, {"r1", "r2"}).empty
 
@@ -100,13 +97,13 @@ def test_an_unreachable_or_vanished_robot_leaving_loses_its_instance_at_once(
 ) -> None:
     before = _desired(spec_dict(), [robot("r1"), robot("r2")])
     after = _desired(spec_dict(), [robot("r1")])
-    plan = instances.plan_instances(after, [_existing(m) for m in before], {"r1"})
+    plan = instances.plan_instances(after, [observed_instance(m) for m in before], {"r1"})
     assert plan.delete == ["sys-r2"] and not plan.retire
 
 
 def test_a_robot_coming_back_while_retiring_is_restored(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired = _desired(spec_dict(), [robot("r1")])
-    retiring = _existing(desired[0])
+    retiring = observed_instance(desired[0])
     retiring.spec["retiring"] = True
     plan = instances.plan_instances(desired, [retiring], {"r1"})
     assert [m["metadata"]["name"] for m in plan.update] == ["sys-r1"]
@@ -131,14 +128,14 @@ def _built(spec: dict[str, Any], robots: list[Any]) -> tuple[list[dict[str, Any]
 def test_with_shared_keys_matching_instances_are_left_alone(spec_dict: Callable[..., dict[str, Any]]) -> None:
     desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
     assert len(set(keys.values())) == 1, "every robot at one revision shares one key"
-    assert instances.plan_instances(desired, [_existing(m) for m in desired], None, keys).empty
+    assert instances.plan_instances(desired, [observed_instance(m) for m in desired], None, keys).empty
 
 
 def test_with_shared_keys_a_hand_edited_spec_is_still_put_back(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
-    edited = [_existing(m) for m in desired]
+    edited = [observed_instance(m) for m in desired]
     edited[0].spec["drivers"][0]["image"] = "someone/else:1"
     plan = instances.plan_instances(desired, edited, None, keys)
     assert [m["metadata"]["name"] for m in plan.update] == ["sys-r1"]
@@ -148,7 +145,7 @@ def test_with_shared_keys_a_robots_own_field_is_still_compared(
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
-    moved = [_existing(m) for m in desired]
+    moved = [observed_instance(m) for m in desired]
     moved[1].spec["nodeName"] = "elsewhere"
     moved[0].spec["revision"] = "older"
     plan = instances.plan_instances(desired, moved, None, keys)
@@ -168,7 +165,7 @@ def test_a_whole_number_stored_without_its_fraction_gives_the_same_shared_key(
 ) -> None:
     desired, keys = _built(spec_dict(), [robot("r1")])
     assert isinstance(desired[0]["spec"]["tree"]["tickRateHz"], float)
-    stored = _existing(desired[0])
+    stored = observed_instance(desired[0])
     stored.spec["tree"]["tickRateHz"] = int(stored.spec["tree"]["tickRateHz"])
     assert stored.shared_spec_key == keys["sys-r1"]
 
@@ -179,7 +176,7 @@ def test_an_instance_written_by_hand_at_a_name_of_the_system_is_taken_over(
     """Issue 47, item 6: a CoralInstance created by hand before its robot joined had the system's
     spec but no owner; the system now writes its owner (and spec) over it."""
     desired, keys = _built(spec_dict(), [robot("r1")])
-    forged = dataclasses.replace(_existing(desired[0]), controller_uid="")
+    forged = dataclasses.replace(observed_instance(desired[0]), controller_uid="")
     plan = instances.plan_instances(desired, [forged], None, keys, "uid")
     assert [m["metadata"]["ownerReferences"][0]["uid"] for m in plan.update] == ["uid"]
 
@@ -188,6 +185,6 @@ def test_a_leaving_instance_the_system_does_not_control_is_deleted_not_asked_to_
     spec_dict: Callable[..., dict[str, Any]],
 ) -> None:
     desired, keys = _built(spec_dict(), [robot("r1"), robot("r2")])
-    stray = dataclasses.replace(_existing(desired[1]), controller_uid="")
-    plan = instances.plan_instances(desired[:1], [_existing(desired[0]), stray], {"r2"}, keys, "uid")
+    stray = dataclasses.replace(observed_instance(desired[1]), controller_uid="")
+    plan = instances.plan_instances(desired[:1], [observed_instance(desired[0]), stray], {"r2"}, keys, "uid")
     assert (plan.retire, plan.delete) == ([], ["sys-r2"])

@@ -21,7 +21,7 @@ from coral_operator.planning import effective, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, RobotNode
 from coral_operator.planning.overrides import BaseConfig, ConfigError, EffectiveConfig, effective_config
 from coral_operator.status.conditions import Reason
-from operator_specs import BASE_SPEC, TREE, observed_from, plan_pass
+from operator_specs import BASE_SPEC, TREE, observed_instance, plan_pass
 
 NAV = '<root BTCPP_format="4"><BehaviorTree ID="Nav"><AlwaysSuccess/></BehaviorTree></root>'
 ARM_TREE = TREE.replace("<AlwaysSuccess/>", "<AlwaysFailure/>")
@@ -338,7 +338,7 @@ def _applied(plan: system_pass.SystemPlan, before: list[ObservedInstance]) -> li
     """The instances once `plan` is written and every robot reports Ready."""
     by_name = {i.name: i for i in before}
     for manifest in plan.changes.create + plan.changes.update:
-        by_name[manifest["metadata"]["name"]] = observed_from(manifest)
+        by_name[manifest["metadata"]["name"]] = observed_instance(manifest)
     return [dataclasses.replace(i, ready=True) for i in by_name.values()]
 
 

@@ -13,7 +13,7 @@ from coral_core.bt import Status
 from coral_core.bt.leaves import StatefulAction
 from coral_testbed.waiting import wait_for
 
-from .tree_fakes import Collect, FailsAtOnce, Refused, build_loop
+from .tree_fakes import Collect, FailsAtOnce, Refused, build_loop, start
 
 HALTED: list[str] = []
 
@@ -77,7 +77,7 @@ def test_wake_ups_never_tick_the_tree_faster_than_its_rate() -> None:
     )
     stop = threading.Event()
     started = time.monotonic()
-    finished = _start(loop, stop)
+    finished = start(loop, stop)
     try:
         wait_for(lambda: loop.tree.tick_count >= 21, timeout=10, interval=0.01, message="21 ticks")
         took = time.monotonic() - started
@@ -139,17 +139,6 @@ class Deadline(StatefulAction):
         return Status.SUCCESS if time.monotonic() >= self.due else Status.RUNNING
 
 
-def _start(loop: TickLoop, stop: threading.Event) -> threading.Event:
-    finished = threading.Event()
-
-    def run() -> None:
-        loop.run(stop, lambda: 143)
-        finished.set()
-
-    threading.Thread(target=run, daemon=True).start()
-    return finished
-
-
 def test_a_tree_whose_running_nodes_signal_wake_ups_is_not_polled_at_the_tick_rate() -> None:
     polled = _loop(
         '<root BTCPP_format="4"><BehaviorTree ID="M"><Forever/></BehaviorTree></root>', Collect(), 100.0
@@ -160,7 +149,7 @@ def test_a_tree_whose_running_nodes_signal_wake_ups_is_not_polled_at_the_tick_ra
         100.0,
     )
     stop = threading.Event()
-    done = [_start(polled, stop), _start(waiting, stop)]
+    done = [start(polled, stop), start(waiting, stop)]
     try:
         wait_for(lambda: polled.tree.tick_count >= 20, timeout=10, message="the polled tree to tick 20 times")
         assert polled.tree.needs_polling() and not waiting.tree.needs_polling()
@@ -194,7 +183,7 @@ def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
     # The tree is never polled and nothing wakes it: only the booked time can end it before the
     # status heartbeat (1 s) ticks it.
     started = time.monotonic()
-    finished = _start(loop, stop)
+    finished = start(loop, stop)
     if not finished.wait(5.0):
         stop.set()
         loop.tree.wake_up()
@@ -269,7 +258,7 @@ def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(k
     polled = _polling_answers(loop)
     stop = threading.Event()
     started = time.monotonic()
-    finished = _start(loop, stop)
+    finished = start(loop, stop)
     ended = finished.wait(5.0)
     took = time.monotonic() - started
     stop.set()

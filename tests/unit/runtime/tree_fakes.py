@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from types import SimpleNamespace
 from typing import Any
 
 from coral.executor import plugins_phase, sinks
+from coral.executor.halting import park_builder
 from coral.executor.health import HealthMonitor
 from coral.executor.ticking import TickLoop
 from coral_core.bt import NodeRegistry, Status, build_tree, load_tree_text
@@ -49,7 +51,7 @@ class Refused(FailsAtOnce):
 
 def build_loop(xml: str, collect: Collect, behaviors: dict[str, type], **options: Any) -> TickLoop:
     """A tick loop over the tree `xml` with the builtins and `behaviors`, its failures noted as the
-    executor's context notes them; `options` go to TickLoop."""
+    executor's context notes them, park trees built from the same document; `options` go to TickLoop."""
     registry = NodeRegistry.with_builtins()
     for name, behavior in behaviors.items():
         registry.register(name, behavior)
@@ -59,6 +61,20 @@ def build_loop(xml: str, collect: Collect, behaviors: dict[str, type], **options
         failures=failures,
         failure_message=lambda path: failures.pop(path, ""),
     )
-    tree = build_tree(load_tree_text(xml), registry, context=context)
+    document = load_tree_text(xml)
+    tree = build_tree(document, registry, context=context)
     state = plugins_phase.PluginState(used=set(), builtin_ids=set())
+    options.setdefault("build_park", park_builder(document, registry, context))
     return TickLoop(tree, context, sinks.SinkFanout([collect]), state, **options)
+
+
+def start(loop: TickLoop, stop: threading.Event) -> threading.Event:
+    """Runs `loop` on a thread until `stop` (a SIGTERM gives 143); the event is set once it returned."""
+    finished = threading.Event()
+
+    def run() -> None:
+        loop.run(stop, lambda: 143)
+        finished.set()
+
+    threading.Thread(target=run, daemon=True).start()
+    return finished
