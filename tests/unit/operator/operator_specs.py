@@ -151,6 +151,7 @@ def plan_pass(
     return system_pass.plan_system(
         system_pass.SystemObservation(
             system=record,
+            spec=parsed,
             tree=(parsed.tree.inline or "", "tree"),
             parameters=(parsed.parameters.inline or "", "params"),
             robots=robots,

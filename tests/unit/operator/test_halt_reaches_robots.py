@@ -11,34 +11,22 @@ from typing import Any
 
 from coral_core.halt import HaltRequest
 from coral_operator.api.instance import CoralInstanceSpec
-from coral_operator.kube import observing
 from coral_operator.planning import pods, provenance, system_pass
 from coral_operator.planning.instances import plan_instances
-from coral_operator.planning.policy import Policy
 from coral_operator.status import instance_status
-from operator_specs import NOW, observed_instance, robot, view_with_pods_running
+from operator_specs import NOW, observed_instance, plan_pass, robot, view_with_pods_running
 
 ROBOTS = [robot("r1"), robot("r2"), robot("r3")]
 
 
 def _plan(spec: dict[str, Any], before: system_pass.SystemPlan | None = None) -> system_pass.SystemPlan:
     """One system pass over robots r1-r3; after `before`, with what it created and stored."""
-    record = observing.system_record(
-        {"metadata": {"name": "mission", "namespace": "ns", "uid": "u-mission"}, "spec": spec}
-    )
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            tree=(spec["tree"]["inline"], "tree"),
-            parameters=(spec["parameters"]["inline"], "params"),
-            robots=list(ROBOTS),
-            instances=[observed_instance(m) for m in before.changes.create] if before else [],
-            stored_revisions=before.stored_after if before else [],
-            expected={},
-            previous_rollout=None,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
-            now=NOW,
-        )
+    return plan_pass(
+        spec,
+        list(ROBOTS),
+        [observed_instance(m) for m in before.changes.create] if before else [],
+        before.stored_after if before else [],
+        name="mission",
     )
 
 
