@@ -11,6 +11,7 @@ from coral_core.wire import CamelModel
 from pydantic import Field
 
 from coral_operator.api.components import Component, ExecutorComponent
+from coral_operator.api.offline import InstanceOffline
 from coral_operator.api.system import MAX_COMPONENTS, Layout, PluginsSpec, RosSpec, StartupSpec
 
 
@@ -61,6 +62,8 @@ class CoralInstanceSpec(CamelModel):
     """Ordered startup settings."""
     plugins: PluginsSpec = Field(default_factory=PluginsSpec)
     """Plugin delivery settings."""
+    offline: InstanceOffline | None = None
+    """Set when the robot may run this revision offline (the system's `offline.mode` is not `Off`)."""
     retiring: bool = False
     """The robot left the system's selector: stop executors, then skillsets, then drivers, then remove
     this instance."""

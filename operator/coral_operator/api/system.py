@@ -17,6 +17,7 @@ from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.common import ConfigMapKeyRef, LabelSelector
 from coral_operator.api.components import Component, ExecutorComponent
+from coral_operator.api.offline import OfflineSpec
 from coral_operator.api.rollout import RolloutStatus
 
 MAX_COMPONENTS = 32
@@ -340,6 +341,8 @@ class CoralSystemSpec(CamelModel):
     """Plugin delivery settings."""
     rollout: RolloutSpec = Field(default_factory=RolloutSpec)
     """Fleet rollout settings."""
+    offline: OfflineSpec = Field(default_factory=OfflineSpec)
+    """Whether a robot that boots without the API server runs its last revision (docs/offline.md)."""
 
     @model_validator(mode="after")
     def _rules(self) -> CoralSystemSpec:
