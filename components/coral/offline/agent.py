@@ -34,6 +34,8 @@ from coral.offline.staticpods import part_of, static_copy
 LOG = logging.getLogger("coral.offline")
 API_TIMEOUT_S = 2.0
 AGENT = "coral-offline-agent"
+RECORD_EVERY = 5
+FORGET_AFTER_S = 30.0
 
 
 def now_text() -> str:
@@ -105,6 +107,8 @@ class Agent:
     root: Path = Path(offline.ROOT)
     static_dir: Path = Path(offline.STATIC_POD_DIR)
     _api: Any = field(default=None, repr=False)
+    _absent: dict[str, float] = field(default_factory=dict, repr=False)
+    """Since when (monotonic) each stored system has had no pod on the robot."""
 
     # ---- the API server ----------------------------------------------------------------------
 
@@ -200,8 +204,8 @@ class Agent:
                 return True
         return False
 
-    def step(self) -> None:
-        """One pass of the watch loop."""
+    def step(self, record: bool = True) -> None:
+        """One pass of the watch loop; `record` also records what runs."""
         reachable = self.api_reachable()
         report_path = self.root / Path(offline.REPORT_FILE).name
         report = store.read_json(report_path)
@@ -224,7 +228,8 @@ class Agent:
             self._send_report(report)
             report["reported"] = True
             store.write_json(report_path, report)
-        self.record()
+        if record:
+            self.record()
 
     def _hand_over(self, cache: str, report: dict[str, Any] | None) -> None:
         status = self.root / Path(offline.RUNS_DIR).name / cache / offline.STATUS_FILE
@@ -307,6 +312,7 @@ class Agent:
             groups.setdefault(
                 offline.cache_name(wire["metadata"]["namespace"], labels[names.LABEL_SYSTEM]), []
             ).append(wire)
+        self._forget_absent(set(groups))
         recorded: list[str] = []
         for cache, members in sorted(groups.items()):
             if not store.all_running(members):
@@ -322,6 +328,20 @@ class Agent:
             self._record(cache, members, config_maps, fingerprint)
             recorded.append(cache)
         return recorded
+
+    def _forget_absent(self, present: set[str]) -> None:
+        """Drops the cache of a system that has had no pod on the robot for a while: deleted, moved
+        off this robot, or with offline turned off. Not at once: a rollout replaces pods."""
+        now = time.monotonic()
+        for cache in store.caches(self.root):
+            if cache in present:
+                self._absent.pop(cache, None)
+                continue
+            since = self._absent.setdefault(cache, now)
+            if now - since >= FORGET_AFTER_S:
+                shutil.rmtree(self.root / Path(offline.CACHES_DIR).name / cache, ignore_errors=True)
+                self._absent.pop(cache, None)
+                LOG.info("forgot %s: none of its pods is on this robot any more", cache)
 
     def _record(
         self,
@@ -368,11 +388,14 @@ class Agent:
         store.write_cache(folder, manifest, files, store.robot_key(self.root), fingerprint)
         LOG.info("recorded revision %s of %s", manifest.revision, cache)
 
-    def watch(self, interval: float = 1.0) -> None:
+    def watch(self, interval: float = 1.0, record_every: int = RECORD_EVERY) -> None:
+        passes = 0
         while True:
             started = time.monotonic()
             try:
-                self.step()
+                # The hand-over is checked every pass; recording (a list of the robot's pods) less often.
+                self.step(record=passes % record_every == 0)
+                passes += 1
             except Exception:  # noqa: BLE001 - one bad pass must not end the robot's agent
                 LOG.exception("offline agent pass failed")
             time.sleep(max(0.0, interval - (time.monotonic() - started)))
