@@ -57,6 +57,16 @@ FILES_DIR = "files"
 FORMAT = 1
 
 
+def lock_step_security() -> dict[str, Any]:
+    """The gate's and the holder's security context: root (the lock folder is root's), no capability."""
+    return {
+        "runAsUser": 0,
+        "runAsNonRoot": False,
+        "allowPrivilegeEscalation": False,
+        "capabilities": {"drop": ["ALL"]},
+    }
+
+
 def lock_name(namespace: str, system: str, part: str) -> str:
     """The lock file of one pod (a component, or `robot` for `PodPerRobot`). `_` is in no Kubernetes
     name, so two systems never share a lock."""

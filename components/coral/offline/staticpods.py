@@ -89,12 +89,7 @@ def _holder(lock: str, image: str) -> dict[str, Any]:
             "failureThreshold": 60,
         },
         "volumeMounts": [{"name": offline.LOCKS_VOLUME, "mountPath": offline.LOCK_MOUNT}],
-        "securityContext": {
-            "runAsUser": 0,
-            "runAsNonRoot": False,
-            "allowPrivilegeEscalation": False,
-            "capabilities": {"drop": ["ALL"]},
-        },
+        "securityContext": offline.lock_step_security(),
     }
 
 

@@ -25,13 +25,7 @@ def _gate(lock: str, image: str) -> dict[str, Any]:
         # Blocks while the offline copy holds the lock; the lock is released when this step exits.
         "command": ["flock", posixpath.join(offline.LOCK_MOUNT, lock), "true"],
         "volumeMounts": [{"name": offline.LOCKS_VOLUME, "mountPath": offline.LOCK_MOUNT}],
-        # Root to create the lock file in the robot's root-owned folder; nothing more.
-        "securityContext": {
-            "runAsUser": 0,
-            "runAsNonRoot": False,
-            "allowPrivilegeEscalation": False,
-            "capabilities": {"drop": ["ALL"]},
-        },
+        "securityContext": offline.lock_step_security(),
     }
 
 

@@ -14,6 +14,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,16 +31,7 @@ from . import realsystems as rs
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
 
 SYSTEM = "roamer"
-# A mission that outlasts the outage: it waits on the skillset's count topic for ten minutes.
-TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence>
-      <Count count="{count}"/>
-      <WaitForCount threshold="1000" timeout_ms="600000"/>
-    </Sequence>
-  </BehaviorTree>
-</root>
-"""
+TREE = rs.LONG_WAIT_TREE
 COMPONENTS = {rs.SKILLSET, "executor"}
 QUIET_SAMPLES = 20
 # Steps of the pods, not copies of a component.
@@ -155,26 +147,50 @@ def _events(core: k8s.CoreV1Api, namespace: str, reason: str) -> list[Any]:
     return [e for e in core.list_namespaced_event(namespace).items if e.reason == reason]
 
 
+@dataclass(frozen=True)
+class Bench:
+    """One robot of the session, the test's namespace and operator, the API as a user reads it."""
+
+    robots: realrobots.RealRobots
+    robot: str
+    namespace: str
+    domain: int
+    core: k8s.CoreV1Api
+    custom: k8s.CustomObjectsApi
+
+    def parts(self) -> tuple[k8s.CoreV1Api, k8s.CustomObjectsApi, realrobots.RealRobots, str, str]:
+        return self.core, self.custom, self.robots, self.robot, self.namespace
+
+
 @pytest.fixture
-def robot(real_robots: realrobots.RealRobots, real_robot: str) -> Iterator[str]:
-    yield real_robot
-    # Whatever happened, the robot ends with its link up and its kubelet back.
+def bench(
+    cluster: Cluster,
+    namespace: str,
+    built_images: dict,
+    real_robots: realrobots.RealRobots,
+    real_robot: str,
+    coral_operator: OperatorProcess,
+    ros_env: dict[str, str],
+) -> Iterator[Bench]:
+    yield Bench(
+        real_robots,
+        real_robot,
+        namespace,
+        bench.domain,
+        k8s.CoreV1Api(cluster.api_client),
+        k8s.CustomObjectsApi(cluster.api_client),
+    )
+    # Whatever happened, the robot ends with its link up (`real_robot` restores the rest).
     if not real_robots.link_is_up(real_robot):
         real_robots.restore_link(real_robot)
 
 
 def test_a_power_cycle_while_cut_off_runs_the_last_revision_and_hands_over_with_one_copy(
-    cluster: Cluster,
-    namespace: str,
-    built_images: dict,
-    real_robots: realrobots.RealRobots,
-    robot: str,
-    coral_operator: OperatorProcess,
-    ros_env: dict[str, str],
+    bench: Bench,
 ) -> None:
-    core, custom = k8s.CoreV1Api(cluster.api_client), k8s.CustomObjectsApi(cluster.api_client)
+    core, custom, real_robots, robot, namespace = bench.parts()
     _keep_only(real_robots, robot, namespace)
-    before = _run_until_recorded(custom, real_robots, robot, namespace, int(ros_env["ROS_DOMAIN_ID"]))
+    before = _run_until_recorded(custom, real_robots, robot, namespace, bench.domain)
     with CopyCounter(real_robots, robot, namespace) as copies:
         real_robots.cut_link(robot)
         booted = time.monotonic()
@@ -241,20 +257,12 @@ def test_a_power_cycle_while_cut_off_runs_the_last_revision_and_hands_over_with_
     rs.delete(custom, namespace, SYSTEM)
 
 
-def test_a_robot_never_given_a_revision_runs_nothing_offline_and_says_so(
-    cluster: Cluster,
-    namespace: str,
-    built_images: dict,
-    real_robots: realrobots.RealRobots,
-    robot: str,
-    coral_operator: OperatorProcess,
-    ros_env: dict[str, str],
-) -> None:
-    core, custom = k8s.CoreV1Api(cluster.api_client), k8s.CustomObjectsApi(cluster.api_client)
+def test_a_robot_never_given_a_revision_runs_nothing_offline_and_says_so(bench: Bench) -> None:
+    core, custom, real_robots, robot, namespace = bench.parts()
     _keep_only(real_robots, robot, None)
     real_robots.cut_link(robot)
     # The system is made while the robot is cut off: its pods are bound to it, it never learns them.
-    rs.create(custom, namespace, _offline_system(robot, int(ros_env["ROS_DOMAIN_ID"])))
+    rs.create(custom, namespace, _offline_system(robot, bench.domain))
     wait_for(
         lambda: len(rs.pods(core, namespace, SYSTEM)) > 0,
         timeout=60,
@@ -293,18 +301,10 @@ def test_a_robot_never_given_a_revision_runs_nothing_offline_and_says_so(
     rs.delete(custom, namespace, SYSTEM)
 
 
-def test_a_tampered_cache_is_refused_with_the_reason(
-    cluster: Cluster,
-    namespace: str,
-    built_images: dict,
-    real_robots: realrobots.RealRobots,
-    robot: str,
-    coral_operator: OperatorProcess,
-    ros_env: dict[str, str],
-) -> None:
-    core, custom = k8s.CoreV1Api(cluster.api_client), k8s.CustomObjectsApi(cluster.api_client)
+def test_a_tampered_cache_is_refused_with_the_reason(bench: Bench) -> None:
+    core, custom, real_robots, robot, namespace = bench.parts()
     _keep_only(real_robots, robot, namespace)
-    _run_until_recorded(custom, real_robots, robot, namespace, int(ros_env["ROS_DOMAIN_ID"]))
+    _run_until_recorded(custom, real_robots, robot, namespace, bench.domain)
     real_robots.cut_link(robot)
     trees = sorted(_cache(real_robots, robot, namespace).glob(f"{offline.FILES_DIR}/*/*/tree.xml"))
     assert trees, "the cache holds no tree"
