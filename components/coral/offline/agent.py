@@ -36,6 +36,8 @@ API_TIMEOUT_S = 2.0
 AGENT = "coral-offline-agent"
 RECORD_EVERY = 5
 FORGET_AFTER_S = 30.0
+FILE_SEPARATOR = "+"
+"""Between a cache's name and a pod's index in a static pod file's name: in no Kubernetes name."""
 
 
 def now_text() -> str:
@@ -136,7 +138,7 @@ class Agent:
     # ---- boot --------------------------------------------------------------------------------
 
     def _static_files(self, cache: str | None = None) -> list[Path]:
-        prefix = offline.STATIC_POD_PREFIX + (f"{cache}-" if cache else "")
+        prefix = offline.STATIC_POD_PREFIX + (f"{cache}{FILE_SEPARATOR}" if cache else "")
         if not self.static_dir.is_dir():
             return []
         return sorted(p for p in self.static_dir.iterdir() if p.name.startswith(prefix))
@@ -179,7 +181,7 @@ class Agent:
             os.chown(run_dir, COMPONENT_UID, COMPONENT_UID)
         (self.root / Path(offline.LOCKS_DIR).name).mkdir(parents=True, exist_ok=True)
         for index, pod in enumerate(manifest.pods):
-            target = self.static_dir / f"{offline.STATIC_POD_PREFIX}{cache}-{index}.json"
+            target = self.static_dir / f"{offline.STATIC_POD_PREFIX}{cache}{FILE_SEPARATOR}{index}.json"
             store.write_json(target, pod)
         LOG.info("running revision %s of %s offline (%d pods)", manifest.revision, cache, len(manifest.pods))
 
@@ -209,8 +211,10 @@ class Agent:
         reachable = self.api_reachable()
         report_path = self.root / Path(offline.REPORT_FILE).name
         report = store.read_json(report_path)
+        handed = False
         for cache in {
-            p.name[len(offline.STATIC_POD_PREFIX) :].rsplit("-", 1)[0] for p in self._static_files()
+            p.name[len(offline.STATIC_POD_PREFIX) :].rpartition(FILE_SEPARATOR)[0]
+            for p in self._static_files()
         }:
             manifest = store.read_manifest_loosely(self.root, cache)
             decision = offline.hand_over(
@@ -220,7 +224,8 @@ class Agent:
             )
             if decision == offline.HandOver.HAND_OVER:
                 self._hand_over(cache, report)
-        if report is not None:
+                handed = True
+        if handed and report is not None:
             store.write_json(report_path, report)
         if not reachable:
             return

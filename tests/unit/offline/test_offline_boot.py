@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import json
 import socket
 from pathlib import Path
@@ -94,7 +95,7 @@ def test_a_robot_never_given_a_revision_runs_nothing_and_says_so(agent: Agent) -
 
 def test_a_copy_left_by_an_earlier_boot_is_not_reused_unchecked(agent: Agent) -> None:
     agent.static_dir.mkdir(parents=True)
-    (agent.static_dir / f"{offline.STATIC_POD_PREFIX}ns_other-0.json").write_text("{}")
+    (agent.static_dir / f"{offline.STATIC_POD_PREFIX}ns_other+0.json").write_text("{}")
     (agent.static_dir / "someone-elses.yaml").write_text("{}")
     agent.boot()
     assert [p.name for p in agent.static_dir.iterdir()] == ["someone-elses.yaml"]
@@ -121,3 +122,19 @@ def test_the_report_tells_how_far_the_offline_tree_got() -> None:
     entry = {"action": "RunOffline", "bootedAt": "T0", "revision": "abc", "run": run, "handedOverAt": "T1"}
     assert "RUNNING at tick 70" in report_message(entry)[2]
     assert summarize_run([]) == {"ticked": False}
+
+
+def test_the_offline_copy_stays_while_cut_off_and_its_tree_runs_while_its_lock_is_held(agent: Agent) -> None:
+    _record(agent)
+    agent.boot()
+    written = sorted(agent.static_dir.iterdir())
+    agent.step(record=False)
+    assert sorted(agent.static_dir.iterdir()) == written, "the copy went away with no API server to take over"
+    lock = agent.root / "locks" / offline.lock_name("ns", "sys", "executor")
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    assert not agent._tree_running("ns_sys")
+    # The executor's lock holder, as the kernel sees it: another open file holding the lock.
+    with lock.open("a") as holder:
+        fcntl.flock(holder, fcntl.LOCK_EX)
+        assert agent._tree_running("ns_sys")
+    assert not agent._tree_running("ns_sys")
