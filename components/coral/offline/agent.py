@@ -187,7 +187,7 @@ class Agent:
 
     # ---- watching ----------------------------------------------------------------------------
 
-    def _tree_running(self, cache: str) -> bool:
+    def tree_running(self, cache: str) -> bool:
         """Whether an offline executor of `cache` still runs: its pod's lock holder keeps the lock
         until the pod's containers have stopped, and stops once the tree has ended."""
         for path in self._static_files(cache):
@@ -219,7 +219,7 @@ class Agent:
             manifest = store.read_manifest_loosely(self.root, cache)
             decision = offline.hand_over(
                 api_reachable=reachable,
-                tree_running=self._tree_running(cache),
+                tree_running=self.tree_running(cache),
                 interrupt_running_trees=bool(manifest.get("interruptRunningTrees")),
             )
             if decision == offline.HandOver.HAND_OVER:

@@ -132,9 +132,9 @@ def test_the_offline_copy_stays_while_cut_off_and_its_tree_runs_while_its_lock_i
     assert sorted(agent.static_dir.iterdir()) == written, "the copy went away with no API server to take over"
     lock = agent.root / "locks" / offline.lock_name("ns", "sys", "executor")
     lock.parent.mkdir(parents=True, exist_ok=True)
-    assert not agent._tree_running("ns_sys")
+    assert not agent.tree_running("ns_sys")
     # The executor's lock holder, as the kernel sees it: another open file holding the lock.
     with lock.open("a") as holder:
         fcntl.flock(holder, fcntl.LOCK_EX)
-        assert agent._tree_running("ns_sys")
-    assert not agent._tree_running("ns_sys")
+        assert agent.tree_running("ns_sys")
+    assert not agent.tree_running("ns_sys")
