@@ -143,3 +143,17 @@ def test_recording_again_replaces_the_cache_whole(tmp_path: Path, stored: Path) 
     assert _verify(tmp_path).manifest == newer
     assert sorted(p.name for p in stored.parent.iterdir()) == ["ns_sys"]
     assert json.loads((stored / "manifest.json").read_text())["revision"] == "abc"
+
+
+def test_a_system_is_recorded_only_once_all_its_pods_run_at_one_revision() -> None:
+    pods = robot_pods(system(offline={"mode": "LastRevision"}))
+    assert store.all_running(pods)
+    assert store.config_map_names(pods) == sorted(CONFIG_MAPS), "the token volume's ConfigMap is not recorded"
+    waiting = [dict(p) for p in pods]
+    waiting[0] = {**waiting[0], "status": {"phase": "Pending"}}
+    assert not store.all_running(waiting)
+    moved = [dict(p) for p in pods]
+    moved[0] = {**moved[0], "metadata": {**moved[0]["metadata"], "labels": {names.LABEL_REVISION: "other"}}}
+    assert not store.all_running(moved)
+    relabelled = [{**p, "metadata": {**p["metadata"], "annotations": {}}} for p in pods]
+    assert store.fingerprint(relabelled) != store.fingerprint(pods)
