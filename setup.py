@@ -42,6 +42,7 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
             "executor = coral.executor.cli:executor_command",
             "skillset = coral.sdk.cli:skillset_command",
             "plugins = coral.plugins.cli:plugins_command",
+            "offline-agent = coral.offline.cli:offline_agent_command",
         ],
         "coral.logs": ["run = coral.local.cli:LOGS_OF_RUNS"],
     },

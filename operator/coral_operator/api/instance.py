@@ -12,6 +12,7 @@ from coral_core.wire import CamelModel
 from pydantic import Field
 
 from coral_operator.api.components import Component, ExecutorComponent
+from coral_operator.api.offline import InstanceOffline
 from coral_operator.api.system import MAX_COMPONENTS, Layout, PluginsSpec, RosSpec, StartupSpec
 
 
@@ -69,6 +70,8 @@ class CoralInstanceSpec(CamelModel):
     halt: HaltRequest | None = None
     """Set while the system halts this robot (`CoralSystem.spec.halt`): the executor halts its tree
     and ticks it no more. Not part of the revision: pods do not change."""
+    offline: InstanceOffline | None = None
+    """Set when the robot may run this revision offline (the system's `offline.mode` is not `Off`)."""
     retiring: bool = False
     """The robot left the system's selector: stop executors, then skillsets, then drivers, then remove
     this instance."""

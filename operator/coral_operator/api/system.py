@@ -18,6 +18,7 @@ from pydantic import Field, field_validator, model_validator
 
 from coral_operator.api.common import ConfigMapKeyRef, LabelSelector
 from coral_operator.api.components import Component, ExecutorComponent
+from coral_operator.api.offline import OfflineSpec
 from coral_operator.api.overrides import (
     MAX_OVERRIDES,
     OVERRIDE_NAMES_UNIQUE,
@@ -383,6 +384,8 @@ class CoralSystemSpec(CamelModel):
     (docs/overrides.md). `coral config SYSTEM ROBOT` prints what one robot runs."""
     halt: HaltSpec | None = None
     """Halt the trees of every robot, or of the robots listed; unset, the trees run."""
+    offline: OfflineSpec = Field(default_factory=OfflineSpec)
+    """Whether a robot that boots without the API server runs its last revision (docs/offline.md)."""
 
     @model_validator(mode="after")
     def _rules(self) -> CoralSystemSpec:

@@ -14,6 +14,7 @@ from coral_core import names
 from coral_core.names import API_VERSION
 
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
+from coral_operator.api.offline import InstanceOffline
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ROBOT_SPEC_FIELDS, ObservedInstance, RobotNode, shared_spec_key
@@ -39,6 +40,16 @@ def build_template(spec: CoralSystemSpec, tree_config_map: str, params_config_ma
         # Only when not the default, so the revisions of systems written before layouts existed
         # stay the same and an operator upgrade restarts no robot.
         **({"layout": spec.layout} if spec.layout != "PodPerComponent" else {}),
+        # Likewise only when on: systems that leave it off keep their revision.
+        **(
+            {
+                "offline": InstanceOffline(
+                    interrupt_running_trees=spec.rollout.interrupt_running_trees
+                ).to_wire()
+            }
+            if spec.offline.mode != "Off"
+            else {}
+        ),
     }
 
 

@@ -23,11 +23,13 @@ from coral_core import names
 from coral_core.component_image import COMPONENT_UID
 from coral_core.instance_status import Role
 from coral_core.names import API_VERSION
+from coral_core.offline import GATE_CONTAINER
 
 from coral_operator.api.components import Component, ExecutorComponent
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning import naming
 from coral_operator.planning.configmaps import PARAMS_KEY, TREE_KEY
+from coral_operator.planning.offline_gate import add_gate
 from coral_operator.planning.policy import Policy, data_subtree, host_path_volume, is_under
 
 CONFIG_DIR = "/etc/coral"
@@ -362,13 +364,23 @@ def build_pod(
         pod_spec["initContainers"] = [_folders_owner(owned, settings)]
     if role == "executor":
         pod_spec["serviceAccountName"] = naming.executor_account_name(spec.system)
+    labels = naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision)
+    offline = add_gate(
+        spec=spec,
+        namespace=namespace,
+        part=component.name,
+        pod_spec=pod_spec,
+        labels=labels,
+        image=settings.helper_image,
+    )
     return _pod(
         name_part=component.name,
-        labels=naming.pod_labels(spec.system, spec.robot, instance, component.name, role, spec.revision),
+        labels=labels,
         pod_spec=pod_spec,
         instance=instance,
         namespace=namespace,
         instance_uid=instance_uid,
+        annotations=offline,
     )
 
 
@@ -478,15 +490,28 @@ def build_robot_pod(
         "volumes": volumes,
     }
     members = [f"{role}:{c.name}" for role, components in roles for c in components]
+    labels = naming.robot_pod_labels(spec.system, spec.robot, instance, spec.revision)
+    offline = add_gate(
+        spec=spec,
+        namespace=namespace,
+        part="robot",
+        pod_spec=pod_spec,
+        labels=labels,
+        image=settings.helper_image,
+    )
     shape = naming.content_hash(_without_images(pod_spec))
     return _pod(
         name_part="robot",
-        labels=naming.robot_pod_labels(spec.system, spec.robot, instance, spec.revision),
+        labels=labels,
         pod_spec=pod_spec,
         instance=instance,
         namespace=namespace,
         instance_uid=instance_uid,
-        annotations={names.ANNOTATION_COMPONENTS: ",".join(members), names.ANNOTATION_SHAPE_HASH: shape},
+        annotations={
+            names.ANNOTATION_COMPONENTS: ",".join(members),
+            names.ANNOTATION_SHAPE_HASH: shape,
+            **offline,
+        },
     )
 
 
@@ -496,7 +521,9 @@ def _without_helper_image(pod_spec: dict[str, Any]) -> dict[str, Any]:
         return pod_spec
     return {
         **pod_spec,
-        "initContainers": [{**c, "image": ""} if c["name"] == FOLDERS_OWNER else c for c in inits],
+        "initContainers": [
+            {**c, "image": ""} if c["name"] in (FOLDERS_OWNER, GATE_CONTAINER) else c for c in inits
+        ],
     }
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from coral_core import offline
 
 from coral_testbed.cluster import kubeconfigs, mountview, nodeimages, robotnet
 
@@ -186,6 +187,7 @@ def build_registry_hosts(registry: str) -> dict[str, str]:
     hub = f'server = "https://{DOCKER_HUB_ENDPOINT}"\n\n{mirror}'
     return {REGISTRY_NAME: body, registry: body, DOCKER_HUB: hub}
 
+
 def build_cni_config(layout: RobotLayout) -> dict[str, Any]:
     """A bridge inside the robot for pods off the host network, addresses from the robot's pod subnet."""
     return {
@@ -246,6 +248,9 @@ def build_kubelet_config(layout: RobotLayout) -> dict[str, Any]:
         "rotateCertificates": False,
         "serverTLSBootstrap": False,
         "registerNode": True,
+        # The robot's offline agent writes its last revision here when it boots cut off (docs/offline.md).
+        "staticPodPath": offline.STATIC_POD_DIR,
+        "fileCheckFrequency": "2s",
     }
 
 
@@ -282,6 +287,19 @@ def build_kubelet(layout: RobotLayout, labels: dict[str, str]) -> list[str]:
         "--root-dir=/var/lib/kubelet",
         f"--cert-dir={layout.dir / 'kubelet-pki'}",
         "--v=1",
+    ]
+
+
+def build_offline_agent(layout: RobotLayout, step: str) -> list[str]:
+    """The robot's offline agent: `boot` (once, before the kubelet) or `watch` (beside it)."""
+    return [
+        *enter_robot(layout),
+        sys.executable,
+        "-m",
+        "coral.offline",
+        step,
+        f"--robot={layout.name}",
+        f"--kubeconfig={layout.kubelet_kubeconfig}",
     ]
 
 

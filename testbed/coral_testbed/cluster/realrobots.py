@@ -41,7 +41,7 @@ Progress = Callable[[str], None]
 ROBOTS_DIR = "robots"
 _STATE = "robots.json"
 # Node processes started per robot, in start order (stopped in reverse).
-PROCESSES = ("uplink", "containerd", "kubelet")
+PROCESSES = ("uplink", "containerd", "kubelet", "offline-agent")
 
 
 class RobotError(RuntimeError):
@@ -232,7 +232,25 @@ class RealRobots:
             containerd, lambda: containerd_socket.exists() and self._ctr_ok(layout), "containerd to serve"
         )
         nodeimages.import_local(nodeconfig.build_ctr(layout), layout.image_cache)
+        self._boot(layout, labels)
+
+    def _boot(self, layout: nodeconfig.RobotLayout, labels: dict[str, str]) -> None:
+        """What the robot's init system does once containerd serves: the offline agent's boot step,
+        then the kubelet, then the agent beside it."""
+        boot = subprocess.run(
+            nodeconfig.build_offline_agent(layout, "boot"),
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
+        (self.logs_dir / f"{layout.name}.offline-boot.log").write_text(boot.stdout + boot.stderr)
+        if boot.returncode != 0:
+            raise RobotError(f"the offline agent's boot step on {layout.name} failed: {boot.stderr[-2000:]}")
         self._start_kubelet(layout, labels)
+        self._spawn(
+            layout, "offline-agent", nodeconfig.build_offline_agent(layout, "watch"), in_runtime_cgroup=True
+        )
 
     def _spawn(
         self, layout: nodeconfig.RobotLayout, process: str, argv: list[str], in_runtime_cgroup: bool = False
@@ -331,6 +349,26 @@ class RealRobots:
             self._start_kubelet(layout, self._load()["robots"][name]["labels"])
         if wait:
             self.wait_ready([name])
+
+    def power_cycle(self, name: str) -> None:
+        """Power lost and back, the link left as it is: the kubelet, the agent, containerd, the shims
+        and every container die (their cgroups are emptied with SIGKILL), then the robot boots:
+        containerd, the offline agent's boot step, the kubelet, the agent. Returns once the kubelet
+        is healthy (its Node's state is the API server's business)."""
+        layout = self.layout(name)
+        for process in ("offline-agent", "kubelet", "containerd"):
+            recorded = self._recorded(name, process)
+            if recorded is not None:
+                processes.stop(recorded)
+        cgroups.kill_all(layout.cgroup_root)
+        containerd = self._spawn(
+            layout, "containerd", nodeconfig.build_containerd(layout), in_runtime_cgroup=True
+        )
+        containerd_socket = mountview.host_path(layout.root, nodeconfig.CONTAINERD_SOCKET)
+        self._await(
+            containerd, lambda: containerd_socket.exists() and self._ctr_ok(layout), "containerd to serve"
+        )
+        self._boot(layout, self._load()["robots"][name]["labels"])
 
     def is_running(self, name: str) -> bool:
         kubelet = self._recorded(name, "kubelet")

@@ -57,6 +57,17 @@ def system(
     }
 
 
+LONG_WAIT_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence>
+      <Count count="{count}"/>
+      <WaitForCount threshold="1000" timeout_ms="600000"/>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+"""A mission that outlasts an outage: it waits on the skillset's count topic for ten minutes."""
+
 INSPECT_OR_REPORT = """<Fallback>
         <Sequence name="Inspect">
           <Count count="{count}"/>

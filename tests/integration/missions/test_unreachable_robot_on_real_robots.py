@@ -23,16 +23,7 @@ from .conftest import real_robot_marks
 pytestmark = real_robot_marks(timeout_s=420)
 
 SYSTEM = "patrol"
-# A mission that outlasts the outage: it waits on the skillset's count topic for ten minutes.
-TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence>
-      <Count count="{count}"/>
-      <WaitForCount threshold="1000" timeout_ms="600000"/>
-    </Sequence>
-  </BehaviorTree>
-</root>
-"""
+TREE = rs.LONG_WAIT_TREE
 
 
 def _pods(core: k8s.CoreV1Api, namespace: str) -> dict[str, Any]:
