@@ -82,8 +82,10 @@ def _registry(images: Mapping[str, ImageExports]) -> tuple[bt.NodeRegistry, dict
     return registry, owner, clashes
 
 
-def _named(message: str, registry: bt.NodeRegistry, owner: Mapping[str, str], images: list[str]) -> str:
-    """The engine's message, saying which image it is about."""
+def _named(
+    message: str, at: str | None, registry: bt.NodeRegistry, owner: Mapping[str, str], images: list[str]
+) -> str:
+    """The engine's message, saying which image it is about; `at` is the node ID on the error's line."""
     unknown = _UNKNOWN.search(message)
     if unknown:
         head = message[: unknown.start()]
@@ -96,8 +98,9 @@ def _named(message: str, registry: bt.NodeRegistry, owner: Mapping[str, str], im
             f"{owner[port[2]]} (it declares: {declared})"
         )
     node = _NODE.search(message)
-    if node and node[1] in owner:
-        return f"{message} (behavior of image {owner[node[1]]})"
+    named = node[1] if node else at
+    if named in owner:
+        return f"{message} ({named} as image {owner[named]} declares it)"
     return message
 
 
@@ -115,9 +118,16 @@ def check_document(
     # validation's, reported there already.
     baseline = {str(error) for error in bt.validate_document(document, bt.NodeRegistry.with_builtins())}
     unknown = set(document.missing_node_types(registry))
+    at = {
+        (element.file, element.line): element.node_id
+        for tree in document.trees.values()
+        if tree.root is not None
+        for element in tree.root.walk()
+        if element.node_id in owner
+    }
     for error in bt.validate_document(document, registry):
         message = str(error)
         if message in baseline and not any(f"Node not recognized: {node}" in message for node in unknown):
             continue
-        problems.append(_named(message, registry, owner, sorted(declared)))
+        problems.append(_named(message, at.get((error.file, error.line)), registry, owner, sorted(declared)))
     return Verdict(problems + clashes, [])
