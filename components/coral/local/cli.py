@@ -312,9 +312,15 @@ def validate_command(target: Path) -> None:
     default=None,
     help="Registry credentials (default: ~/.docker/config.json).",
 )
+@click.option(
+    "--print-label",
+    is_flag=True,
+    help="Print only the dev.coral.exports label of the (installed) component, for `docker build --label`.",
+)
 def verify_command(
     components: tuple[str, ...],
     from_registry: bool,
+    print_label: bool,
     tree: Path | None,
     main_tree: str | None,
     coral_version: str | None,
@@ -329,6 +335,14 @@ def verify_command(
 
     problems: list[str] = []
     declared = {}
+    if print_label:
+        if from_registry or len(components) != 1:
+            raise click.UsageError("--print-label takes one installed component")
+        result = checking.verify_component(components[0])
+        if not result.ok:
+            raise click.ClickException("; ".join(result.problems))
+        click.echo(result.manifest.image_exports().to_label())  # type: ignore[attr-defined]
+        return
     if from_registry:
         try:
             auths = verifying.docker_auths(docker_config)

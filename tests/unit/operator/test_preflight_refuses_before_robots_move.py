@@ -249,3 +249,14 @@ def test_a_hundred_robots_of_three_models_on_five_images_pass(examples: ImageExp
     )
     plan = _pass(_spec(_tree('<Greet who="crew"/>'), overrides=overrides), table, robots)
     assert plan.problem is None and len(plan.changes.create) == 100
+
+
+def test_an_installed_component_prints_the_label_its_image_carries() -> None:
+    from click.testing import CliRunner
+    from coral.local.cli import verify_command
+
+    result = CliRunner().invoke(verify_command, ["coral/slam-skillset:0.1.0", "--print-label"])
+    assert result.exit_code == 0, result.output
+    declared = from_labels({EXPORTS_LABEL: result.output.strip()}, "slam")
+    assert declared is not None and declared.component == "slam"
+    assert "ProcessScan" in {b.id for b in declared.behaviors}
