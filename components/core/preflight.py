@@ -14,7 +14,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from coral_core import bt
+from coral_core import bt, names
 from coral_core.bt.nodes.base import TreeNode
 from coral_core.image_exports import BTCPP_COMPATIBLE, ImageExports, major_of
 
@@ -54,9 +54,19 @@ def version_problems(images: Mapping[str, ImageExports | None], coral_version: s
     return problems
 
 
+def _with_executors() -> bt.NodeRegistry:
+    """The built-ins and the executor's own behaviors: the executor's are known to exist, and their
+    ports are the executor's to check (registered without ports, their port problems are the same
+    with and without the images, so none is reported here)."""
+    registry = bt.NodeRegistry.with_builtins()
+    for node_id in names.COORDINATION_BEHAVIORS:
+        registry.register(node_id, TreeNode, kind="action", ports=[], source="executor")
+    return registry
+
+
 def _registry(images: Mapping[str, ImageExports]) -> tuple[bt.NodeRegistry, dict[str, str], list[str]]:
     """Built-ins plus every declared behavior; which image exports each; behaviors two images export."""
-    registry = bt.NodeRegistry.with_builtins()
+    registry = _with_executors()
     owner: dict[str, str] = {}
     clashes = []
     for image, exports in sorted(images.items()):
@@ -116,7 +126,7 @@ def check_document(
     registry, owner, clashes = _registry(declared)
     # What only the declared behaviors change: problems with built-ins alone are the tree
     # validation's, reported there already.
-    baseline = {str(error) for error in bt.validate_document(document, bt.NodeRegistry.with_builtins())}
+    baseline = {str(error) for error in bt.validate_document(document, _with_executors())}
     unknown = set(document.missing_node_types(registry))
     at = {
         (element.file, element.line): element.node_id

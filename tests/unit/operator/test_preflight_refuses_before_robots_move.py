@@ -15,15 +15,13 @@ from coral.plugins.manifest import ComponentRef
 from coral_core import bt, preflight
 from coral_core.image_exports import EXPORTS_LABEL, DeclaredBehavior, ImageExports, from_labels
 from coral_operator.api.system import CoralSystemSpec
-from coral_operator.kube import observing
 from coral_operator.planning import preflight as operator_preflight
 from coral_operator.planning import system_pass
 from coral_operator.planning.observed import RobotNode
-from coral_operator.planning.policy import Policy
 from coral_operator.planning.preflight import ImageTable
 from coral_operator.status.conditions import Reason
 from coral_skillsets.examples import behaviors
-from operator_specs import BASE_SPEC, NOW
+from operator_specs import BASE_SPEC, plan_pass
 
 SLAM = "reg.example/slam:1"
 LIDAR = "reg.example/lidar:1"
@@ -128,26 +126,7 @@ def _spec(tree: str, **extra: Any) -> dict[str, Any]:
 
 
 def _pass(spec: dict[str, Any], table: ImageTable, robots: list[RobotNode] = FLEET) -> system_pass.SystemPlan:
-    record = observing.system_record(
-        {"metadata": {"name": "site", "namespace": "ns", "uid": "u-site", "generation": 1}, "spec": spec}
-    )
-    parsed = CoralSystemSpec.model_validate(spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            spec=parsed,
-            tree=(parsed.tree.inline or "", "coralsystem/site spec.tree.inline"),
-            parameters=(parsed.parameters.inline or "", "params"),
-            robots=robots,
-            instances=[],
-            stored_revisions=[],
-            expected={},
-            previous_rollout=None,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
-            now=NOW,
-            images=table,
-        )
-    )
+    return plan_pass(spec, robots, images=table)
 
 
 def _declares(component: str, *ids: str, version: str = "0.1.0") -> ImageExports:
@@ -168,7 +147,7 @@ def test_a_good_change_creates_every_robots_instance(examples: ImageExports) -> 
         (
             "<Fly/>",
             "0.1.0",
-            "coralsystem/site spec.tree.inline:4: behavior Fly is exported by none of the images",
+            "tree:4: behavior Fly is exported by none of the images",
         ),
         (
             '<Greet who="crew" volume="3"/>',
@@ -260,3 +239,10 @@ def test_an_installed_component_prints_the_label_its_image_carries() -> None:
     declared = from_labels({EXPORTS_LABEL: result.output.strip()}, "slam")
     assert declared is not None and declared.component == "slam"
     assert "ProcessScan" in {b.id for b in declared.behaviors}
+
+
+def test_the_executors_own_coordination_behaviors_need_no_image(examples: ImageExports) -> None:
+    tree = _tree(
+        '<TriggerRemote robot="arm" trigger="go"/>', '<WaitForSharedValue key="target" value="{t}"/>'
+    )
+    assert _check(tree, {SLAM: examples}).passed
