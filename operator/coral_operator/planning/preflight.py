@@ -115,16 +115,14 @@ def check_robots(
                 result.notes.append(
                     f"image {image} could not be read ({table.unread[image]}); not preflighted"
                 )
-            elif image not in table.exports and image not in noted:
-                noted.add(image)
-                result.notes.append(f"image {image} was not read; its trees are checked on the robot")
-            elif table.exports.get(image) is None and image not in noted:
+            elif image in table.exports and table.exports[image] is None and image not in noted:
                 noted.add(image)
                 result.notes.append(
                     f"image {image} declares no behaviors (no label); its trees are checked on the robot"
                 )
-        if len(known) < len(images):
-            # A behavior may come from an image whose declaration is unknown: only versions are checked.
+        if not known or len(known) < len(images):
+            # A behavior may come from an image whose declaration is unknown (not read: a registry the
+            # operator does not read, or a robot's own value in its name): only versions are checked.
             result.problems += preflight.version_problems(known, coral_version)
             continue
         parts = (

@@ -246,3 +246,14 @@ def test_the_executors_own_coordination_behaviors_need_no_image(examples: ImageE
         '<TriggerRemote robot="arm" trigger="go"/>', '<WaitForSharedValue key="target" value="{t}"/>'
     )
     assert _check(tree, {SLAM: examples}).passed
+
+
+def test_without_declarations_read_nothing_is_refused_and_nothing_said() -> None:
+    """Preflight off (no registry read), and a robot model that runs no skillset or driver at all."""
+    server = {
+        "name": "server",
+        "robots": {"matchLabels": {"coral.dev/model": "spot"}},
+        "remove": ["lidar", "slam"],
+    }
+    plan = _pass(_spec(_tree("<Fly/>"), overrides=[server]), ImageTable())
+    assert plan.problem is None and plan.preflight_notes == [] and len(plan.changes.create) == len(FLEET)
