@@ -257,3 +257,20 @@ def test_without_declarations_read_nothing_is_refused_and_nothing_said() -> None
     }
     plan = _pass(_spec(_tree("<Fly/>"), overrides=[server]), ImageTable())
     assert plan.problem is None and plan.preflight_notes == [] and len(plan.changes.create) == len(FLEET)
+
+
+def test_the_operator_reads_only_the_registries_it_is_told_to() -> None:
+    from coral_operator import config
+    from coral_operator.reconcile.declarations import ImageDeclarations
+
+    settings = config.from_environment({"CORAL_PREFLIGHT_REGISTRIES": "reg.example, 127.0.0.1:5000"})
+    assert settings.preflight_registries == {"reg.example", "127.0.0.1:5000"}
+    assert config.from_environment({}).preflight_registries == frozenset()
+    declarations = ImageDeclarations(registries=settings.preflight_registries)
+    assert declarations.wanted(SLAM) and declarations.wanted("127.0.0.1:5000/coral/x:1")
+    assert not declarations.wanted("coral/slam-skillset:0.1.0") and not declarations.wanted(
+        "other.example/x:1"
+    )
+    # Nothing is read from a registry not listed: no request, no note.
+    assert declarations.read(["other.example/x:1"]) == ImageTable()
+    assert ImageDeclarations(registries=frozenset({"*"})).wanted("docker.io/library/x:1")
