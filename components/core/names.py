@@ -11,6 +11,9 @@ GROUP = "coral.dev"
 VERSION = "v1alpha1"
 API_VERSION = f"{GROUP}/{VERSION}"
 
+COORDINATION_BEHAVIORS = ("TriggerRemote", "WaitForRemoteTrigger", "ShareValue", "WaitForSharedValue")
+"""Behaviors every executor provides itself (`coral.coordination`): no image exports them."""
+
 SYSTEM_KIND = "CoralSystem"
 SYSTEM_PLURAL = "coralsystems"
 INSTANCE_KIND = "CoralInstance"

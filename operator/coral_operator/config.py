@@ -15,6 +15,7 @@ comma separated; unset means the restrictive default, empty means none. Host pat
 | CORAL_POLICY_DEVICES | device paths (globs) devices may use | /dev/ttyUSB*, /dev/ttyACM*, /dev/video* |
 | CORAL_POLICY_PLUGIN_ROOTS | values `plugins.hostPathRoot` may take | /var/lib/coral/plugins |
 | CORAL_HELPER_IMAGE | image of the step that hands folders to the components' user | the operator's |
+| CORAL_PREFLIGHT_REGISTRIES | registries (`host[:port]`, `*`: all) preflight reads images from | none |
 
 Read by `handlers` at import time and by `main`. A setting that cannot be read stops the operator
 at start with a sentence naming it, rather than serving with a policy nobody meant.
@@ -86,6 +87,8 @@ class OperatorConfig:
     helper_image: str = DEFAULT_HELPER_IMAGE
     """The image the ownership step of component pods runs as root with CAP_CHOWN alone: one the
     administrator chose, never a tenant's (`planning.pods`)."""
+    preflight_registries: frozenset[str] = frozenset()
+    """Registries the operator reads component images' declarations from (`reconcile.declarations`)."""
 
 
 def from_environment(environ: Mapping[str, str] | None = None) -> OperatorConfig:
@@ -110,4 +113,8 @@ def from_environment(environ: Mapping[str, str] | None = None) -> OperatorConfig
         plugin_roots=_paths(env.get("CORAL_POLICY_PLUGIN_ROOTS"), defaults.plugin_roots),
     )
     _check(policy)
-    return OperatorConfig(policy=policy, helper_image=env.get("CORAL_HELPER_IMAGE") or DEFAULT_HELPER_IMAGE)
+    return OperatorConfig(
+        policy=policy,
+        helper_image=env.get("CORAL_HELPER_IMAGE") or DEFAULT_HELPER_IMAGE,
+        preflight_registries=frozenset(_parts(env.get("CORAL_PREFLIGHT_REGISTRIES") or "")),
+    )

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-BEHAVIOR_IDS = ("TriggerRemote", "WaitForRemoteTrigger", "ShareValue", "WaitForSharedValue")
+from coral_core import names
+
+BEHAVIOR_IDS = names.COORDINATION_BEHAVIORS
 
 
 def register(registry: Any) -> None:

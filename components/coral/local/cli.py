@@ -289,21 +289,89 @@ def validate_command(target: Path) -> None:
 
 
 @click.command("verify")
-@click.argument("component")
-def verify_command(component: str) -> None:
-    """Check that COMPONENT (image name, entry-point name or module:Class) exports a valid manifest."""
+@click.argument("components", nargs=-1, required=True)
+@click.option(
+    "--registry",
+    "from_registry",
+    is_flag=True,
+    help="COMPONENTS are images in a registry: check what they declare, as the operator's preflight does.",
+)
+@click.option(
+    "--tree",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="A tree XML to check against the components' behaviors and ports.",
+)
+@click.option("--main-tree", default=None, help="The tree's main BehaviorTree ID.")
+@click.option(
+    "--coral-version", default=None, help="The Coral release to check images against (default: this one)."
+)
+@click.option(
+    "--docker-config",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Registry credentials (default: ~/.docker/config.json).",
+)
+@click.option(
+    "--print-label",
+    is_flag=True,
+    help="Print only the dev.coral.exports label of the (installed) component, for `docker build --label`.",
+)
+def verify_command(
+    components: tuple[str, ...],
+    from_registry: bool,
+    print_label: bool,
+    tree: Path | None,
+    main_tree: str | None,
+    coral_version: str | None,
+    docker_config: Path | None,
+) -> None:
+    """Check that COMPONENTS (image names, entry-point names or module:Class) export valid manifests,
+    and that a tree uses only what they export. With --registry, read the images' declarations
+    from their registry by digest instead of the installed components (for CI)."""
+    from coral_core import verifying
+
     from coral.local import checking
 
-    result = checking.verify_component(component)
-    for problem in result.problems:
-        click.echo(problem, err=True)
-    if not result.ok:
+    problems: list[str] = []
+    declared = {}
+    if print_label:
+        if from_registry or len(components) != 1:
+            raise click.UsageError("--print-label takes one installed component")
+        result = checking.verify_component(components[0])
+        if not result.ok:
+            raise click.ClickException("; ".join(result.problems))
+        click.echo(result.manifest.image_exports().to_label())  # type: ignore[attr-defined]
+        return
+    if from_registry:
+        try:
+            auths = verifying.docker_auths(docker_config)
+        except ValueError as error:
+            raise click.BadParameter(str(error), param_hint="--docker-config") from error
+        declared, problems = verifying.read_declarations(components, auths)
+        for image, exports in declared.items():
+            click.echo(verifying.describe(image, exports))
+    else:
+        for component in components:
+            result = checking.verify_component(component)
+            problems += result.problems
+            if result.ok:
+                manifest = result.manifest
+                declared[component] = manifest.image_exports()  # type: ignore[attr-defined]
+                behaviors = [b.id for b in manifest.behaviors]  # type: ignore[attr-defined]
+                click.echo(
+                    f"{component}: valid {manifest.component.kind} {result.component!r} "  # type: ignore[attr-defined]
+                    f"exporting {len(behaviors)} behavior(s): {', '.join(behaviors) or '-'}"
+                )
+    report = verifying.check(declared, tree, main_tree, coral_version)
+    for line in report.lines:
+        click.echo(line)
+    for problem in problems + report.problems:
+        click.echo(f"refused: {problem}", err=True)
+    if problems or report.problems:
         sys.exit(1)
-    behaviors = [b.id for b in result.manifest.behaviors]  # type: ignore[attr-defined]
-    click.echo(
-        f"{component}: valid {result.manifest.component.kind} {result.component!r} "  # type: ignore[attr-defined]
-        f"exporting {len(behaviors)} behavior(s): {', '.join(behaviors) or '-'}"
-    )
+    if tree is not None:
+        click.echo(f"{tree}: valid on {', '.join(declared)}")
 
 
 @click.command("nodes-model")

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Literal
 
 import pydantic
-from coral_core import parsing
+from coral_core import image_exports, parsing
 
 SCHEMA_VERSION = 1
 MANIFEST_NAME = "manifest.json"
@@ -121,6 +121,25 @@ class PluginManifest(pydantic.BaseModel):
 
     def to_json(self) -> str:
         return json.dumps(self.model_dump(by_alias=True), indent=2, sort_keys=True) + "\n"
+
+    def image_exports(self) -> image_exports.ImageExports:
+        """What an image of this component declares to the operator (its `dev.coral.exports` label)."""
+        return image_exports.ImageExports(
+            component=self.component.name,
+            kind=self.component.kind,
+            coral_version=self.coral_version,
+            ros_distro=self.ros_distro,
+            behaviors=tuple(
+                image_exports.DeclaredBehavior(
+                    id=b.id,
+                    kind=b.kind,
+                    ports=tuple(
+                        image_exports.DeclaredPort(p.name, p.direction, p.type, p.default) for p in b.ports
+                    ),
+                )
+                for b in self.behaviors
+            ),
+        )
 
 
 def palette_behaviors(plugins: Iterable[PluginManifest]) -> list[BehaviorEntry]:

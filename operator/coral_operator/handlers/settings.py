@@ -85,6 +85,7 @@ def create_controller(memo: kopf.Memo, **_: Any) -> None:
         policy=settings.policy,
         post=_post,
         pod_settings=pods.PodSettings(policy=settings.policy, helper_image=settings.helper_image),
+        preflight_registries=settings.preflight_registries,
     )
 
 

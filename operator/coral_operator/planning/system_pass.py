@@ -26,6 +26,7 @@ from coral_operator.planning import (
     halting,
     instances,
     policy,
+    preflight,
     rbac,
     revisions,
     rollout,
@@ -67,6 +68,9 @@ class SystemObservation:
     """The other CoralSystems of the namespace, for its budget (`planning.budgets`)."""
     verdicts: validation.Verdicts | None = None
     """Validation results already known, by content hash."""
+    images: preflight.ImageTable = field(default_factory=preflight.ImageTable)
+    """What the images of the spec declare, as read from their registries (`reconcile.declarations`)."""
+    coral_version: str = preflight.CORAL_VERSION
 
 
 @dataclass
@@ -107,6 +111,8 @@ class SystemPlan:
     config_errors: list[ConfigError] = field(default_factory=list)
     """Robots whose effective configuration (the spec with their overrides) is invalid: they keep
     what they run, and the system names each with the field at fault."""
+    preflight_notes: list[str] = field(default_factory=list)
+    """Images whose trees preflight left to the robot (they declare nothing, or were not read)."""
 
 
 def format_validation(error: ValidationError) -> str:
@@ -230,6 +236,28 @@ def _plan_deployment(
     resolver = effective.EffectiveTemplates(**common, verdicts=observation.verdicts)
     wanted = {robot.robot: resolver.resolve(template, robot) for robot in robots}
     errors = {name: w for name, w in wanted.items() if isinstance(w, ConfigError)}
+    checked = preflight.check_robots(
+        wanted,
+        preflight.tree_sources(
+            [tree_cm, *resolver.config_maps.values()],
+            tree_cm["metadata"]["name"],
+            observation.tree[1] if isinstance(observation.tree, tuple) else "tree",
+            f"coralsystem/{system.name}",
+        ),
+        observation.images,
+        observation.coral_version,
+        observation.verdicts,
+    )
+    if checked.problems:
+        # Refused before the rollout: no instance is created or moved, every robot keeps what it runs.
+        return SystemPlan(
+            problem=Problem(
+                Reason.PREFLIGHT_FAILED,
+                "Preflight refused the change; no robot moves: " + listed(checked.problems, shown=10),
+            ),
+            matched=len(robots),
+            preflight_notes=checked.notes,
+        )
     # A robot whose configuration the new revision leaves as it is moves to it at once, costing no
     # budget and restarting nothing: a change to one model's override rolls out to that model only.
     unchanged = {
@@ -314,6 +342,7 @@ def _plan_deployment(
         ),
         stored_after=stored,
         config_errors=[errors[name] for name in sorted(errors)],
+        preflight_notes=checked.notes,
     )
 
 

@@ -22,6 +22,7 @@ from coral_operator.kube.writer import KubeWriter, Writer
 from coral_operator.planning.pods import PodSettings
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
+from coral_operator.reconcile.declarations import ImageDeclarations
 from coral_operator.reconcile.indexes import Indexes, instances_on_node
 from coral_operator.reconcile.instances import InstanceReconciler
 from coral_operator.reconcile.memory import Memory
@@ -60,6 +61,7 @@ class Controller:
         writer: Writer | None = None,
         workers: int = WORKERS,
         pod_settings: PodSettings | None = None,
+        preflight_registries: frozenset[str] = frozenset(),
     ) -> None:
         self.memory = memory or Memory()
         self.indexes = Indexes()
@@ -87,6 +89,7 @@ class Controller:
             pool=self._pool,
             wake_instance=lambda key: self.queue.add((INSTANCE, *key)),
             trim=self.trimmer.soon,
+            declarations=ImageDeclarations(registries=preflight_registries),
         )
 
     def _process(self, key: Key) -> None:

@@ -17,7 +17,9 @@ that says what is forgotten when the watch reports an object deleted:
   CoralInstance specs every robot of a revision shares) or what many passes compute (validation
   results by content hash), each bounded (docs/architecture.md, "The operator's memory").
 
-Each part is thread safe: the queue's workers and kopf's event loop use them at once.
+Each part is thread safe: the queue's workers and kopf's event loop use them at once. Beside it,
+the system reconciler keeps what component images declare, by digest (`reconcile.declarations`):
+content of registries, not of the cluster, and never forgotten with an object.
 """
 
 from __future__ import annotations

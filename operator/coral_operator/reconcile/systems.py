@@ -24,10 +24,11 @@ from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
-from coral_operator.planning import budgets, configmaps, instances, naming, provenance, system_pass
+from coral_operator.planning import budgets, configmaps, instances, naming, preflight, provenance, system_pass
 from coral_operator.planning.observed import ObservedInstance, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
+from coral_operator.reconcile.declarations import ImageDeclarations
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
     config_maps_of_system,
@@ -55,6 +56,8 @@ class SystemReconciler(Reconciler):
     wake_instance: Callable[[Key], None] = lambda _key: None
     """Pass the instance of this key at once (a move's answer is in memory)."""
     trim: Callable[[], None] = lambda: None
+    declarations: ImageDeclarations = field(default_factory=ImageDeclarations)
+    """What component images declare, read from their registries for preflight."""
     """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
     _files_at_once: threading.BoundedSemaphore = field(
         default_factory=lambda: threading.BoundedSemaphore(FILES_AT_ONCE), init=False, repr=False
@@ -113,6 +116,9 @@ class SystemReconciler(Reconciler):
             now=now,
             neighbours=self._neighbours(system) if parsed else [],
             verdicts=self.memory.verdicts,
+            images=self.declarations.read(preflight.images_to_read(spec))
+            if isinstance(spec, CoralSystemSpec)
+            else preflight.ImageTable(),
         )
         plan = system_pass.plan_system(observation)
         problem = plan.problem or system_pass.config_problem(plan)
@@ -131,6 +137,9 @@ class SystemReconciler(Reconciler):
                 problem = system_status.Problem(
                     Reason.APPLY_REFUSED, f"The API server refused a write: {refused}"
                 )
+            if plan.rollout.moves or plan.changes.create:
+                for note in plan.preflight_notes:
+                    self.post(system.reference, "Normal", "PreflightSkipped", note)
             for event in plan.rollout.events:
                 self.post(
                     system.reference, "Warning" if event.warning else "Normal", event.reason, event.message

@@ -48,6 +48,9 @@ class Reason(StrEnum):
     """The behavior tree failed validation."""
     INVALID_PARAMETERS = "InvalidParameters"
     """The parameters YAML failed validation."""
+    PREFLIGHT_FAILED = "PreflightFailed"
+    """A robot's effective tree uses a behavior or port its images do not declare, or an image was
+    built for another Coral major version; no robot is moved."""
     INVALID_ROBOT_CONFIG = "InvalidRobotConfig"
     """Some robots' effective configurations (the spec with the overrides that match them) are
     invalid or conflict; those robots keep what they run."""

@@ -10,7 +10,7 @@ from coral_core import names
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing
-from coral_operator.planning import instances, pods, system_pass
+from coral_operator.planning import instances, pods, preflight, system_pass
 from coral_operator.planning import startup as startup_planning
 from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
 from coral_operator.planning.policy import Policy
@@ -136,6 +136,7 @@ def plan_pass(
     annotations: dict[str, str] | None = None,
     expected: dict[str, str] | None = None,
     previous_rollout: Any = None,
+    images: preflight.ImageTable | None = None,
 ) -> system_pass.SystemPlan:
     """One system pass of `spec` (inline files) over `robots`, with a policy that allows the host
     network and nothing else."""
@@ -161,5 +162,6 @@ def plan_pass(
             previous_rollout=previous_rollout,
             policy=Policy(host_network_namespaces=frozenset({"*"})),
             now=NOW,
+            images=images or preflight.ImageTable(),
         )
     )
