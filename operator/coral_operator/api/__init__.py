@@ -32,6 +32,8 @@ from coral_operator.api.components import (
 from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTree
 from coral_operator.api.rollout import (
     CanaryStatus,
+    PrePullStatus,
+    PullFailure,
     RolledBack,
     RolloutCounts,
     RolloutFailure,
@@ -42,6 +44,7 @@ from coral_operator.api.system import (
     CoralSystemSpec,
     CoralSystemStatus,
     PluginsSpec,
+    PrePullSpec,
     RobotCounts,
     RolloutSpec,
     RosSpec,
@@ -57,6 +60,9 @@ __all__ = [
     "RolloutCounts",
     "RolledBack",
     "CanaryStatus",
+    "PrePullStatus",
+    "PullFailure",
+    "PrePullSpec",
     "API_VERSION",
     "GROUP",
     "VERSION",

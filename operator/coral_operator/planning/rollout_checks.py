@@ -19,13 +19,14 @@ outlive a pass (the canary clock, a recorded failure, a rollback) travels in `st
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 
 from coral_operator.api.rollout import MAX_NAMED, CanaryStatus, RolledBack, RolloutFailure, RolloutStatus
 from coral_operator.api.system import RolloutSpec
 from coral_operator.planning import rollout_report
+from coral_operator.planning.prepull import Pull
 
 FAILURE = "FAILURE"
 RUNNING = "RUNNING"
@@ -48,6 +49,8 @@ class RobotView:
     """The instance is Stalled (a component failed, or startup timed out with `Block`)."""
     canary: bool = False
     """The robot matches `spec.rollout.canary.robots`."""
+    pulls: Mapping[str, Pull] = field(default_factory=dict)
+    """Revision -> where the robot's pull of its images stands (`spec.rollout.prePull` only)."""
 
 
 def revision_before(history: Sequence[str], revision: str) -> str | None:

@@ -32,6 +32,8 @@ class ConditionType(StrEnum):
     """A skillset died under a loaded behavior."""
     TREE_HEALTHY = "TreeHealthy"
     """The tree's root has not returned FAILURE, and the tree makes progress."""
+    IMAGES_PRE_PULLED = "ImagesPrePulled"
+    """The rollout's next revision's images are pulled on the robot; present only while it pre-pulls."""
 
 
 class Reason(StrEnum):
