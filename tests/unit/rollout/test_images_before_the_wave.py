@@ -12,12 +12,13 @@ from typing import Any
 
 import pytest
 from coral_core import names
-from coral_operator.api.rollout import PrePullStatus, RolloutStatus
+from coral_operator.api.rollout import PrePullStatus, PullFailure, RolloutStatus
 from coral_operator.api.system import PrePullSpec, RolloutSpec
 from coral_operator.planning import prepull
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.planning.prepull import Pull, PullingRobot, PullState
 from coral_operator.planning.rollout import RobotView, RolloutRequest, plan_rollout
+from coral_operator.rollout_control import describe
 
 NOW = datetime(2026, 1, 1, 12, 0, tzinfo=UTC)
 OLD, NEW = "old0000000", "new0000000"
@@ -288,3 +289,23 @@ def test_a_revisions_images_are_listed_once_each_in_startup_order() -> None:
         "executors": [{"image": "reg/e:1"}],
     }
     assert prepull.revision_images(template) == ("reg/d:1", "reg/s:1", "reg/e:1")
+
+
+def test_rollout_status_shows_the_pull_progress_and_each_failure_with_the_kubelets_words() -> None:
+    status = RolloutStatus(
+        revision=NEW,
+        pre_pull=PrePullStatus(
+            revision=NEW,
+            robots=5,
+            pulled=3,
+            pulling=1,
+            failed=1,
+            failures=[PullFailure(robot="r4", message=NO_SPACE)],
+        ),
+    )
+    text = describe({"metadata": {"name": "patrol"}, "status": {"rollout": status.to_wire()}})
+    assert (
+        f"pre-pull of revision {NEW}: images on 3 of 5 robots to move, 1 pulling, 1 failed (r4), "
+        "no robot moves before they are pulled"
+    ) in text
+    assert f"pull failed on r4: {NO_SPACE}" in text
