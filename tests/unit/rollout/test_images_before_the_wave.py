@@ -7,15 +7,20 @@ Rows are named as sentences.
 
 from __future__ import annotations
 
+import copy
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from coral_core import names
 from coral_operator.api.rollout import PrePullStatus, PullFailure, RolloutStatus
-from coral_operator.api.system import PrePullSpec, RolloutSpec
-from coral_operator.planning import prepull
-from coral_operator.planning.observed import ObservedPod
+from coral_operator.api.system import CoralSystemSpec, PrePullSpec, RolloutSpec
+from coral_operator.kube import observing
+from coral_operator.planning import prepull, system_pass
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.policy import Policy
 from coral_operator.planning.prepull import Pull, PullingRobot, PullState
 from coral_operator.planning.rollout import RobotView, RolloutRequest, plan_rollout
 from coral_operator.rollout_control import describe
@@ -309,3 +314,78 @@ def test_rollout_status_shows_the_pull_progress_and_each_failure_with_the_kubele
         "no robot moves before they are pulled"
     ) in text
     assert f"pull failed on r4: {NO_SPACE}" in text
+
+
+MISSION = yaml.safe_load(
+    (Path(__file__).resolve().parents[3] / "examples" / "fleet" / "mission.yaml").read_text()
+)
+POLICY = Policy(host_network_namespaces=frozenset({"*"}), host_paths=(("*", "/var/lib/coral/bags"),))
+
+
+def system_pass_of(
+    spec: dict[str, Any], instances: list[ObservedInstance], pods: Any
+) -> system_pass.SystemPlan:
+    record = observing.system_record(
+        {"metadata": {"name": "fleet", "namespace": "ns", "uid": "u-fleet"}, "spec": spec}
+    )
+    parsed = CoralSystemSpec.model_validate(spec)
+    return system_pass.plan_system(
+        system_pass.SystemObservation(
+            system=record,
+            tree=(parsed.tree.inline or "", "tree"),
+            parameters=(parsed.parameters.inline or "", "params"),
+            robots=[
+                RobotNode(node_name=f"n{i}", robot=f"r{i}", labels={"fleet": "f"}, ready=True)
+                for i in range(3)
+            ],
+            instances=instances,
+            stored_revisions=[],
+            expected={},
+            previous_rollout=None,
+            policy=POLICY,
+            now=NOW,
+            pods=pods,
+        )
+    )
+
+
+def deployed_fleet(pre_pull: dict[str, Any] | None) -> tuple[dict[str, Any], list[ObservedInstance]]:
+    """Three robots running the mission's first revision, and a second revision with a new executor image."""
+    spec = copy.deepcopy(MISSION["spec"])
+    spec["robots"] = {"matchLabels": {"fleet": "f"}}
+    spec["rollout"] = {"maxUnavailable": "100%", **({"prePull": pre_pull} if pre_pull is not None else {})}
+    first = system_pass_of(spec, [], None)
+    running = [
+        ObservedInstance(
+            name=m["metadata"]["name"],
+            robot=m["spec"]["robot"],
+            spec=m["spec"],
+            revision=m["spec"]["revision"],
+            ready=True,
+            uid=f"u-{m['spec']['robot']}",
+            controller_uid="u-fleet",
+        )
+        for m in first.changes.create
+    ]
+    spec["executors"][0]["image"] += "-2"
+    return spec, running
+
+
+def test_a_system_pass_with_pre_pull_creates_pull_pods_and_moves_nobody_yet() -> None:
+    spec, running = deployed_fleet({"when": "BeforeRollout"})
+    plan = system_pass_of(spec, running, {})
+    assert plan.rollout is not None
+    assert plan.rollout.moves == {}
+    assert {m["spec"]["revision"] for m in plan.changes.update} <= {running[0].revision}
+    made = plan.rollout.pulls.create
+    assert sorted(m["spec"]["nodeName"] for m in made) == ["n0", "n1", "n2"]
+    assert spec["executors"][0]["image"] in made[0]["spec"]["containers"][-1]["image"]
+    assert plan.rollout.status.pre_pull is not None and plan.rollout.status.pre_pull.pulling == 3
+
+
+def test_without_pre_pull_a_system_pass_reads_no_pod_and_writes_none() -> None:
+    spec, running = deployed_fleet(None)
+    plan = system_pass_of(spec, running, None)
+    assert plan.rollout is not None
+    assert sorted(plan.rollout.moves) == ["r0", "r1", "r2"]
+    assert plan.rollout.pulls == prepull.PullWrites()
