@@ -13,7 +13,7 @@ import kopf
 from coral_core import names
 
 from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
-from coral_operator.planning.prepull import PULL_ROLE
+from coral_operator.planning.pull_state import PULL_ROLE
 from coral_operator.reconcile.controller import Controller
 
 CORAL_SYSTEMS = (names.GROUP, names.VERSION, names.SYSTEM_PLURAL)

@@ -6,8 +6,8 @@ a no-op command, so the robot's own kubelet and runtime pull them, with their cr
 back-off and their messages (docs/rollouts.md, "Images before the wave"). The pod is observed
 through the pod watch the operator already has, so nothing is watched when the feature is off.
 
-Pure: the reconciler reads each robot's pods from the index, `read_pull` says where its pull
-stands, `check_pre_pull` says who may move and what `status.rollout.prePull` reads, and
+Pure: the reconciler reads each robot's pods from the index, `planning.pull_state` says where its
+pull stands, `check_pre_pull` says who may move and what `status.rollout.prePull` reads, and
 `plan_pulls` says which pre-pull pods to create and delete.
 """
 
@@ -16,7 +16,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from enum import StrEnum
 from typing import Any
 
 from coral_core import names
@@ -27,53 +26,8 @@ from coral_operator.api.system import PrePullSpec
 from coral_operator.planning import naming
 from coral_operator.planning.observed import ObservedPod
 from coral_operator.planning.pods import TOLERATIONS
-
-PULL_ROLE = "prepull"
-"""`coral.dev/role` of a pre-pull pod; the instance pass leaves such pods to the system pass."""
-PULL_COMMAND = ["true"]
-"""What each pre-pull container runs: nothing. An image without `true` fails to start, which still
-proves the image is on the robot."""
-
-
-class PullState(StrEnum):
-    """Where one robot's pull of the target revision's images stands."""
-
-    ABSENT = "Absent"
-    """No pre-pull pod for the revision yet."""
-    PULLING = "Pulling"
-    """The pod exists and not every container has started."""
-    PULLED = "Pulled"
-    """Every container has run, so every image is on the robot."""
-    FAILED = "Failed"
-    """The kubelet cannot pull an image, or the robot cannot run the pod; `message` says why."""
-
-
-@dataclass(frozen=True)
-class Pull:
-    """One robot's pull, as its pre-pull pod shows it."""
-
-    state: PullState = PullState.ABSENT
-    message: str = ""
-
-
-def read_pull(pods: Sequence[ObservedPod], revision: str) -> Pull:
-    """Where the pull of `revision`'s images stands on a robot, from its instance's pods."""
-    mine = [p for p in pods if p.role == PULL_ROLE and p.revision == revision and not p.deleting]
-    if not mine:
-        return Pull()
-    pod = mine[0]
-    problem = pod.image_problem or pod.unschedulable
-    if problem:
-        return Pull(PullState.FAILED, problem)
-    # Containers run one after another's pull; the pod ends only once each image was there to start.
-    if pod.phase in ("Succeeded", "Failed"):
-        return Pull(PullState.PULLED)
-    return Pull(PullState.PULLING)
-
-
-def read_pulls(pods: Sequence[ObservedPod]) -> dict[str, Pull]:
-    """Where the pull of each revision with a pre-pull pod stands on a robot."""
-    return {p.revision: read_pull(pods, p.revision) for p in pods if p.role == PULL_ROLE and not p.deleting}
+from coral_operator.planning.pull_state import PULL_COMMAND, PULL_ROLE, Pull, PullState
+from coral_operator.planning.rollout_checks import parse_stamp, stamp
 
 
 @dataclass(frozen=True)
@@ -99,10 +53,6 @@ class PullGate:
     """The deadline, while robots still pull: decide again then even if no pod changes."""
 
 
-def _parse(moment: str | None) -> datetime | None:
-    return datetime.fromisoformat(moment.replace("Z", "+00:00")) if moment else None
-
-
 def check_pre_pull(
     *,
     spec: PrePullSpec,
@@ -117,7 +67,7 @@ def check_pre_pull(
     waits for them, and one that comes back pulls before it moves like any other.
     """
     same = previous is not None and previous.revision == target
-    started = _parse(previous.started) if same and previous is not None else None
+    started = parse_stamp(previous.started) if same and previous is not None else None
     started = started or now
     deadline = started + timedelta(seconds=spec.deadline_seconds)
     late = now >= deadline
@@ -144,7 +94,7 @@ def check_pre_pull(
         pulled=len(pulled),
         pulling=pulling,
         failed=len(failed),
-        started=started.strftime("%Y-%m-%dT%H:%M:%SZ"),
+        started=stamp(started),
         released=released,
         failures=sorted(failed, key=lambda f: f.robot)[:MAX_NAMED],
     )
@@ -219,7 +169,7 @@ def build_pull_pod(*, system: str, namespace: str, target: str, want: PullTarget
             "name": f"image-{index}",
             "image": image,
             "imagePullPolicy": "IfNotPresent",
-            "command": PULL_COMMAND,
+            "command": list(PULL_COMMAND),
             "resources": {"requests": {"cpu": "1m", "memory": "4Mi"}, "limits": {"memory": "32Mi"}},
         }
         for index, image in enumerate(want.images)

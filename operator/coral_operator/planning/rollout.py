@@ -38,6 +38,7 @@ from datetime import datetime
 from coral_operator.api.rollout import RolledBack, RolloutCounts, RolloutStatus
 from coral_operator.api.system import RolloutSpec, parse_max_unavailable
 from coral_operator.planning import prepull, rollout_checks, rollout_report
+from coral_operator.planning.pull_state import Pull
 from coral_operator.planning.rollout_checks import RobotView
 
 RolloutEvent = rollout_report.RolloutEvent
@@ -133,9 +134,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
         if policy.pre_pull is None
         else prepull.check_pre_pull(
             spec=policy.pre_pull,
-            robots=[
-                prepull.PullingRobot(r.robot, r.online, r.pulls.get(target, prepull.Pull())) for r in pulling
-            ],
+            robots=[prepull.PullingRobot(r.robot, r.online, r.pulls.get(target, Pull())) for r in pulling],
             target=target,
             previous=previous.pre_pull if previous is not None else None,
             now=request.now,

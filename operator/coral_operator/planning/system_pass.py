@@ -25,6 +25,7 @@ from coral_operator.planning import (
     instances,
     policy,
     prepull,
+    pull_state,
     rbac,
     revisions,
     rollout,
@@ -349,7 +350,7 @@ def _views(
                 root_status=instance.root_status if instance else None,
                 stalled=bool(instance and instance.stalled),
                 canary=canary is not None and selection.matches(canary.robots, robot.labels),
-                pulls=prepull.read_pulls(pods.get(instance.name, ())) if pods and instance else {},
+                pulls=pull_state.read_pulls(pods.get(instance.name, ())) if pods and instance else {},
             )
         )
     return views

@@ -29,7 +29,7 @@ from coral_operator.kube import revisions as stored_revisions
 from coral_operator.planning import instance_pass, provenance
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.pods import HostPathRefused, PodSettings
-from coral_operator.planning.prepull import PULL_ROLE
+from coral_operator.planning.pull_state import PULL_ROLE
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import Indexes, instance_named, instances_of_system

@@ -21,7 +21,8 @@ from coral_operator.kube import observing
 from coral_operator.planning import prepull, system_pass
 from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
 from coral_operator.planning.policy import Policy
-from coral_operator.planning.prepull import Pull, PullingRobot, PullState
+from coral_operator.planning.prepull import PullingRobot
+from coral_operator.planning.pull_state import PULL_COMMAND, PULL_ROLE, Pull, PullState, read_pull
 from coral_operator.planning.rollout import RobotView, RolloutRequest, plan_rollout
 from coral_operator.rollout_control import describe
 
@@ -35,9 +36,7 @@ def row(sentence: str, *values: Any) -> Any:
     return pytest.param(*values, id=sentence)
 
 
-def pod(
-    revision: str = NEW, phase: str = "Pending", role: str = prepull.PULL_ROLE, **fields: Any
-) -> ObservedPod:
+def pod(revision: str = NEW, phase: str = "Pending", role: str = PULL_ROLE, **fields: Any) -> ObservedPod:
     return ObservedPod(
         name=f"i-{role}-{revision}",
         component=role,
@@ -86,7 +85,7 @@ def pod(
 def test_a_robots_pull_is_read_from_its_pre_pull_pod(
     pods: list[ObservedPod], state: PullState, message: str
 ) -> None:
-    assert prepull.read_pull(pods, NEW) == Pull(state, message)
+    assert read_pull(pods, NEW) == Pull(state, message)
 
 
 def gate(
@@ -281,10 +280,10 @@ def test_a_pre_pull_pod_makes_the_robots_own_kubelet_pull_each_image_and_end() -
     assert spec["nodeName"] == "node-a"
     assert spec["restartPolicy"] == "Never"
     assert [c["image"] for c in spec["containers"]] == ["reg/a:2", "reg/b:2"]
-    assert all(c["command"] == prepull.PULL_COMMAND for c in spec["containers"])
+    assert all(c["command"] == list(PULL_COMMAND) for c in spec["containers"])
     assert manifest["metadata"]["ownerReferences"][0]["uid"] == "uid-a"
     labels = manifest["metadata"]["labels"]
-    assert (labels[names.LABEL_ROLE], labels[names.LABEL_REVISION]) == (prepull.PULL_ROLE, NEW)
+    assert (labels[names.LABEL_ROLE], labels[names.LABEL_REVISION]) == (PULL_ROLE, NEW)
 
 
 def test_a_revisions_images_are_listed_once_each_in_startup_order() -> None:
