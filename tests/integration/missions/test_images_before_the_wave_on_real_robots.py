@@ -33,7 +33,7 @@ from . import realsystems as rs
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
 
 SYSTEM = "prepulled"
-RATE = 1024
+RATE = 512
 """Bytes a second the slowed registry sends on each connection: a manifest takes seconds."""
 PROXY_LIFETIME_S = 300.0
 """The proxy stops serving after this long whatever happens (every fault here is bounded)."""
@@ -177,8 +177,10 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
         # While the first robot pulls through the slowed registry, nothing of revision 2 may start.
         shown = ""
         samples = 0
+        pull_pod = ""
         while True:
             pod = _pre_pull_pod(core, namespace, REAL_ROBOTS[0])
+            pull_pod = pod.metadata.name if pod is not None else pull_pod
             moved = _component_pods_of(core, namespace, new)
             pulled = pod is not None and pod.status.phase in ("Succeeded", "Failed")
             if pulled or (pod is None and moved):
@@ -216,6 +218,23 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
         told = rs.condition(second, "ImagesPrePulled")
         assert told.get("status") == "False" and told.get("reason") == "ImagePullFailed", told
         assert f"127.0.0.1:{loopback_port}" in told["message"], told
+        # The kubelet's own record: every image of the first robot was pulled before its first pod
+        # of revision 2 was created (both to the second, as the API server stamps them).
+        pulled_at = [
+            e.last_timestamp or e.event_time
+            for e in core.list_namespaced_event(
+                namespace, field_selector=f"involvedObject.name={pull_pod}"
+            ).items
+            if e.reason == "Pulled"
+        ]
+        assert len(pulled_at) == 2, f"one Pulled event per image of revision 2: {pulled_at}"
+        created = [
+            p.metadata.creation_timestamp
+            for p in rs.pods(core, namespace, SYSTEM)
+            if p.metadata.labels.get("coral.dev/revision") == new
+            and p.metadata.labels.get("coral.dev/role") != PREPULL_ROLE
+        ]
+        assert created and min(created) >= max(pulled_at), (pulled_at, created)
         node = first[REAL_ROBOTS[0]]["spec"]["nodeName"]
         elsewhere = [p for p in _component_pods_of(core, namespace, new) if not p.startswith(f"{node}/")]
         assert not elsewhere, f"revision 2 runs only where its images were pulled: {elsewhere}"
