@@ -16,9 +16,12 @@ from typing import Any
 from coral_core import names
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
+from pydantic import ValidationError
 
 from coral_operator import user_client
 from coral_operator.api import keys
+from coral_operator.api.rollout import PrePullStatus
+from coral_operator.planning.rollout_report import describe_pre_pull
 
 
 class RolloutError(Exception):
@@ -246,6 +249,8 @@ def report(body: dict[str, Any]) -> Report:
         notes.append((f"rolled back from {left} to {right} ({back.get(keys.ROLLED_BACK.reason)})", "warn"))
     if rollout.get(keys.ROLLOUT.failure):
         notes.append((f"failure: {_failure_message(rollout)}", "bad"))
+    if rollout.get(keys.ROLLOUT.pre_pull):
+        notes.extend(_pre_pull_notes(rollout[keys.ROLLOUT.pre_pull]))
     if rollout.get(keys.ROLLOUT.waiting_for):
         notes.append((f"waiting for: {', '.join(rollout[keys.ROLLOUT.waiting_for])}", ""))
     if progress.done:
@@ -266,6 +271,18 @@ def report(body: dict[str, Any]) -> Report:
         notes=notes,
         verdict=verdict,
     )
+
+
+def _pre_pull_notes(written: dict[str, Any]) -> list[tuple[str, str]]:
+    """The pull progress, then each failed robot with the kubelet's message."""
+    try:
+        pre_pull = PrePullStatus.model_validate(written)
+    except ValidationError:
+        return [("pre-pull: unreadable status", "warn")]
+    tone = "bad" if pre_pull.failed else ("ok" if not pre_pull.pulling else "warn")
+    notes = [(f"pre-pull of revision {pre_pull.revision}: {describe_pre_pull(pre_pull)}", tone)]
+    notes += [(f"pull failed on {f.robot}: {f.message}", "bad") for f in pre_pull.failures]
+    return notes
 
 
 def describe(body: dict[str, Any]) -> str:

@@ -35,6 +35,8 @@ from coral_operator.api.instance import ConfigRef, CoralInstanceSpec, InstanceTr
 from coral_operator.api.overrides import ComponentsAdded, Override, TreeOverride
 from coral_operator.api.rollout import (
     CanaryStatus,
+    PrePullStatus,
+    PullFailure,
     RolledBack,
     RolloutCounts,
     RolloutFailure,
@@ -46,6 +48,7 @@ from coral_operator.api.system import (
     CoralSystemStatus,
     HaltSpec,
     PluginsSpec,
+    PrePullSpec,
     RobotCounts,
     RolloutSpec,
     RosSpec,
@@ -61,6 +64,9 @@ __all__ = [
     "RolloutCounts",
     "RolledBack",
     "CanaryStatus",
+    "PrePullStatus",
+    "PullFailure",
+    "PrePullSpec",
     "API_VERSION",
     "GROUP",
     "VERSION",

@@ -77,6 +77,36 @@ class RolledBack(CamelModel):
     """`Undo` (asked for with `coral rollout undo`) or `HealthGateFailed` (`onFailure: Rollback`)."""
 
 
+class PullFailure(CamelModel):
+    """A robot whose pre-pull failed, with the kubelet's message."""
+
+    robot: str
+    """The robot."""
+    message: str = ""
+    """Why its images are not there (`ErrImagePull: ...`, or the deadline)."""
+
+
+class PrePullStatus(CamelModel):
+    """Progress of pulling the target revision's images on the robots to move (`spec.rollout.prePull`)."""
+
+    revision: str
+    """The revision whose images are pulled."""
+    robots: int = 0
+    """Online robots that need the images (not yet on the revision)."""
+    pulled: int = 0
+    """Of those, robots whose runtime has every image."""
+    pulling: int = 0
+    """Robots still pulling."""
+    failed: int = 0
+    """Robots whose pull failed or did not finish before the deadline; they do not move."""
+    started: str | None = None
+    """When pulling this revision started (RFC 3339); the deadline counts from here."""
+    released: bool = False
+    """The wave may start: every robot pulled or failed, or the deadline passed (`BeforeRollout`)."""
+    failures: list[PullFailure] = Field(default_factory=list, max_length=MAX_NAMED)
+    """Some of the failed robots, with the kubelet's message."""
+
+
 class RolloutStatus(CamelModel):
     """Progress of the rollout of the newest revision over the fleet."""
 
@@ -99,6 +129,8 @@ class RolloutStatus(CamelModel):
     """The health-gate failure that paused the rollout; `coral rollout resume` clears it."""
     rolled_back: RolledBack | None = None
     """Set while the fleet returns to an earlier revision."""
+    pre_pull: PrePullStatus | None = None
+    """Image pre-pull progress, when `spec.rollout.prePull` is set."""
     waiting_for: list[str] = Field(default_factory=list, max_length=MAX_NAMED)
     """Some of the robots the rollout waits for (running trees, offline robots), for humans."""
     message: str = ""

@@ -235,6 +235,16 @@ class CanarySpec(CamelModel):
     """How long the canaries must stay healthy."""
 
 
+class PrePullSpec(CamelModel):
+    """Have the new revision's images pulled on the robots before they move to it."""
+
+    when: Literal["BeforeRollout", "BeforeEachWave"] = "BeforeRollout"
+    """`BeforeRollout`: no robot moves until every online robot to move has its images (or the
+    deadline passed); `BeforeEachWave`: each robot moves as soon as its own images are present."""
+    deadline_seconds: int = Field(default=600, ge=10, le=86400)
+    """How long pulls may take; a robot still pulling then counts as a failed pull and does not move."""
+
+
 class RolloutSpec(CamelModel):
     """How a spec change spreads over the fleet.
 
@@ -279,6 +289,8 @@ class RolloutSpec(CamelModel):
     """Restart a robot whose tree is mid-mission (false: wait until its tree is not running)."""
     offline_robots: Literal["Skip", "Wait", "CountUnavailable"] = "Skip"
     """How robots that are offline count during a rollout."""
+    pre_pull: PrePullSpec | None = None
+    """Pull the new revision's images on every robot to move before it moves (off when unset)."""
 
 
 # Two executors' Groot2 publishers clash when their port pairs (N, N+1) overlap.

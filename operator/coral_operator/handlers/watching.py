@@ -13,6 +13,7 @@ import kopf
 from coral_core import names
 
 from coral_operator.handlers.filters import CORAL_POD_LABELS, ROBOT_NODE_LABELS
+from coral_operator.planning.pull_state import PULL_ROLE
 from coral_operator.reconcile.controller import Controller
 
 CORAL_SYSTEMS = (names.GROUP, names.VERSION, names.SYSTEM_PLURAL)
@@ -52,7 +53,12 @@ async def coral_instance_changed(
 
 @kopf.on.event("pods", labels=CORAL_POD_LABELS)
 async def coral_pod_changed(namespace: str, labels: kopf.Labels, memo: kopf.Memo, **kwargs: Any) -> None:
-    _controller(memo, kwargs).on_pod(namespace=namespace, instance=labels[names.LABEL_INSTANCE])
+    pre_pull = labels.get(names.LABEL_ROLE) == PULL_ROLE
+    _controller(memo, kwargs).on_pod(
+        namespace=namespace,
+        instance=labels[names.LABEL_INSTANCE],
+        pre_pull_of=labels.get(names.LABEL_SYSTEM) if pre_pull else None,
+    )
 
 
 @kopf.on.event("nodes", labels=ROBOT_NODE_LABELS)

@@ -21,6 +21,9 @@ they apply:
 - At most `maxUnavailable` robots are unavailable (instance not Ready) at once; moving a robot that
   is already unavailable costs nothing, as a DaemonSet does.
 - Update lock: a robot whose tree is RUNNING is not moved unless `interruptRunningTrees` is set.
+- Images before the wave (`prePull`): a robot moves only once its runtime has the target's images;
+  with `BeforeRollout`, nobody moves until every online robot to move pulled or failed, or the
+  deadline passed (`planning.prepull`).
 - Offline robots (Node not Ready) are never moved: `Skip` leaves them out of the budget and of
   completion, `Wait` moves nobody else while one still needs the update, `CountUnavailable`
   counts them against `maxUnavailable`.
@@ -34,7 +37,8 @@ from datetime import datetime
 
 from coral_operator.api.rollout import RolledBack, RolloutCounts, RolloutStatus
 from coral_operator.api.system import RolloutSpec, parse_max_unavailable
-from coral_operator.planning import rollout_checks, rollout_report
+from coral_operator.planning import prepull, rollout_checks, rollout_report
+from coral_operator.planning.pull_state import Pull
 from coral_operator.planning.rollout_checks import RobotView
 
 RolloutEvent = rollout_report.RolloutEvent
@@ -55,6 +59,9 @@ class RolloutDecision:
     events: list[rollout_report.RolloutEvent] = field(default_factory=list)
     wake_at: datetime | None = None
     """When the decision should be made again even if nothing changes (the canary hold ends)."""
+    pulls: list[str] = field(default_factory=list)
+    """Robots that must pull the target's images (`spec.rollout.prePull`); an offline one's kubelet
+    pulls once it is back."""
 
 
 def resolve_max_unavailable(value: int | str, total: int) -> int:
@@ -121,11 +128,27 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
     ]
     unavailable = sum(1 for r in counted if r.online and not r.ready) + offline.unavailable
     hold = rollout_checks.check_hold(paused=policy.paused, failure=failure, waiting_offline=offline.waiting)
+    pulling = [r for r in counted if r.revision != target]
+    images = (
+        None
+        if policy.pre_pull is None
+        else prepull.check_pre_pull(
+            spec=policy.pre_pull,
+            robots=[prepull.PullingRobot(r.robot, r.online, r.pulls.get(target, Pull())) for r in pulling],
+            target=target,
+            previous=previous.pre_pull if previous is not None else None,
+            now=request.now,
+        )
+    )
     moves: dict[str, str] = {}
-    if not hold.held:
+    if not hold.held and not (images is not None and images.held):
         pool = counted if canary.done else canary.robots
         moves = rollout_checks.plan_wave(
-            candidates=[r for r in pool if r.online and r not in locked],
+            candidates=[
+                r
+                for r in pool
+                if r.online and r not in locked and (images is None or r.robot in images.may_move)
+            ],
             target=target,
             max_unavailable=max_unavailable,
             unavailable=unavailable,
@@ -154,6 +177,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
         failure=failure,
         rolled_back=rolled_back,
         waiting_for=rollout_checks.names_of(locked + list(offline.pending)),
+        pre_pull=images.status if images is not None else None,
         message=rollout_report.build_message(
             target,
             counts,
@@ -166,6 +190,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
             policy.offline_robots,
             offline_names,
             locked_names,
+            images.status if images is not None else None,
         ),
     )
     events = [event for event in (gate.event, canary.event) if event is not None]
@@ -174,6 +199,7 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
             previous, status, moves, locked_names, offline_names, policy.offline_robots
         )
     )
+    wakes = [w for w in (canary.wake_at, images.wake_at if images is not None else None) if w is not None]
     before = gate.previous_revision
     return RolloutDecision(
         target=target,
@@ -181,7 +207,8 @@ def plan_rollout(request: RolloutRequest) -> RolloutDecision:
         moves=moves,
         status=status,
         events=events,
-        wake_at=canary.wake_at,
+        wake_at=min(wakes, default=None),
+        pulls=sorted(r.robot for r in pulling) if images is not None else [],
     )
 
 

@@ -19,13 +19,14 @@ outlive a pass (the canary clock, a recorded failure, a rollback) travels in `st
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 
 from coral_operator.api.rollout import MAX_NAMED, CanaryStatus, RolledBack, RolloutFailure, RolloutStatus
 from coral_operator.api.system import RolloutSpec
 from coral_operator.planning import rollout_report
+from coral_operator.planning.pull_state import Pull
 
 FAILURE = "FAILURE"
 RUNNING = "RUNNING"
@@ -48,6 +49,8 @@ class RobotView:
     """The instance is Stalled (a component failed, or startup timed out with `Block`)."""
     canary: bool = False
     """The robot matches `spec.rollout.canary.robots`."""
+    pulls: Mapping[str, Pull] = field(default_factory=dict)
+    """Revision -> where the robot's pull of its images stands (`spec.rollout.prePull` only)."""
 
 
 def revision_before(history: Sequence[str], revision: str) -> str | None:
@@ -68,7 +71,8 @@ def stamp(moment: datetime) -> str:
     return moment.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def _parse(moment: str | None) -> datetime | None:
+def parse_stamp(moment: str | None) -> datetime | None:
+    """A status field's RFC 3339 time, or None when unset."""
     if not moment:
         return None
     return datetime.fromisoformat(moment.replace("Z", "+00:00"))
@@ -273,7 +277,7 @@ def check_canary(
     elif not considered or not all(check_gate(r, target).passed for r in considered):
         done, reason = False, "NotHealthy"
     else:
-        since = (_parse(previous.healthy_since) if previous else None) or now
+        since = (parse_stamp(previous.healthy_since) if previous else None) or now
         status.healthy_since = stamp(since)
         due = since + timedelta(seconds=policy.canary.hold_seconds)
         if now >= due:

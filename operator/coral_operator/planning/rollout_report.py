@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from coral_operator.api.rollout import (
     MAX_NAMED,
     CanaryStatus,
+    PrePullStatus,
     RolledBack,
     RolloutCounts,
     RolloutFailure,
@@ -46,6 +47,7 @@ def build_message(
     mode: str,
     offline: Sequence[str],
     locked: Sequence[str],
+    pre_pull: PrePullStatus | None = None,
 ) -> str:
     progress = f"{counts.healthy} of {counts.total} robots healthy on revision {target}"
     if failure is not None:
@@ -62,6 +64,8 @@ def build_message(
             parts.append(f"canaries healthy since {canary.healthy_since}, holding")
         else:
             parts.append(f"canaries {canary.healthy} of {canary.robots} healthy")
+    if pre_pull is not None and pre_pull.robots:
+        parts.append(describe_pre_pull(pre_pull))
     if locked:
         parts.append(f"{len(locked)} waiting for running trees ({shown(locked[:MAX_NAMED], len(locked))})")
     if offline:
@@ -70,6 +74,19 @@ def build_message(
     if complete:
         parts.append("complete")
     return "; ".join(parts) + "."
+
+
+def describe_pre_pull(pre_pull: PrePullStatus) -> str:
+    """The pre-pull's progress as a clause: how many robots have the images, and who failed."""
+    text = f"images on {pre_pull.pulled} of {pre_pull.robots} robots to move"
+    if pre_pull.pulling:
+        text += f", {pre_pull.pulling} pulling"
+    if pre_pull.failed:
+        failed = [f.robot for f in pre_pull.failures]
+        text += f", {pre_pull.failed} failed ({shown(failed, pre_pull.failed)})"
+    if not pre_pull.released:
+        text += ", no robot moves before they are pulled"
+    return text
 
 
 def _quarter(done: int, total: int) -> int:
@@ -126,6 +143,18 @@ def build_events(
                 "WaitingForOfflineRobots",
                 "No robot moves until these offline robots are back: "
                 f"{shown(offline[:MAX_NAMED], len(offline))}.",
+                True,
+            )
+        )
+    failed = status.pre_pull.failed if status.pre_pull is not None else 0
+    failed_before = previous.pre_pull.failed if same and previous and previous.pre_pull else 0
+    if status.pre_pull is not None and failed > failed_before:
+        # One Event each time more robots fail, with the kubelet's words; these robots do not move.
+        events.append(
+            RolloutEvent(
+                "ImagePrePullFailed",
+                f"{failed} robots cannot pull the images of revision {status.revision}: "
+                + "; ".join(f"{f.robot}: {f.message}" for f in status.pre_pull.failures[:3]),
                 True,
             )
         )

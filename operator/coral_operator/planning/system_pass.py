@@ -9,7 +9,7 @@ See docs/architecture.md for where this sits on the data path.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -27,13 +27,15 @@ from coral_operator.planning import (
     instances,
     policy,
     preflight,
+    prepull,
+    pull_state,
     rbac,
     revisions,
     rollout,
     selection,
     validation,
 )
-from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.overrides import ConfigError
 from coral_operator.status.conditions import Reason
 from coral_operator.status.system_status import Problem
@@ -71,6 +73,8 @@ class SystemObservation:
     images: preflight.ImageTable = field(default_factory=preflight.ImageTable)
     """What the images of the spec declare, as read from their registries (`reconcile.declarations`)."""
     coral_version: str = preflight.CORAL_VERSION
+    pods: Mapping[str, Sequence[ObservedPod]] | None = None
+    """Instance name -> its pods; read only with `spec.rollout.prePull` (the pre-pull pods)."""
 
 
 @dataclass
@@ -85,6 +89,8 @@ class RolloutPlan:
     events: list[rollout.RolloutEvent]
     wake_at: datetime | None
     """When to decide again even if nothing changes (a canary hold ends)."""
+    pulls: prepull.PullWrites = field(default_factory=prepull.PullWrites)
+    """Pre-pull pods to create and delete (`spec.rollout.prePull`)."""
 
 
 @dataclass
@@ -280,6 +286,7 @@ def _plan_deployment(
                 by_robot,
                 observation.expected,
                 {name: revision for name in unchanged},
+                observation.pods,
             ),
             policy=spec.rollout,
             previous=observation.previous_rollout,
@@ -339,6 +346,7 @@ def _plan_deployment(
             },
             events=list(decision.events),
             wake_at=decision.wake_at,
+            pulls=_plan_pulls(observation, decision, by_robot, templates, robots),
         ),
         stored_after=stored,
         config_errors=[errors[name] for name in sorted(errors)],
@@ -376,12 +384,44 @@ def stored_after(
     return [s for s in by_revision.values() if s.name not in deleted]
 
 
+def _plan_pulls(
+    observation: SystemObservation,
+    decision: rollout.RolloutDecision,
+    by_robot: Mapping[str, ObservedInstance],
+    templates: Mapping[str, dict[str, Any]],
+    robots: list[RobotNode],
+) -> prepull.PullWrites:
+    if observation.pods is None:
+        return prepull.PullWrites()
+    nodes = {robot.robot: robot.node_name for robot in robots}
+    images = prepull.revision_images(templates.get(decision.target, {}))
+    wanted = [
+        prepull.PullTarget(
+            instance=by_robot[robot].name,
+            instance_uid=by_robot[robot].uid,
+            node_name=nodes[robot],
+            robot=robot,
+            images=images,
+        )
+        for robot in decision.pulls
+        if robot in by_robot and robot in nodes and by_robot[robot].uid
+    ]
+    return prepull.plan_pulls(
+        system=observation.system.name,
+        namespace=observation.system.namespace,
+        target=decision.target,
+        wanted=wanted,
+        pods=observation.pods,
+    )
+
+
 def _views(
     spec: CoralSystemSpec,
     robots: list[RobotNode],
     by_robot: Mapping[str, ObservedInstance],
     expected: Mapping[str, str],
     moved_free: Mapping[str, str],
+    pods: Mapping[str, Sequence[ObservedPod]] | None = None,
 ) -> list[rollout.RobotView]:
     canary = spec.rollout.canary
     views = []
@@ -401,6 +441,7 @@ def _views(
                 root_status=instance.root_status if instance else None,
                 stalled=bool(instance and instance.stalled),
                 canary=canary is not None and selection.matches(canary.robots, robot.labels),
+                pulls=pull_state.read_pulls(pods.get(instance.name, ())) if pods and instance else {},
             )
         )
     return views

@@ -158,8 +158,11 @@ class Controller:
         if system and self.memory.seen.changed(key, observing.instance_summary(body)) and not own_write:
             self.queue.add((SYSTEM, namespace, system))
 
-    def on_pod(self, *, namespace: str, instance: str) -> None:
+    def on_pod(self, *, namespace: str, instance: str, pre_pull_of: str | None = None) -> None:
+        """`pre_pull_of`: the system of a pre-pull pod, whose rollout waits on the pull."""
         self.queue.add((INSTANCE, namespace, instance))
+        if pre_pull_of:
+            self.queue.add((SYSTEM, namespace, pre_pull_of))
 
     def on_robot_node(
         self,

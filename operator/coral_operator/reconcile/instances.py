@@ -27,6 +27,7 @@ from coral_operator.kube import applying, observing
 from coral_operator.planning import instance_pass, provenance, status_pacing
 from coral_operator.planning.observed import InstanceRecord, ObservedPod, RobotNode, SystemRecord
 from coral_operator.planning.pods import HostPathRefused, PodSettings
+from coral_operator.planning.pull_state import PULL_ROLE
 from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import instance_named, instances_of_system
@@ -81,7 +82,11 @@ class InstanceReconciler(Reconciler):
                 self._write_invalid(record, status, f"Refused by the operator's policy: {refused}", now=now)
                 return
         # Each pod's entry holds its records: one for a component pod, one per component for a robot pod.
-        observed: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
+        every: list[ObservedPod] = [pod for pods in self.indexes.read("coral_pods", key) for pod in pods]
+        # A pre-pull pod belongs to the system's rollout; only a failed pull is told here.
+        observed = [pod for pod in every if pod.role != PULL_ROLE]
+        pulls = [p for p in every if p.role == PULL_ROLE and not p.deleting]
+        pre_pull = (pulls[0].revision, pulls[0].image_problem or pulls[0].unschedulable) if pulls else None
         plan = instance_pass.plan_instance(
             record=record, spec=spec, desired=desired, node=node, observed=observed, now=now
         )
@@ -111,6 +116,7 @@ class InstanceReconciler(Reconciler):
             refused=refused,
             ignored_tree=report.ignored_tree,
             ignored_plugins=report.ignored_plugins,
+            pre_pull=pre_pull,
         )
         new = instance_status.build_instance_status(
             view, old_conditions=transitions.written_conditions(status), generation=record.generation, now=now

@@ -24,8 +24,17 @@ from coral_operator.api import keys
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import MAX_INLINE_BYTES, CoralSystemSpec, SourceSpec
 from coral_operator.kube import applying, observing
-from coral_operator.planning import budgets, configmaps, instances, naming, preflight, provenance, system_pass
-from coral_operator.planning.observed import ObservedInstance, SystemRecord
+from coral_operator.planning import (
+    budgets,
+    configmaps,
+    instances,
+    naming,
+    preflight,
+    prepull,
+    provenance,
+    system_pass,
+)
+from coral_operator.planning.observed import ObservedInstance, ObservedPod, SystemRecord
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.declarations import ImageDeclarations
@@ -119,6 +128,10 @@ class SystemReconciler(Reconciler):
             images=self.declarations.read(preflight.images_to_read(spec))
             if isinstance(spec, CoralSystemSpec)
             else preflight.ImageTable(),
+            # Only a rollout that pre-pulls reads pods: off, a pass costs what it did before.
+            pods=self._pods_of(system.namespace, observed)
+            if isinstance(spec, CoralSystemSpec) and spec.rollout.pre_pull is not None
+            else None,
         )
         plan = system_pass.plan_system(observation)
         problem = plan.problem or system_pass.config_problem(plan)
@@ -128,6 +141,7 @@ class SystemReconciler(Reconciler):
             self.memory.moves.expect(system.uid, system.namespace, plan.rollout.moves)
             try:
                 self._apply_changes(system, plan, creating)
+                self._apply_pulls(system, plan.rollout.pulls)
             except applying.NameTaken as error:
                 problem = system_status.Problem(Reason.NAME_TAKEN, f"{error}.")
             except Exception as error:
@@ -152,6 +166,18 @@ class SystemReconciler(Reconciler):
                     Reason.HEALTH_GATE_FAILED, plan.rollout.status.failure.message
                 )
         self._write_status(system, status, observed, plan, problem, now)
+
+    def _pods_of(self, namespace: str, observed: list[ObservedInstance]) -> dict[str, list[ObservedPod]]:
+        return {
+            i.name: [pod for pods in self.indexes.read("coral_pods", (namespace, i.name)) for pod in pods]
+            for i in observed
+        }
+
+    def _apply_pulls(self, system: SystemRecord, pulls: prepull.PullWrites) -> None:
+        applying.in_parallel(self.pool, self.writer.create_pod, pulls.create)
+        applying.in_parallel(
+            self.pool, lambda name: self.writer.delete_pod(system.namespace, name), pulls.delete
+        )
 
     def _neighbours(self, system: SystemRecord) -> list[budgets.Footprint]:
         """The footprints of the namespace's other systems, from the index (their robots: the

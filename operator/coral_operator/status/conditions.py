@@ -35,6 +35,8 @@ class ConditionType(StrEnum):
     HALTED = "Halted"
     """The robot's executor halted its tree on request (`spec.halt`); present only while a halt is
     asked for or still acknowledged."""
+    IMAGES_PRE_PULLED = "ImagesPrePulled"
+    """The rollout's next revision's images are pulled on the robot; present only while it pre-pulls."""
 
 
 class Reason(StrEnum):

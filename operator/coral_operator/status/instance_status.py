@@ -40,6 +40,8 @@ class InstanceView:
     (`status.executor_report`); `tree` holds the rest."""
     ignored_plugins: list[str] = field(default_factory=list)
     """The same for `plugins`."""
+    pre_pull: tuple[str, str | None] | None = None
+    """(revision, why its images cannot be pulled, or None) while the robot pre-pulls a revision."""
 
 
 def _robot_verdict(view: InstanceView) -> Verdict:
@@ -354,6 +356,26 @@ def _stalled_by(view: InstanceView, robot: Verdict, components: Verdict, tree: V
     return None
 
 
+def _pre_pull_verdicts(view: InstanceView) -> list[Verdict]:
+    """The robot's pull of the rollout's next revision; no condition when it pulls nothing."""
+    if view.pre_pull is None:
+        return []
+    revision, problem = view.pre_pull
+    if problem:
+        return [
+            Verdict(
+                C.IMAGES_PRE_PULLED,
+                False,
+                R.IMAGE_PULL_FAILED,
+                f"The images of revision {revision} cannot be pulled, so the robot stays on its "
+                f"revision: {problem}",
+            )
+        ]
+    return [
+        Verdict(C.IMAGES_PRE_PULLED, True, R.READY, f"Pulling or pulled the images of revision {revision}.")
+    ]
+
+
 def build_instance_status(
     view: InstanceView, *, old_conditions: list[dict[str, Any]], generation: int | None, now: datetime
 ) -> dict[str, Any]:
@@ -384,6 +406,7 @@ def build_instance_status(
         _plugins_verdict(view),
         _library_verdict(view),
         tree,
+        *_pre_pull_verdicts(view),
     ]
     halt = _halt_verdict(view)
     if halt is not None:
