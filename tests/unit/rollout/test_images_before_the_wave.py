@@ -331,6 +331,7 @@ def system_pass_of(
     return system_pass.plan_system(
         system_pass.SystemObservation(
             system=record,
+            spec=parsed,
             tree=(parsed.tree.inline or "", "tree"),
             parameters=(parsed.parameters.inline or "", "params"),
             robots=[
