@@ -46,8 +46,11 @@ class TickLoop:
         *,
         rate_hz: float,
         no_progress_s: float = DEFAULT_NO_PROGRESS_S,
+        on_tick: Callable[[float], None] | None = None,
     ) -> None:
+        """`on_tick(duration_s)` is told of every tick as it ends (the executor's metrics)."""
         self.tree = tree
+        self._on_tick = on_tick
         self.context = context
         self.fanout = fanout
         self.plugins = plugins
@@ -175,6 +178,8 @@ class TickLoop:
             while not stop.is_set():
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
+                if self._on_tick is not None:
+                    self._on_tick(time.monotonic() - started)
                 self.fanout.end_tick()
                 self._check_degraded()
                 if root in (bt.Status.SUCCESS, bt.Status.FAILURE):

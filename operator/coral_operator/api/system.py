@@ -51,6 +51,8 @@ GROOT2_PORTS_APART = (
     "executors of one robot share its loopback"
 )
 
+METRICS_PORTS_DIFFER = "executors' metrics ports must differ: executors of one robot may share its network"
+
 
 def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
     entry = {"rule": rule, "message": message}
@@ -284,6 +286,17 @@ def groot2_ports_overlap(executors: list[ExecutorComponent]) -> bool:
     return any(later - earlier < 2 for earlier, later in zip(ports, ports[1:], strict=False))
 
 
+_METRICS_PORTS_DIFFER = (
+    "self.executors.all(a, !has(a.metrics) || self.executors.all(b, b.name == a.name || !has(b.metrics) "
+    "|| b.metrics.port != a.metrics.port))"
+)
+
+
+def metrics_ports_clash(executors: list[ExecutorComponent]) -> bool:
+    ports = [e.metrics.port for e in executors if e.metrics]
+    return len(ports) != len(set(ports))
+
+
 _ALL_NAMES = "(self.drivers.map(c, c.name) + self.skillsets.map(c, c.name) + self.executors.map(c, c.name))"
 
 
@@ -305,6 +318,7 @@ class CoralSystemSpec(CamelModel):
                 _cel(f"{_ALL_NAMES}.all(n, {_ALL_NAMES}.exists_one(m, m == n))", UNIQUE_NAMES),
                 _cel("size(self.executors) > 0", NEEDS_EXECUTOR, ".executors"),
                 _cel(_GROOT2_APART, GROOT2_PORTS_APART, ".executors"),
+                _cel(_METRICS_PORTS_DIFFER, METRICS_PORTS_DIFFER, ".executors"),
                 _cel(
                     "!has(self.layout) || self.layout != 'PodPerRobot' || !has(self.startup) "
                     "|| !has(self.startup.onTimeout) || self.startup.onTimeout != 'Proceed'",
@@ -356,6 +370,8 @@ class CoralSystemSpec(CamelModel):
             raise ValueError(NEEDS_EXECUTOR)
         if groot2_ports_overlap(self.executors):
             raise ValueError(GROOT2_PORTS_APART)
+        if metrics_ports_clash(self.executors):
+            raise ValueError(METRICS_PORTS_DIFFER)
         if self.layout == "PodPerRobot" and self.startup.on_timeout == "Proceed":
             raise ValueError(ROBOT_POD_BLOCKS)
         return self
