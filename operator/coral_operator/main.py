@@ -51,13 +51,20 @@ def run(
     )
 
 
-def _serve_metrics(address: str, port: int) -> CollectorRegistry:
-    """A registry of the operator's own (no default collectors but the process's CPU and memory),
-    served from a thread of prometheus_client's until the process ends."""
-    from prometheus_client import CollectorRegistry, ProcessCollector, start_http_server
+def metrics_registry() -> CollectorRegistry:
+    """The operator's own registry: no default collectors but the process's CPU and memory."""
+    from prometheus_client import CollectorRegistry, ProcessCollector
 
     registry = CollectorRegistry()
     ProcessCollector(namespace="coral_operator", registry=registry)
+    return registry
+
+
+def _serve_metrics(address: str, port: int) -> CollectorRegistry:
+    """A new `metrics_registry`, served from a thread of prometheus_client's until the process ends."""
+    from prometheus_client import start_http_server
+
+    registry = metrics_registry()
     start_http_server(port, addr=address, registry=registry)
     return registry
 

@@ -13,13 +13,10 @@ from coral_operator.kube.workqueue import WorkQueue
 from coral_operator.metrics.fleet import FleetCollector
 from coral_operator.metrics.instruments import OperatorMetrics
 from coral_operator.metrics.requests import request_info
-from coral_operator.planning.observed import ObservedInstance, RobotNode, SystemRecord
-from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
 from coral_testbed.waiting import wait_for
+from metrics_fleet import NAMESPACE, Queue, fleet
 from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.parser import text_string_to_metric_families
-
-NAMESPACE = "robots"
 
 
 @pytest.mark.parametrize(
@@ -59,68 +56,6 @@ def test_a_request_is_counted_by_its_verb_and_resource_never_by_object(
     assert request_info(method, url) == expected
 
 
-def _robot(index: int, *, ready: bool = True, reachable: bool = True) -> RobotNode:
-    return RobotNode(
-        node_name=f"node-{index}", robot=f"r{index}", labels={}, ready=ready, reachable=reachable
-    )
-
-
-def _instance(
-    index: int, *, ready: bool, root: str | None, reachable: bool | None = True
-) -> ObservedInstance:
-    return ObservedInstance(
-        name=f"fleet-r{index}",
-        robot=f"r{index}",
-        spec={},
-        revision="1",
-        ready=ready,
-        root_status=root,
-        reachable=reachable,
-    )
-
-
-def _system(name: str, rollout: dict[str, object]) -> SystemRecord:
-    return SystemRecord(
-        name=name, namespace=NAMESPACE, uid=name, generation=1, spec={}, status={"rollout": rollout}
-    )
-
-
-class _Queue:
-    def __init__(self, depth: int, wait_s: float) -> None:
-        self.depth, self.wait_s = depth, wait_s
-
-    def __len__(self) -> int:
-        return self.depth
-
-    def longest_wait_s(self) -> float:
-        return self.wait_s
-
-
-def _fleet(robots: int) -> Indexes:
-    """Indexes as kopf fills them for one system over `robots` robots: one unreachable robot
-    whose tree failed, the rest Ready and RUNNING; a second system with no instance yet."""
-    nodes = [_robot(i, reachable=i != 0, ready=i != 0) for i in range(robots)]
-    instances = [
-        _instance(i, ready=i != 0, root="FAILURE" if i == 0 else "RUNNING", reachable=i != 0)
-        for i in range(robots)
-    ]
-    indexes = Indexes()
-    indexes.attach(
-        robot_nodes={ALL_ROBOTS: nodes},
-        coral_instances={
-            instances_of_system(NAMESPACE, "fleet"): instances,
-            **{instance_named(NAMESPACE, i.name): [object()] for i in instances},
-        },
-        coral_systems={
-            (NAMESPACE, "fleet"): [
-                _system("fleet", {"complete": False, "counts": {"total": robots, "updated": robots - 1}})
-            ],
-            (NAMESPACE, "empty"): [_system("empty", {})],
-        },
-    )
-    return indexes
-
-
 def _scrape(registry: CollectorRegistry) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
     samples = {}
     for family in text_string_to_metric_families(generate_latest(registry).decode()):
@@ -135,18 +70,18 @@ def _sample(name: str, **labels: str) -> tuple[str, tuple[tuple[str, str], ...]]
 
 def test_a_scrape_shows_robots_by_state_instances_by_condition_and_tree_and_rollout_progress() -> None:
     registry = CollectorRegistry()
-    registry.register(FleetCollector(_fleet(3), _Queue(depth=4, wait_s=1.5)))
+    registry.register(FleetCollector(fleet(3), Queue(depth=4, wait_s=1.5)))
     samples = _scrape(registry)
-    fleet = {"namespace": NAMESPACE, "system": "fleet"}
+    system = {"namespace": NAMESPACE, "system": "fleet"}
     assert samples[_sample("coral_robots", state="ready")] == 2
     assert samples[_sample("coral_robots", state="unreachable")] == 1
     assert samples[_sample("coral_robots", state="not_ready")] == 0
-    assert samples[_sample("coral_instances", **fleet, condition="Ready", status="True")] == 2
-    assert samples[_sample("coral_instances", **fleet, condition="RobotReachable", status="False")] == 1
-    assert samples[_sample("coral_instance_trees", **fleet, state="RUNNING")] == 2
-    assert samples[_sample("coral_instance_trees", **fleet, state="FAILURE")] == 1
-    assert samples[_sample("coral_rollout_robots", **fleet, count="updated")] == 2
-    assert samples[_sample("coral_rollout_complete", **fleet)] == 0
+    assert samples[_sample("coral_instances", **system, condition="Ready", status="True")] == 2
+    assert samples[_sample("coral_instances", **system, condition="RobotReachable", status="False")] == 1
+    assert samples[_sample("coral_instance_trees", **system, state="RUNNING")] == 2
+    assert samples[_sample("coral_instance_trees", **system, state="FAILURE")] == 1
+    assert samples[_sample("coral_rollout_robots", **system, count="updated")] == 2
+    assert samples[_sample("coral_rollout_complete", **system)] == 0
     # A system without instances keeps its series, at zero, so alerts see it rather than nothing.
     empty = {"namespace": NAMESPACE, "system": "empty"}
     assert samples[_sample("coral_instance_trees", **empty, state="RUNNING")] == 0
@@ -157,7 +92,7 @@ def test_a_scrape_shows_robots_by_state_instances_by_condition_and_tree_and_roll
 def test_a_thousand_robots_make_as_many_series_as_three() -> None:
     def series(robots: int) -> set[tuple[str, tuple[tuple[str, str], ...]]]:
         registry = CollectorRegistry()
-        registry.register(FleetCollector(_fleet(robots), _Queue(0, 0.0)))
+        registry.register(FleetCollector(fleet(robots), Queue(0, 0.0)))
         return set(_scrape(registry))
 
     assert series(1000) == series(3)
@@ -209,7 +144,7 @@ def test_the_exposition_follows_prometheus_naming_conventions() -> None:
     metrics.observe_request(
         "PATCH", "https://h/apis/coral.dev/v1alpha1/namespaces/n/coralinstances/i/status", 200
     )
-    registry.register(FleetCollector(_fleet(3), _Queue(0, 0.0)))
+    registry.register(FleetCollector(fleet(3), Queue(0, 0.0)))
     checked = subprocess.run(
         [promtool, "check", "metrics"], input=generate_latest(registry), capture_output=True, check=False
     )
