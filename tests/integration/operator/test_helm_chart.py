@@ -367,12 +367,9 @@ def test_every_request_of_the_operator_is_granted_by_the_chart_and_every_grant_i
         for generation, change in enumerate(changes, start=2):
             coral.patch_system("fleet", {"spec": change})
             wait(
-                lambda generation=generation: (
-                    ready_on(3)
-                    and len({i["spec"]["revision"] for i in coral.instances().values()}) == 1
-                    and (coral.system("fleet") or {}).get("status", {}).get("observedGeneration")
-                    == generation
-                ),
+                lambda generation=generation: ready_on(3)
+                and len({i["spec"]["revision"] for i in coral.instances().values()}) == 1
+                and (coral.system("fleet") or {}).get("status", {}).get("observedGeneration") == generation,
                 lambda: f"the change rolled out; operator log:\n{operator_log()}",
                 timeout=180,
             )
