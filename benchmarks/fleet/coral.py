@@ -35,14 +35,20 @@ NAME = "mission"
 class OperatorProcess:
     """The operator serving one namespace, with its peak RSS sampled from /proc."""
 
-    def __init__(self, env: dict[str, str], namespace: str, log: Path) -> None:
+    def __init__(self, env: dict[str, str], namespace: str, log: Path, metrics: str | None = None) -> None:
+        """`metrics`: ADDRESS:PORT to serve the operator's metrics on; off when None."""
         self.log = log
         self.peak_kib = 0
         self._stop = threading.Event()
         self.process = subprocess.Popen(
             [sys.executable, "-m", "coral_operator", "-n", namespace],
             # The benchmark's systems use the host network, as robots running DDS do.
-            env={**env, "CORAL_POLICY_HOST_NETWORK_NAMESPACES": namespace, "PYTHONUNBUFFERED": "1"},
+            env={
+                **env,
+                "CORAL_POLICY_HOST_NETWORK_NAMESPACES": namespace,
+                "PYTHONUNBUFFERED": "1",
+                **({"CORAL_OPERATOR_METRICS": metrics} if metrics else {}),
+            },
             stdout=log.open("w"),
             stderr=subprocess.STDOUT,
             start_new_session=True,
