@@ -5,7 +5,6 @@ expects (`promtool check metrics`), and the endpoint gone once the executor clos
 from __future__ import annotations
 
 import shutil
-import socket
 import subprocess
 import threading
 import urllib.error
@@ -13,6 +12,7 @@ import urllib.request
 
 import pytest
 from coral.executor.metrics import ExecutorMetrics
+from fixtures.prometheus import free_port
 from prometheus_client import CollectorRegistry
 from prometheus_client.parser import text_string_to_metric_families
 
@@ -34,12 +34,6 @@ TREE = """
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def _scrape(port: int) -> str:
     with urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=5) as response:
         return str(response.read().decode())
@@ -55,7 +49,7 @@ def _samples(text: str) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
 
 def test_a_mission_shows_its_ticks_root_status_and_behavior_results_on_the_endpoint() -> None:
     metrics = ExecutorMetrics(CollectorRegistry())
-    port = _free_port()
+    port = free_port()
     metrics.serve("127.0.0.1", port)
     try:
         collect = Collect()
