@@ -140,7 +140,9 @@ def run_size(
     logs: Path | None = None,
     pairs: int = 1,
     layouts: tuple[str, ...] = CORAL_LAYOUTS,
+    largest: bool = True,
 ) -> SizeFigures:
+    """`largest`: the run's largest size, where the metrics' cost is judged (elsewhere printed)."""
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -241,7 +243,7 @@ def run_size(
             operator.stop()
             operator = None
         if "PodPerComponent" in layouts:
-            _metrics_cost(api, state, log, count, timeout, logs or work, pairs)
+            _metrics_cost(api, state, log, count, timeout, logs or work, pairs, judge=largest)
         return SizeFigures(robots=count, times=times)
     finally:
         if operator is not None:
@@ -377,11 +379,15 @@ def _metrics_cost(
     timeout: float,
     folder: Path,
     pairs: int,
+    *,
+    judge: bool,
 ) -> None:
     """The operator's CPU over one `PodPerComponent` run (start, deployment, update, deletion), its
     metrics served and scraped every SCRAPE_INTERVAL_S, against the same run with metrics off; each
     run on a fresh operator process, pairs in ABBA order, judged on the median pair's ratio. Also
-    prints how many series one scrape holds, which does not grow with the robots."""
+    prints how many series one scrape holds, which does not grow with the robots. Judged (`judge`)
+    at the largest size only: a smaller fleet's run costs the operator a few CPU seconds, within
+    which one pair's noise is more than the metrics' cost."""
     ratios: list[float] = []
     for index in range(pairs):
         sides = ("off", "on") if index % 2 == 0 else ("on", "off")
@@ -414,7 +420,11 @@ def _metrics_cost(
             f"metrics n={count} pair {index + 1}: operator CPU {cpu['on']:.1f} s with metrics, "
             f"{cpu['off']:.1f} s without ({ratios[-1]:.3f}x)"
         )
-    bench(f"operator_metrics_cpu_ratio_{count}", statistics.median(ratios), "x", "<=", TARGET_METRICS_CPU)
+    ratio = statistics.median(ratios)
+    if judge:
+        bench(f"operator_metrics_cpu_ratio_{count}", ratio, "x", "<=", TARGET_METRICS_CPU)
+    else:
+        note(f"operator_metrics_cpu_ratio_{count} (not judged below the largest size): {ratio:.3g}x")
 
 
 def _free_port() -> int:
@@ -501,7 +511,11 @@ def main(argv: list[str]) -> int:
             if args.logs is not None:
                 args.logs.mkdir(parents=True, exist_ok=True)
             pairs = max(1, args.pairs) if count == max(sizes) else 1
-            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs, pairs, layouts))
+            figures.append(
+                run_size(
+                    count, Path(folder) / f"n{count}", args.logs, pairs, layouts, largest=count == max(sizes)
+                )
+            )
     report_growth(figures)
     if args.plot is not None and "PodPerComponent" in layouts:
         points = [
