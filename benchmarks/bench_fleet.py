@@ -29,6 +29,10 @@ pairs:
    Node events meanwhile; its CPU during the run is printed).
 4. Coral with `layout: PodPerRobot`: the same system once the first is deleted, one pod (two
    native sidecars and the executor) and one CoralInstance per robot.
+5. The cost of the operator's metrics: Coral `PodPerComponent` again, each run on a fresh operator
+   process, with its metrics served and scraped every 5 s against metrics off, in ABBA pairs; the
+   operator's CPU from its start to the run's deletion, as a ratio (target: under 1.05x), and the
+   series one scrape holds.
 
 For each run it prints the API server's CPU seconds and every client's requests by kind, and for
 the Coral runs the operator's writes per robot by kind (a collection delete counts as one), for
@@ -48,6 +52,7 @@ operator, its CPU time and the request kinds it spent most on (the profile behin
 from __future__ import annotations
 
 import argparse
+import socket
 import statistics
 import sys
 import tempfile
@@ -60,7 +65,7 @@ from typing import Any
 
 import plots
 from coral_testbed.cluster import controlplane
-from fleet import audit, coral, daemonset, robots
+from fleet import audit, coral, daemonset, robots, scraping
 from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 
@@ -75,6 +80,9 @@ TARGET_ROBOT_POD_READY, TARGET_ROBOT_POD_UPDATE = 1.2, 1.5
 TARGET_WRITES_PER_ROBOT = 8.0
 # The API server's CPU for a Coral run against its reference's run: the update's allowance.
 TARGET_APISERVER_CPU = 1.5
+# The operator's CPU over a run with its metrics served and scraped, against metrics off.
+TARGET_METRICS_CPU = 1.05
+SCRAPE_INTERVAL_S = 5.0
 # Seconds per robot at one size over the size before: near linear. Judged for Coral's layouts.
 TARGET_GROWTH = 1.25
 # Each Coral layout, its reference run, how that reference is built, and its time targets.
@@ -132,7 +140,9 @@ def run_size(
     logs: Path | None = None,
     pairs: int = 1,
     layouts: tuple[str, ...] = CORAL_LAYOUTS,
+    largest: bool = True,
 ) -> SizeFigures:
+    """`largest`: the run's largest size, where the metrics' cost is judged (elsewhere printed)."""
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
@@ -227,7 +237,13 @@ def run_size(
             f"apiserver CPU seconds n={count}: "
             + ", ".join(f"{run}={seconds:.1f}" for run, seconds in cpu.items())
         )
-        bench(f"operator_peak_rss_{count}", operator.peak_mb, "MB", "<=", TARGET_RSS_MB)
+        if operator is not None:
+            bench(f"operator_peak_rss_{count}", operator.peak_mb, "MB", "<=", TARGET_RSS_MB)
+            # The metrics runs start operators of their own; two serving one namespace would race.
+            operator.stop()
+            operator = None
+        if "PodPerComponent" in layouts:
+            _metrics_cost(api, state, log, count, timeout, logs or work, pairs, judge=largest)
         return SizeFigures(robots=count, times=times)
     finally:
         if operator is not None:
@@ -355,6 +371,68 @@ def _coral_run(
     return result, apiserver
 
 
+def _metrics_cost(
+    api: k8s.ApiClient,
+    state: controlplane.State,
+    log: audit.AuditLog,
+    count: int,
+    timeout: float,
+    folder: Path,
+    pairs: int,
+    *,
+    judge: bool,
+) -> None:
+    """The operator's CPU over one `PodPerComponent` run (start, deployment, update, deletion), its
+    metrics served and scraped every SCRAPE_INTERVAL_S, against the same run with metrics off; each
+    run on a fresh operator process, pairs in ABBA order, judged on the median pair's ratio. Also
+    prints how many series one scrape holds, which does not grow with the robots. Judged (`judge`)
+    at the largest size only: a smaller fleet's run costs the operator a few CPU seconds, within
+    which one pair's noise is more than the metrics' cost."""
+    ratios: list[float] = []
+    for index in range(pairs):
+        sides = ("off", "on") if index % 2 == 0 else ("on", "off")
+        cpu: dict[str, float] = {}
+        for side in sides:
+            address = f"127.0.0.1:{_free_port()}" if side == "on" else None
+            log_path = folder / f"operator-metrics-{side}-{count}-{index}.log"
+            operator = coral.OperatorProcess(
+                coral.kube_env(state.kubeconfig), "bench-coral", log_path, address
+            )
+            scraper = None
+            try:
+                coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
+                if address is not None:
+                    scraper = scraping.Scraper(f"http://{address}/metrics", SCRAPE_INTERVAL_S)
+                note(f"metrics {side} n={count}: the next run's operator serves {address or 'no metrics'}")
+                _coral_run(api, state, log, operator, count, timeout, "PodPerComponent", judge_writes=False)
+                coral.delete_system(api, "bench-coral", timeout)
+                cpu[side] = coral.cpu_seconds(operator.process.pid)
+            finally:
+                if scraper is not None:
+                    scraper.stop()
+                    note(
+                        f"metrics on n={count}: {scraper.series} series in one scrape, "
+                        f"{scraper.scrapes} scrapes, {scraper.failures} failed"
+                    )
+                operator.stop()
+        ratios.append(cpu["on"] / cpu["off"])
+        note(
+            f"metrics n={count} pair {index + 1}: operator CPU {cpu['on']:.1f} s with metrics, "
+            f"{cpu['off']:.1f} s without ({ratios[-1]:.3f}x)"
+        )
+    ratio = statistics.median(ratios)
+    if judge:
+        bench(f"operator_metrics_cpu_ratio_{count}", ratio, "x", "<=", TARGET_METRICS_CPU)
+    else:
+        note(f"operator_metrics_cpu_ratio_{count} (not judged below the largest size): {ratio:.3g}x")
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
 def report_growth(figures: list[SizeFigures]) -> None:
     """Seconds per robot at each size over the size before (1.0: linear; above: worse than linear).
     Coral's layouts are judged; the references' growth is printed beside them as a note, since it
@@ -433,7 +511,11 @@ def main(argv: list[str]) -> int:
             if args.logs is not None:
                 args.logs.mkdir(parents=True, exist_ok=True)
             pairs = max(1, args.pairs) if count == max(sizes) else 1
-            figures.append(run_size(count, Path(folder) / f"n{count}", args.logs, pairs, layouts))
+            figures.append(
+                run_size(
+                    count, Path(folder) / f"n{count}", args.logs, pairs, layouts, largest=count == max(sizes)
+                )
+            )
     report_growth(figures)
     if args.plot is not None and "PodPerComponent" in layouts:
         points = [

@@ -19,7 +19,13 @@ node_packages=(containerd runc containernetworking-plugins iproute2 util-linux i
 # kubelets pull from).
 image_packages=(buildah mmdebstrap docker-registry)
 
-wanted=("${node_packages[@]}" "${image_packages[@]}")
+# Metrics: Debian's prometheus package brings `prometheus` and `promtool`, which the tests run on
+# the shipped alert rules and dashboard queries (docs/metrics.md). Only the binaries are used; on a
+# host run by systemd the package also enables its own server on port 9090, which
+# `systemctl disable --now prometheus` turns off.
+metrics_packages=(prometheus)
+
+wanted=("${node_packages[@]}" "${image_packages[@]}" "${metrics_packages[@]}")
 
 missing=()
 for package in "${wanted[@]}"; do
@@ -44,7 +50,6 @@ echo "[node-runtime] installing ${missing[*]}" >&2
 export DEBIAN_FRONTEND=noninteractive
 # A lock held by another apt run is waited for rather than failed on.
 apt_get() { apt-get -o DPkg::Lock::Timeout=600 "$@"; }
-if ! apt_get install -y -q --no-install-recommends "${missing[@]}" >&2; then
-  apt_get update -q >&2
-  apt_get install -y -q --no-install-recommends "${missing[@]}" >&2
-fi
+# The package lists are refreshed first: a stale list names versions the mirror no longer has.
+apt_get update -q >&2
+apt_get install -y -q --no-install-recommends "${missing[@]}" >&2

@@ -7,4 +7,5 @@ pytest_plugins = [
     "fixtures.cluster",
     "fixtures.images",
     "fixtures.robots",
+    "fixtures.prometheus",
 ]

@@ -35,14 +35,20 @@ NAME = "mission"
 class OperatorProcess:
     """The operator serving one namespace, with its peak RSS sampled from /proc."""
 
-    def __init__(self, env: dict[str, str], namespace: str, log: Path) -> None:
+    def __init__(self, env: dict[str, str], namespace: str, log: Path, metrics: str | None = None) -> None:
+        """`metrics`: ADDRESS:PORT to serve the operator's metrics on; off when None."""
         self.log = log
         self.peak_kib = 0
         self._stop = threading.Event()
         self.process = subprocess.Popen(
             [sys.executable, "-m", "coral_operator", "-n", namespace],
             # The benchmark's systems use the host network, as robots running DDS do.
-            env={**env, "CORAL_POLICY_HOST_NETWORK_NAMESPACES": namespace, "PYTHONUNBUFFERED": "1"},
+            env={
+                **env,
+                **policy_environment(namespace),
+                "PYTHONUNBUFFERED": "1",
+                **({"CORAL_OPERATOR_METRICS": metrics} if metrics else {}),
+            },
             stdout=log.open("w"),
             stderr=subprocess.STDOUT,
             start_new_session=True,
@@ -97,6 +103,24 @@ def build_system(
     spec["rollout"] = {"maxUnavailable": max_unavailable}
     spec["layout"] = layout
     return manifest
+
+
+def policy_environment(namespace: str) -> dict[str, str]:
+    """The operator's policy opened for the benchmark's system as an administrator would: the host
+    network (robots running DDS) and the robot folders its components mount (the example's bags)."""
+    spec = build_system(namespace, "0", "10%")["spec"]
+    folders = sorted(
+        {
+            mount["hostPath"]
+            for role in ("drivers", "skillsets", "executors")
+            for component in spec.get(role, [])
+            for mount in component.get("hostPaths", [])
+        }
+    )
+    return {
+        "CORAL_POLICY_HOST_NETWORK_NAMESPACES": namespace,
+        "CORAL_POLICY_HOST_PATHS": ",".join(f"{namespace}={folder}" for folder in folders),
+    }
 
 
 def _system(custom: k8s.CustomObjectsApi, namespace: str, name: str) -> dict[str, Any] | None:

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from coral_operator import config
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.planning import instances, naming, pods
@@ -45,7 +46,11 @@ def coral_pods(namespace: str, revision: str, layout: str) -> list[dict[str, Any
     robot = RobotNode(node_name="robot-0000", robot="robot-0000", labels={FLEET_LABEL: "bench"}, ready=True)
     template = instances.build_template(spec, f"{NAME}-tree", f"{NAME}-parameters")
     instance = CoralInstanceSpec.model_validate(instances.build_instance_spec(NAME, robot, template))
-    return pods.build_pods(spec=instance, instance=f"{NAME}-robot-0000", namespace=namespace, instance_uid="")
+    # The same policy as the operator's in the Coral runs, so the host folders mount alike.
+    settings = pods.PodSettings(policy=config.from_environment(coral.policy_environment(namespace)).policy)
+    return pods.build_pods(
+        spec=instance, instance=f"{NAME}-robot-0000", namespace=namespace, instance_uid="", settings=settings
+    )
 
 
 def build_daemonset(namespace: str, name: str, pod: dict[str, Any], max_unavailable: str) -> dict[str, Any]:

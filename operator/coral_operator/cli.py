@@ -14,9 +14,33 @@ import click
     help="Namespace to serve (repeatable); all namespaces when omitted.",
 )
 @click.option("--liveness", default=None, help="Liveness endpoint, for example http://0.0.0.0:8080/healthz.")
+@click.option(
+    "--metrics",
+    default=None,
+    envvar="CORAL_OPERATOR_METRICS",
+    metavar="ADDRESS:PORT",
+    help="Serve Prometheus metrics on http://ADDRESS:PORT/metrics, for example 0.0.0.0:8081 "
+    "(env CORAL_OPERATOR_METRICS); off when omitted.",
+)
 @click.option("-v", "--verbose", is_flag=True, help="Log every handler run.")
-def operator_command(namespaces: tuple[str, ...], liveness: str | None, verbose: bool) -> None:
+def operator_command(
+    namespaces: tuple[str, ...], liveness: str | None, metrics: str | None, verbose: bool
+) -> None:
     """Run the Coral operator (watches CoralSystems and CoralInstances)."""
     from coral_operator import main
 
-    main.run(namespaces=list(namespaces), verbose=verbose, liveness=liveness)
+    main.run(
+        namespaces=list(namespaces),
+        verbose=verbose,
+        liveness=liveness,
+        metrics=None if metrics is None else _address(metrics),
+    )
+
+
+def _address(value: str) -> tuple[str, int]:
+    address, _, port = value.rpartition(":")
+    if not address or not port.isdigit() or not 0 < int(port) < 65536:
+        raise click.BadParameter(
+            f"{value!r} is not ADDRESS:PORT, for example 0.0.0.0:8081", param_hint="--metrics"
+        )
+    return address, int(port)

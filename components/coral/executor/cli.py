@@ -129,6 +129,18 @@ def _finite(_context: click.Context, _parameter: click.Parameter, value: float) 
     show_default=True,
     help="Address the Groot2 publisher binds (the pod's loopback unless told otherwise).",
 )
+@click.option(
+    "--metrics-port",
+    type=click.IntRange(1, 65535),
+    default=None,
+    help="Serve Prometheus metrics (ticks, tree status, behavior results) on this port; off when omitted.",
+)
+@click.option(
+    "--metrics-host",
+    default="0.0.0.0",
+    show_default=True,
+    help="Address the metrics endpoint binds (every address of the pod, for Prometheus to reach).",
+)
 @click.option("-v", "--verbose", is_flag=True, help="Print every node transition on the terminal.")
 def executor_command(
     tree: Path,
@@ -148,6 +160,8 @@ def executor_command(
     groot2_host: str,
     groot2_allow_hooks: bool,
     groot2_wait_s: float,
+    metrics_port: int | None,
+    metrics_host: str,
     verbose: bool,
 ) -> None:
     """Run a behavior tree with the behaviors the running components exported."""
@@ -170,6 +184,8 @@ def executor_command(
         groot2_host=groot2_host,
         groot2_allow_hooks=groot2_allow_hooks,
         groot2_wait_s=groot2_wait_s,
+        metrics_port=metrics_port,
+        metrics_host=metrics_host,
         verbose=verbose,
     )
     check_groot2_options(groot2_port, groot2_allow_hooks, groot2_wait_s)

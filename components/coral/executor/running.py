@@ -14,6 +14,7 @@ import socket
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,8 @@ class ExecutorOptions:
     groot2_host: str = "127.0.0.1"
     groot2_allow_hooks: bool = False
     groot2_wait_s: float = 0.0
+    metrics_port: int | None = None
+    metrics_host: str = "0.0.0.0"
     verbose: bool = False
 
 
@@ -91,6 +94,21 @@ def _build_sinks(options: ExecutorOptions) -> sinks.SinkFanout:
     return fanout
 
 
+def _serve_metrics(options: ExecutorOptions, fanout: sinks.SinkFanout) -> Callable[[float], None] | None:
+    """With `--metrics-port`, serve the executor's metrics, fed by the status records as a sink;
+    what the tick loop tells of each tick, or None."""
+    if options.metrics_port is None:
+        return None
+    from prometheus_client import CollectorRegistry
+
+    from coral.executor.metrics import ExecutorMetrics
+
+    metrics = ExecutorMetrics(CollectorRegistry())
+    metrics.serve(options.metrics_host, options.metrics_port)
+    fanout.add(metrics)
+    return metrics.observe_tick
+
+
 def _check_ros_names(options: ExecutorOptions) -> None:
     """Raises rclpy's own error for a node name or status topic ROS would refuse, before anything
     starts, so it reads as bad input rather than a crash of the executor."""
@@ -110,6 +128,7 @@ def run_executor(options: ExecutorOptions) -> int:
 
     try:
         fanout = _build_sinks(options)
+        on_tick = _serve_metrics(options, fanout)
     except (OSError, ValueError) as err:
         print(f"error: {err}")
         return EXIT_BAD_INPUT
@@ -135,7 +154,7 @@ def run_executor(options: ExecutorOptions) -> int:
         fanout.close()
         return EXIT_BAD_INPUT
     try:
-        return _run_with_ros(options, document, fanout, stop)
+        return _run_with_ros(options, document, fanout, stop, on_tick)
     except Exception as err:  # noqa: BLE001 - must not read as a tree FAILURE (exit 1)
         _emit(fanout, "error", message=f"{type(err).__name__}: {err}")
         _emit(fanout, "finished", root_status="ERROR", exit_code=EXIT_INTERNAL, tick_count=0)
@@ -145,7 +164,13 @@ def run_executor(options: ExecutorOptions) -> int:
         fanout.close()
 
 
-def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFanout, stop: _Stop) -> int:
+def _run_with_ros(
+    options: ExecutorOptions,
+    document: Any,
+    fanout: sinks.SinkFanout,
+    stop: _Stop,
+    on_tick: Callable[[float], None] | None = None,
+) -> int:
     from coral_core import bt
 
     from coral import coordination
@@ -216,6 +241,7 @@ def _run_with_ros(options: ExecutorOptions, document: Any, fanout: sinks.SinkFan
             no_progress_s=options.no_progress_s,
             halts=halts,
             build_park=park_builder(document, registry, context),
+            on_tick=on_tick,
         )
         publisher = _start_groot2(options, tree, fanout)
         if publisher is not None:

@@ -53,8 +53,11 @@ class TickLoop:
         no_progress_s: float = DEFAULT_NO_PROGRESS_S,
         halts: HaltSignal | None = None,
         build_park: ParkBuilder | None = None,
+        on_tick: Callable[[float], None] | None = None,
     ) -> None:
+        """`on_tick(duration_s)` is told of every tick as it ends (the executor's metrics)."""
         self.tree = tree
+        self._on_tick = on_tick
         self.context = context
         self.fanout = fanout
         self.plugins = plugins
@@ -191,6 +194,8 @@ class TickLoop:
                     continue
                 started = time.monotonic()
                 root = self.tree.tick_exactly_once()
+                if self._on_tick is not None:
+                    self._on_tick(time.monotonic() - started)
                 self.fanout.end_tick()
                 self._check_degraded()
                 if root in (bt.Status.SUCCESS, bt.Status.FAILURE):

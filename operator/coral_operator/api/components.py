@@ -161,8 +161,24 @@ class Groot2Spec(CamelModel):
         ]
 
 
+class ExecutorMetricsSpec(CamelModel):
+    """Serve the executor's Prometheus metrics: tick rate and duration, tree status, behavior
+    results and durations, plugin libraries (docs/metrics.md)."""
+
+    port: int = Field(ge=1024, le=65535)
+    """Port of `/metrics`, the container port `metrics`. Served on every address of the pod, which
+    with `ros.network: Host` are the robot's own: pick a port free on the robot, and one per
+    executor. 1024 and up, as components run as non-root."""
+
+    def executor_args(self) -> list[str]:
+        """The executor's command-line flags for these settings."""
+        return ["--metrics-port", str(self.port)]
+
+
 class ExecutorComponent(Component):
     """An executor: a component that runs the system's tree."""
 
     groot2: Groot2Spec | None = None
     """Serve the live tree over Groot2's protocol; off when omitted."""
+    metrics: ExecutorMetricsSpec | None = None
+    """Serve Prometheus metrics on a port of the pod; off when omitted."""

@@ -60,6 +60,8 @@ GROOT2_PORTS_APART = (
     "executors of one robot share its loopback"
 )
 
+METRICS_PORTS_DIFFER = "executors' metrics ports must differ: executors of one robot may share its network"
+
 
 def _cel(rule: str, message: str, field_path: str | None = None) -> dict[str, str]:
     entry = {"rule": rule, "message": message}
@@ -323,6 +325,17 @@ class HaltSpec(HaltRequest):
     """Robot names (their `coral.dev/robot` label) to halt; empty halts every robot of the system."""
 
 
+_METRICS_PORTS_DIFFER = (
+    "self.executors.all(a, !has(a.metrics) || self.executors.all(b, b.name == a.name || !has(b.metrics) "
+    "|| b.metrics.port != a.metrics.port))"
+)
+
+
+def metrics_ports_clash(executors: list[ExecutorComponent]) -> bool:
+    ports = [e.metrics.port for e in executors if e.metrics]
+    return len(ports) != len(set(ports))
+
+
 _ALL_NAMES = "(self.drivers.map(c, c.name) + self.skillsets.map(c, c.name) + self.executors.map(c, c.name))"
 
 
@@ -344,6 +357,7 @@ class CoralSystemSpec(CamelModel):
                 _cel(f"{_ALL_NAMES}.all(n, {_ALL_NAMES}.exists_one(m, m == n))", UNIQUE_NAMES),
                 _cel("size(self.executors) > 0", NEEDS_EXECUTOR, ".executors"),
                 _cel(_GROOT2_APART, GROOT2_PORTS_APART, ".executors"),
+                _cel(_METRICS_PORTS_DIFFER, METRICS_PORTS_DIFFER, ".executors"),
                 _cel(
                     "!has(self.layout) || self.layout != 'PodPerRobot' || !has(self.startup) "
                     "|| !has(self.startup.onTimeout) || self.startup.onTimeout != 'Proceed'",
@@ -414,6 +428,8 @@ class CoralSystemSpec(CamelModel):
             raise ValueError(NEEDS_EXECUTOR)
         if groot2_ports_overlap(self.executors):
             raise ValueError(GROOT2_PORTS_APART)
+        if metrics_ports_clash(self.executors):
+            raise ValueError(METRICS_PORTS_DIFFER)
         if self.layout == "PodPerRobot" and self.startup.on_timeout == "Proceed":
             raise ValueError(ROBOT_POD_BLOCKS)
         refused = check_overrides(self.overrides)

@@ -16,6 +16,8 @@ from coral_core import names
 from coral_operator import config
 from coral_operator.handlers.filters import watch_selectors
 from coral_operator.kube import applying, client
+from coral_operator.metrics.fleet import FleetCollector
+from coral_operator.metrics.instruments import OperatorMetrics
 from coral_operator.planning import pods, rbac
 from coral_operator.reconcile.controller import Controller
 
@@ -81,12 +83,21 @@ def create_controller(memo: kopf.Memo, **_: Any) -> None:
     # where kopf's Event poster lives.
     client.load_api_classes()
     settings = config.from_environment()
-    memo["controller"] = Controller(
+    # Metrics are on when `main` was given an address to serve them on, and then cost a counter
+    # per pass and per request; the fleet's state is read only when Prometheus scrapes.
+    registry = memo.get("metrics_registry")
+    metrics = OperatorMetrics(registry) if registry is not None else None
+    controller = Controller(
         policy=settings.policy,
         post=_post,
         pod_settings=pods.PodSettings(policy=settings.policy, helper_image=settings.helper_image),
         preflight_registries=settings.preflight_registries,
+        on_pass=None if metrics is None else metrics.observe_pass,
     )
+    if metrics is not None:
+        client.count_requests(metrics.observe_request)
+        registry.register(FleetCollector(controller.indexes, controller.queue))
+    memo["controller"] = controller
 
 
 @kopf.on.cleanup()

@@ -55,8 +55,11 @@ class WorkQueue(Generic[K]):
         retry_base_s: float = 0.5,
         retry_max_s: float = 30.0,
         name: str = "work",
+        on_pass: Callable[[K, bool, float, float], None] | None = None,
     ) -> None:
+        """`on_pass(key, failed, late_s, busy_s)` is told of every pass as it ends (metrics)."""
         self._process = process
+        self._on_pass = on_pass
         self._workers = workers
         # One queue serves several kinds of key, each spaced as its passes cost.
         self._min_interval: Callable[[K], float] = (
@@ -140,6 +143,12 @@ class WorkQueue(Generic[K]):
         with self._cond:
             return len(self._due) + len(self._processing)
 
+    def longest_wait_s(self) -> float:
+        """How long the most overdue key has been due without a worker taking it (0 if none)."""
+        with self._cond:
+            earliest = min(self._due.values(), default=None)
+        return 0.0 if earliest is None else max(0.0, time.monotonic() - earliest)
+
     def _take(self) -> tuple[K, float] | None:
         """The next due key and how late it is taken (waiting for a free worker), or None to stop."""
         with self._cond:
@@ -160,6 +169,8 @@ class WorkQueue(Generic[K]):
             return None
 
     def _done(self, key: K, failed: bool, late: float, busy: float) -> None:
+        if self._on_pass is not None:
+            self._on_pass(key, failed, late, busy)
         now = time.monotonic()
         self._last_run[key] = now
         if failed:

@@ -276,6 +276,12 @@ def _container(
         # Our own command takes the flags; otherwise they follow the user's arguments, which the
         # image's entrypoint (`python -m coral.executor ...`) or the user's command receives.
         (command if command and not component.command else args).extend(groot2.executor_args())
+    metrics = component.metrics if isinstance(component, ExecutorComponent) else None
+    if metrics:
+        (command if command and not component.command else args).extend(metrics.executor_args())
+        container["ports"] = [
+            {"name": _metrics_port_name(spec, component), "containerPort": metrics.port, "protocol": "TCP"}
+        ]
     if command:
         container["command"] = command
     if args:
@@ -285,6 +291,13 @@ def _container(
     if component.resources:
         container["resources"] = component.resources.to_wire()
     return container
+
+
+def _metrics_port_name(spec: CoralInstanceSpec, component: Component) -> str:
+    """`metrics`, which a PodMonitor selects; numbered when several executors of one robot's pod
+    (`PodPerRobot`) serve metrics, as port names are unique in a pod."""
+    serving = [e.name for e in spec.executors if e.metrics]
+    return "metrics" if len(serving) == 1 else f"metrics-{serving.index(component.name)}"
 
 
 def _host_namespaces(spec: CoralInstanceSpec) -> dict[str, Any]:

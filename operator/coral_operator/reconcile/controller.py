@@ -10,7 +10,7 @@ docs/architecture.md.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -62,13 +62,19 @@ class Controller:
         workers: int = WORKERS,
         pod_settings: PodSettings | None = None,
         preflight_registries: frozenset[str] = frozenset(),
+        on_pass: Callable[[str, bool, float, float], None] | None = None,
     ) -> None:
+        """`on_pass(kind, failed, late_s, busy_s)` is told of every pass as it ends (metrics)."""
         self.memory = memory or Memory()
         self.indexes = Indexes()
         self.trimmer = Trimmer()
         self._pool = ThreadPoolExecutor(max_workers=API_WRITERS, thread_name_prefix="coral-api")
         self.queue: WorkQueue[Key] = WorkQueue(
-            self._process, workers=workers, min_interval_s=_interval, name="coral"
+            self._process,
+            workers=workers,
+            min_interval_s=_interval,
+            name="coral",
+            on_pass=None if on_pass is None else (lambda key, *outcome: on_pass(key[0], *outcome)),
         )
         shared: dict[str, Any] = {
             "memory": self.memory,

@@ -65,6 +65,8 @@ def test_the_single_file_manifest_is_the_rendered_chart() -> None:
         ("image.pullPolicy=Sometimes", "pullPolicy"),
         ("watchNamespaces={Not_A_Namespace}", "watchNamespaces"),
         ("livenesPort=8080", "livenesPort"),
+        ("metrics.port=0", "port"),
+        ("metrics.serviceMonitor.interval=often", "interval"),
     ],
 )
 def test_a_bad_value_is_refused_by_the_schema_naming_it(setting: str, named: str) -> None:
@@ -74,6 +76,63 @@ def test_a_bad_value_is_refused_by_the_schema_naming_it(setting: str, named: str
         )
         assert result.returncode != 0, f"helm {verb[0]} accepted {setting}"
         assert named in result.stdout + result.stderr
+
+
+def _rendered(*settings: str) -> list[dict[str, Any]]:
+    arguments = [arg for setting in settings for arg in ("--set", setting)]
+    result = subprocess.run(
+        [_helm(), "template", "c", str(CHART), *arguments], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    return [d for d in yaml.safe_load_all(result.stdout) if d]
+
+
+MONITORING_KINDS = {"ServiceMonitor", "PodMonitor", "PrometheusRule"}
+
+
+def test_the_operator_serves_metrics_behind_a_service_and_nothing_needs_prometheus_operator_by_default() -> (
+    None
+):
+    documents = _rendered()
+    assert not MONITORING_KINDS & {d["kind"] for d in documents}
+    assert not [d for d in documents if d["kind"] == "ConfigMap"]
+    service = next(d for d in documents if d["kind"] == "Service" and d["metadata"]["name"] == "c-metrics")
+    container = next(d for d in documents if d["kind"] == "Deployment")["spec"]["template"]["spec"][
+        "containers"
+    ][0]
+    assert "--metrics=0.0.0.0:8081" in container["args"]
+    assert {"name": "metrics", "containerPort": 8081} in container["ports"]
+    assert service["spec"]["ports"] == [{"name": "metrics", "port": 8081, "targetPort": "metrics"}]
+    off = _rendered("metrics.enabled=false")
+    assert not [d for d in off if d["kind"] == "Service"]
+    assert not any(
+        a.startswith("--metrics")
+        for d in off
+        if d["kind"] == "Deployment"
+        for a in d["spec"]["template"]["spec"]["containers"][0]["args"]
+    )
+
+
+def test_the_monitors_rules_and_dashboard_ship_the_files_that_are_tested() -> None:
+    documents = _rendered(
+        "metrics.serviceMonitor.enabled=true",
+        "metrics.serviceMonitor.labels.release=prometheus",
+        "metrics.podMonitor.enabled=true",
+        "metrics.prometheusRule.enabled=true",
+        "metrics.grafanaDashboard.enabled=true",
+    )
+    by_kind = {d["kind"]: d for d in documents if d["kind"] in MONITORING_KINDS | {"ConfigMap"}}
+    rules = yaml.safe_load((CHART / "monitoring" / "rules.yaml").read_text())
+    assert by_kind["PrometheusRule"]["spec"]["groups"] == rules["groups"]
+    dashboard = json.loads(by_kind["ConfigMap"]["data"]["coral-fleet.json"])
+    assert dashboard == json.loads((CHART / "monitoring" / "coral-fleet-dashboard.json").read_text())
+    assert by_kind["ConfigMap"]["metadata"]["labels"]["grafana_dashboard"] == "1"
+    service = next(d for d in documents if d["kind"] == "Service" and d["metadata"]["name"] == "c-metrics")
+    monitor = by_kind["ServiceMonitor"]
+    assert monitor["metadata"]["labels"]["release"] == "prometheus"
+    assert monitor["spec"]["selector"]["matchLabels"].items() <= service["metadata"]["labels"].items()
+    assert monitor["spec"]["endpoints"][0]["port"] == "metrics"
+    assert by_kind["PodMonitor"]["spec"]["podMetricsEndpoints"][0]["port"] == "metrics"
 
 
 def test_the_schema_covers_every_value_of_the_chart() -> None:

@@ -29,3 +29,10 @@ def test_coral_operator_documents_its_options() -> None:
     result = CliRunner().invoke(operator_command, ["--help"])
     assert result.exit_code == 0
     assert "--namespace" in result.output and "--liveness" in result.output
+
+
+def test_coral_operator_refuses_a_metrics_address_without_a_port_before_starting() -> None:
+    for value in ("0.0.0.0", "localhost:http", ":8081", "0.0.0.0:70000"):
+        result = CliRunner().invoke(operator_command, ["--metrics", value])
+        assert result.exit_code == 2, (value, result.output)
+        assert "--metrics" in result.output and "ADDRESS:PORT" in result.output
