@@ -4,7 +4,8 @@
 folder's last test; then nothing may be left (no container, network, registry, the project's
 dockerd, mount or cgroup; the host's ip_forward and iptables as before). `kind_missions` is the
 operator installed on it by its Helm chart, serving one namespace, with the mission images in the
-cluster's registry. Both skip, with the reason, where kind cannot run.
+cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
+skip, with the reason, where kind cannot run.
 """
 
 from __future__ import annotations
@@ -96,3 +97,11 @@ def kind_missions(
         print,
     ) as missions:
         yield missions
+
+
+@pytest.fixture
+def kind_operator(kind_missions: KindMissionStack) -> Iterator[KindMissionStack]:
+    """`kind_missions` for one test: the CoralSystems it made are deleted afterwards, and their
+    pods gone, so the robots are free for the next test (also when this one failed)."""
+    yield kind_missions
+    kind_missions.delete_systems()

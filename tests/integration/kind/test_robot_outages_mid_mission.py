@@ -1,7 +1,7 @@
 """A kind robot that goes away mid-mission, and comes back: what its CoralInstance says, what the
 mission does.
 
-The operator runs from its Helm chart on the cluster's operator node (`kind_missions`); a
+The operator runs from its Helm chart on the cluster's operator node (`kind_operator`); a
 CoralSystem of the example skillset and an executor runs on one robot worker.
 
 - Power cut (`docker kill` of the node container, as pulling the plug) while the tree sleeps: the
@@ -24,7 +24,7 @@ from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
-from .fleet import KindCluster
+from .fleet import KindCluster, Mission, ready
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
@@ -42,58 +42,13 @@ WAIT_LONG = rs.mission_tree(
 )
 
 
-def _pods(missions: KindMissionStack, system: str) -> dict[str, Any]:
-    return {
-        p.metadata.labels["coral.dev/component"]: p
-        for p in rs.pods(missions.core, missions.namespace, system)
-    }
-
-
-def _ready(core: k8s.CoreV1Api, node: str) -> str:
-    conditions = core.read_node(node).status.conditions or []
-    return next((c.status for c in conditions if c.type == "Ready"), "")
-
-
-class _Mission:
-    """One CoralSystem on `ROBOT` in the operator's namespace, read as a user would."""
-
-    def __init__(self, missions: KindMissionStack, name: str, domain: int, tree: str) -> None:
-        self.missions = missions
-        self.name = name
-        rs.create(missions.custom, missions.namespace, rs.system(name, ROBOT, domain, tree))
-
-    def instance(self) -> dict[str, Any]:
-        return rs.instance(self.missions.custom, self.missions.namespace, self.name)
-
-    def reachable(self, status: str) -> dict[str, Any]:
-        """The instance once `RobotReachable` has `status`, else {}."""
-        item = self.instance()
-        return item if rs.condition(item, "RobotReachable").get("status") == status else {}
-
-    def running_in(self, node_name: str, timeout: float) -> dict[str, Any]:
-        return wait_for(
-            lambda: (i := self.instance()) and node_name in rs.tree(i).get("activePath", "") and i,
-            timeout=timeout,
-            message=lambda: f"the tree to run {node_name}: {self.instance()}\n{self.logs()}",
-        )
-
-    def logs(self) -> str:
-        return (
-            f"--- operator:\n{self.missions.operator_log_tail()}\n"
-            f"--- executor:\n{self.missions.log_tail(ROBOT, 'executor')}"
-        )
-
-    def delete(self) -> None:
-        rs.delete(self.missions.custom, self.missions.namespace, self.name)
-
-
 def _assert_unreachable_since_the_lease(
-    missions: KindMissionStack, mission: _Mission, node: str
+    kind_operator: KindMissionStack, mission: Mission, node: str
 ) -> dict[str, Any]:
     """Waits for the Node to turn Unknown and the instance to say `RobotReachable=False` with the
     Lease's last renewal as the robot's last-seen time; returns that instance."""
     wait_for(
-        lambda: _ready(missions.core, node) == "Unknown",
+        lambda: ready(kind_operator.core, node) == "Unknown",
         timeout=120,
         interval=1,
         message=f"{node} to turn NotReady (Unknown)",
@@ -104,7 +59,7 @@ def _assert_unreachable_since_the_lease(
         message=lambda: f"RobotReachable=False: {mission.instance()}",
     )
     # Nothing renews the Lease while the robot is away: its last renewal is when it was last heard from.
-    leases = k8s.CoordinationV1Api(missions.cluster.api_client)
+    leases = k8s.CoordinationV1Api(kind_operator.cluster.api_client)
     renewed = leases.read_namespaced_lease(node, "kube-node-lease").spec.renew_time
     last_seen = renewed.strftime("%Y-%m-%dT%H:%M:%SZ")
     assert unreachable["status"]["robot"]["lastSeen"] == last_seen, unreachable["status"]["robot"]
@@ -115,21 +70,21 @@ def _assert_unreachable_since_the_lease(
 
 
 def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_runs_the_tree_again(
-    kind_cluster: KindCluster, kind_missions: KindMissionStack, ros_env: dict[str, str]
+    kind_cluster: KindCluster, kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
     running = kind_cluster.running
     node = faults.node_of(running, ROBOT)
-    mission = _Mission(kind_missions, "power", int(ros_env["ROS_DOMAIN_ID"]), SLEEP_THEN_WAIT)
+    mission = Mission(kind_operator, ROBOT, "power", int(ros_env["ROS_DOMAIN_ID"]), SLEEP_THEN_WAIT)
     mission.running_in("Sleep", timeout=300)
     assert rs.condition(mission.instance(), "RobotReachable")["status"] == "True"
-    before = _pods(kind_missions, mission.name)
+    before = mission.pods()
     assert set(before) == {rs.SKILLSET, "executor"}
 
     faults.cut_power(running, ROBOT)
     try:
-        _assert_unreachable_since_the_lease(kind_missions, mission, node)
+        _assert_unreachable_since_the_lease(kind_operator, mission, node)
         # The pods stay bound to the robot: neither the operator nor the cluster replaces them.
-        for component, pod in _pods(kind_missions, mission.name).items():
+        for component, pod in mission.pods().items():
             assert pod.metadata.uid == before[component].metadata.uid, component
             assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
     finally:
@@ -144,41 +99,33 @@ def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_ru
     # The boot ended every container: the kubelet starts them again in the same pods, so the
     # executor runs the tree from its root (through the sleep again) to SUCCESS.
     done = wait_for(
-        lambda: rs.with_root(
-            kind_missions.custom, kind_missions.namespace, mission.name, "SUCCESS", "FAILURE"
-        ),
+        lambda: mission.with_root("SUCCESS", "FAILURE"),
         timeout=ASLEEP_S + 240,
         message=lambda: f"the tree to end: {mission.instance()}\n{mission.logs()}",
     )
     assert rs.tree(done)["rootStatus"] == "SUCCESS", f"{rs.tree(done)}\n{mission.logs()}"
-    after = _pods(kind_missions, mission.name)
+    after = mission.pods()
     for component, pod in after.items():
         assert pod.metadata.uid == before[component].metadata.uid, component
     restarts = {c["name"]: c["restarts"] for c in done["status"]["components"]}
     assert restarts[rs.SKILLSET] >= 1 and restarts["executor"] >= 1, done["status"]["components"]
-    mission.delete()
-    wait_for(
-        lambda: not _pods(kind_missions, mission.name),
-        timeout=90,
-        message="the system's pods to go",
-    )
 
 
 def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_keeps_its_pods(
-    kind_cluster: KindCluster, kind_missions: KindMissionStack, ros_env: dict[str, str]
+    kind_cluster: KindCluster, kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
     running = kind_cluster.running
     node = faults.node_of(running, ROBOT)
-    mission = _Mission(kind_missions, "patrol", int(ros_env["ROS_DOMAIN_ID"]), WAIT_LONG)
+    mission = Mission(kind_operator, ROBOT, "patrol", int(ros_env["ROS_DOMAIN_ID"]), WAIT_LONG)
     mission.running_in("WaitForCount", timeout=300)
     assert rs.condition(mission.instance(), "RobotReachable")["status"] == "True"
-    before = _pods(kind_missions, mission.name)
+    before = mission.pods()
     assert set(before) == {rs.SKILLSET, "executor"}
 
     faults.stop_kubelet(running, ROBOT)
     try:
-        _assert_unreachable_since_the_lease(kind_missions, mission, node)
-        for component, pod in _pods(kind_missions, mission.name).items():
+        _assert_unreachable_since_the_lease(kind_operator, mission, node)
+        for component, pod in mission.pods().items():
             assert pod.metadata.uid == before[component].metadata.uid, component
             assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
         # The containers never stopped: the robot's containerd still runs them while its kubelet is down.
@@ -195,8 +142,6 @@ def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_k
     )
     assert "lastSeen" not in back["status"]["robot"], back["status"]["robot"]
     assert rs.tree(back)["rootStatus"] == "RUNNING", rs.tree(back)
-    for component, pod in _pods(kind_missions, mission.name).items():
+    for component, pod in mission.pods().items():
         assert pod.metadata.uid == before[component].metadata.uid, component
         assert pod.status.container_statuses[0].restart_count == 0, component
-    mission.delete()
-    wait_for(lambda: not _pods(kind_missions, mission.name), timeout=90, message="the system's pods to go")
