@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from coral_testbed.cluster.client import Cluster
-from coral_testbed.kind import clusters
+from coral_testbed.kind import clusters, faults
 from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
@@ -73,3 +73,8 @@ class Mission:
             f"--- operator:\n{self.missions.operator_log_tail()}\n"
             f"--- executor:\n{self.missions.log_tail(self.robot, 'executor')}"
         )
+
+
+def crictl(running: clusters.Running, robot: str, *args: str) -> str:
+    """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
+    return running.engine.docker("exec", faults.node_of(running, robot), "crictl", *args).stdout

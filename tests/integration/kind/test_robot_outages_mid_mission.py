@@ -24,7 +24,7 @@ from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
-from .fleet import KindCluster, Mission, ready
+from .fleet import KindCluster, Mission, crictl, ready
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
@@ -129,7 +129,7 @@ def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_k
             assert pod.metadata.uid == before[component].metadata.uid, component
             assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
         # The containers never stopped: the robot's containerd still runs them while its kubelet is down.
-        listed = running.engine.docker("exec", node, "crictl", "ps", "-q").stdout.split()
+        listed = crictl(running, ROBOT, "ps", "-q").split()
         for component, pod in before.items():
             assert rs.container_id(pod.status.container_statuses[0]) in listed, component
     finally:
