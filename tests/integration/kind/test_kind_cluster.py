@@ -1,8 +1,9 @@
 """The kind cluster of this folder (conftest.py): its robots as a user relies on them.
 
 Nodes Ready and labelled as robots, a pod on a robot pulling an image of the project's registry,
-its logs through `kubectl logs`, a CoreDNS lookup from inside it, a robot's link cut (its Node
-stops being Ready) and restored, a robot power-cycled and its containerd killed.
+its logs through `kubectl logs`, a CoreDNS lookup from inside it, a robot's link cut (other
+robots and the API server cannot reach it, its Node stops being Ready) and restored, a robot
+power-cycled and its containerd killed.
 """
 
 from __future__ import annotations
@@ -86,13 +87,69 @@ def test_a_pod_on_a_robot_pulls_from_the_projects_registry_and_resolves_services
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs
 
 
-def test_a_robot_whose_link_is_cut_stops_being_ready_and_is_ready_again_once_restored(
+SERVER = """\
+apiVersion: v1
+kind: Pod
+metadata: {name: %(name)s, namespace: default}
+spec:
+  nodeSelector: {coral.dev/robot: %(robot)s}
+  hostNetwork: true
+  terminationGracePeriodSeconds: 1
+  containers:
+  - name: main
+    image: coral/python:3.11-bookworm
+    command: [python, -c]
+    args:
+    - |
+      import http.server, pathlib, sys
+      pathlib.Path("/tmp/www").mkdir(exist_ok=True)
+      pathlib.Path("/tmp/www/ping").write_text("pong")
+      handler = lambda *a: http.server.SimpleHTTPRequestHandler(*a, directory="/tmp/www")
+      http.server.ThreadingHTTPServer(("", 8765), handler).serve_forever()
+"""
+FETCH = "import sys, urllib.request; print(urllib.request.urlopen(sys.argv[1], timeout=3).read().decode())"
+
+
+def _running(cluster: Cluster, name: str) -> None:
+    wait_for(
+        lambda: cluster.kubectl("get", "pod", name, "-o", "jsonpath={.status.phase}").stdout == "Running",
+        timeout=180,
+        message=lambda: (
+            f"pod {name} to run: " + cluster.kubectl("describe", "pod", name, check=False).stdout[-1500:]
+        ),
+    )
+
+
+def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
     kind_cluster: KindCluster,
 ) -> None:
+    """Other robots cannot reach it, nor can the API server (`kubectl exec` fails); its Node stops
+    being Ready; once the link is restored, all three come back."""
     running, cluster = kind_cluster.running, kind_cluster.cluster
     node = faults.node_of(running, "kind-robot-1")
+    address = cluster.kubectl(
+        "get", "node", node, "-o", 'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}'
+    ).stdout
+    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "server", "robot": "kind-robot-1"})
+    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "prober", "robot": "kind-robot-2"})
+    _running(cluster, "server")
+    _running(cluster, "prober")
+
+    def fetch() -> str:
+        result = cluster.kubectl(
+            "exec", "prober", "--", "python", "-c", FETCH, f"http://{address}:8765/ping", check=False
+        )
+        return result.stdout.strip()
+
+    def exec_on_server() -> str:
+        return cluster.kubectl("exec", "server", "--", "cat", "/tmp/www/ping", check=False, timeout=60).stdout
+
+    assert wait_for(fetch, timeout=60, message=f"the prober on kind-robot-2 to reach {node}") == "pong"
+
     faults.cut_link(running, "kind-robot-1")
     try:
+        assert fetch() == ""
+        assert exec_on_server() == ""
         wait_for(
             lambda: _ready(cluster, node) in ("False", "Unknown"),
             timeout=180,
@@ -101,12 +158,17 @@ def test_a_robot_whose_link_is_cut_stops_being_ready_and_is_ready_again_once_res
         )
     finally:
         faults.restore_link(running, "kind-robot-1")
+    assert wait_for(fetch, timeout=60, message=f"{node} reachable again") == "pong"
     wait_for(
         lambda: _ready(cluster, node) == "True",
         timeout=180,
         interval=2,
         message=f"{node} to be Ready again after its link was restored",
     )
+    # The kubelet asks the API server to authorize each exec, so it serves exec again once it has
+    # reconnected on its own.
+    wait_for(lambda: exec_on_server() == "pong", timeout=60, message=f"kubectl exec on {node} to work again")
+    cluster.kubectl("delete", "pod", "server", "prober", "--wait=false")
 
 
 def test_a_power_cycled_robot_with_a_killed_containerd_runs_pods_again(
