@@ -1,4 +1,4 @@
-"""One kind cluster for every test of this folder: two robot workers and the operator's node.
+"""One kind cluster for every test of this folder: three robot workers and the operator's node.
 
 `kind_cluster` creates it once, the way `coral dev-cluster kind up` does, and deletes it after the
 folder's last test; then nothing may be left (no container, network, registry, the project's
@@ -10,18 +10,20 @@ skip, with the reason, where kind cannot run.
 
 from __future__ import annotations
 
+import os
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from coral_core.component_image import COMPONENT_UID
 from coral_testbed import images
 from coral_testbed.cluster import binaries, operatorchart
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.images import registry
 from coral_testbed.kind import clusters, engine, provisioning
 from coral_testbed.kind.missions import KindMissionStack
-from coral_testbed.missions import stack
+from coral_testbed.missions import manifests, stack
 
 from .fleet import MISSIONS_NAMESPACE, NAME, ROBOTS, KindCluster
 
@@ -50,8 +52,9 @@ def _assert_nothing_left(node_engine: engine.Engine, engine_started_here: bool) 
 
 
 @pytest.fixture(scope="package")
-def kind_cluster() -> Iterator[KindCluster]:
-    """The cluster, with the python image in its registry; everything gone afterwards."""
+def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindCluster]:
+    """The cluster, with the python image in its registry and a site share on every robot (a host
+    folder, as an NFS mount would be on a site); everything gone afterwards."""
     reason = provisioning.unsupported_reason()
     if reason:
         pytest.skip(reason)
@@ -59,6 +62,9 @@ def kind_cluster() -> Iterator[KindCluster]:
     engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(print)
     started_here = ready.engine.owned and not engine_was_running
+    share = tmp_path_factory.mktemp("site-share")
+    # The components run as their own user and write the share, as on a site's NFS export.
+    os.chown(share, COMPONENT_UID, COMPONENT_UID)
     try:
         running = clusters.create(
             NAME,
@@ -67,11 +73,12 @@ def kind_cluster() -> Iterator[KindCluster]:
             ready.node_image,
             print,
             extra_workers={stack.OPERATOR_NODE: {operatorchart.OPERATOR_NODE_LABEL: "true"}},
+            robot_mounts={manifests.SITE_SHARE: str(share)},
         )
         images.build(["python"], registry_address=running.registry_address)
         cluster = Cluster(running.kubeconfig, binaries.find_bin_dir(("kubectl", "helm")), is_local=False)
         try:
-            yield KindCluster(running, cluster)
+            yield KindCluster(running, cluster, share)
         finally:
             cluster.close()
     finally:

@@ -4,17 +4,20 @@ mission on one robot read as a user would."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.kind import clusters, faults
 from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.missions import manifests
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
 NAME = "coral-test"
-ROBOTS = {"kind-robot-1": {"coral.dev/model": "kind"}, "kind-robot-2": {"coral.dev/model": "kind"}}
+ROBOTS = {name: {"coral.dev/model": "kind"} for name in manifests.RELAY_ROBOTS}
+"""The relay example's three robots; the other tests use them too."""
 MISSIONS_NAMESPACE = "kind-missions"
 """Where `kind_missions`' operator serves the tests' CoralSystems."""
 
@@ -24,6 +27,8 @@ class KindCluster:
     running: clusters.Running
     cluster: Cluster
     """kubectl, helm and the API client against the kind cluster."""
+    share: Path
+    """The host folder bound at the site share's path into every robot's node."""
 
 
 def ready(core: k8s.CoreV1Api, node: str) -> str:

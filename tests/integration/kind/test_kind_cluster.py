@@ -79,9 +79,9 @@ def test_a_pod_on_a_robot_pulls_from_the_projects_registry_and_resolves_services
     kind_cluster: KindCluster,
 ) -> None:
     running, cluster = kind_cluster.running, kind_cluster.cluster
-    logs = _run_pod(cluster, "hello-robot", "kind-robot-2")
+    logs = _run_pod(cluster, "hello-robot", "relay-worker")
     assert cluster.kubectl("get", "pod", "hello-robot", "-o", "jsonpath={.spec.nodeName}").stdout == (
-        faults.node_of(running, "kind-robot-2")
+        faults.node_of(running, "relay-worker")
     )
     assert "hello from hello-robot" in logs, logs
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs
@@ -126,12 +126,12 @@ def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
     """Other robots cannot reach it, nor can the API server (`kubectl exec` fails); its Node stops
     being Ready; once the link is restored, all three come back."""
     running, cluster = kind_cluster.running, kind_cluster.cluster
-    node = faults.node_of(running, "kind-robot-1")
+    node = faults.node_of(running, "relay-survey")
     address = cluster.kubectl(
         "get", "node", node, "-o", 'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}'
     ).stdout
-    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "server", "robot": "kind-robot-1"})
-    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "prober", "robot": "kind-robot-2"})
+    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "server", "robot": "relay-survey"})
+    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "prober", "robot": "relay-worker"})
     _running(cluster, "server")
     _running(cluster, "prober")
 
@@ -144,9 +144,9 @@ def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
     def exec_on_server() -> str:
         return cluster.kubectl("exec", "server", "--", "cat", "/tmp/www/ping", check=False, timeout=60).stdout
 
-    assert wait_for(fetch, timeout=60, message=f"the prober on kind-robot-2 to reach {node}") == "pong"
+    assert wait_for(fetch, timeout=60, message=f"the prober on relay-worker to reach {node}") == "pong"
 
-    faults.cut_link(running, "kind-robot-1")
+    faults.cut_link(running, "relay-survey")
     try:
         assert fetch() == ""
         assert exec_on_server() == ""
@@ -157,7 +157,7 @@ def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
             message=f"{node} to stop being Ready after its link was cut",
         )
     finally:
-        faults.restore_link(running, "kind-robot-1")
+        faults.restore_link(running, "relay-survey")
     assert wait_for(fetch, timeout=60, message=f"{node} reachable again") == "pong"
     wait_for(
         lambda: _ready(cluster, node) == "True",
@@ -175,9 +175,9 @@ def test_a_power_cycled_robot_with_a_killed_containerd_runs_pods_again(
     kind_cluster: KindCluster,
 ) -> None:
     running, cluster = kind_cluster.running, kind_cluster.cluster
-    node = faults.node_of(running, "kind-robot-1")
+    node = faults.node_of(running, "relay-survey")
     booted = running.engine.docker("inspect", "--format", "{{.State.StartedAt}}", node).stdout
-    faults.power_cycle(running, "kind-robot-1")
+    faults.power_cycle(running, "relay-survey")
     assert running.engine.docker("inspect", "--format", "{{.State.StartedAt}}", node).stdout != booted
 
     def containerd_active() -> bool:
@@ -187,12 +187,12 @@ def test_a_power_cycled_robot_with_a_killed_containerd_runs_pods_again(
     wait_for(
         containerd_active, timeout=120, interval=1, message=f"containerd of {node} running after the boot"
     )
-    faults.kill_containerd(running, "kind-robot-1")
+    faults.kill_containerd(running, "relay-survey")
     wait_for(
         lambda: _ready(cluster, node) == "True" and containerd_active(),
         timeout=180,
         interval=2,
         message=f"{node} Ready with containerd running again",
     )
-    logs = _run_pod(cluster, "after-power-cycle", "kind-robot-1")
+    logs = _run_pod(cluster, "after-power-cycle", "relay-survey")
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs

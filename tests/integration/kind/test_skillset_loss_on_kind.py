@@ -22,7 +22,7 @@ from .fleet import KindCluster, Mission, crictl
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
-ROBOT = "kind-robot-1"
+ROBOT = "relay-survey"
 # The pause before counting again lets the Fallback's report reach the instance's status (the
 # executor writes it at most once a second) before the retries' failures replace it.
 TREE = rs.mission_tree(

@@ -22,7 +22,7 @@ from .fleet import Mission
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
-ROBOT = "kind-robot-1"
+ROBOT = "relay-survey"
 TIMEOUT_S = 20
 PROBED_FILE = "/tmp/probe-passes"
 # One probe period of the kubelet; the probe fails on the first miss.
