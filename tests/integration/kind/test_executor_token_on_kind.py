@@ -51,11 +51,10 @@ def _claims(token: str) -> dict[str, Any]:
 def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     kind_operator: KindMissionStack,
 ) -> None:
-    robot, other_robot = sorted(ROBOTS)
+    robot, other_robot = sorted(ROBOTS)[:2]
     namespace, cluster = kind_operator.namespace, kind_operator.cluster
     core, custom_admin = kind_operator.core, kind_operator.custom
     rs.create(custom_admin, namespace, _guard_system())
-    mine, other = f"guard-{robot}", f"guard-{other_robot}"
 
     def running_executor() -> k8s.V1Pod | None:
         pods = core.list_namespaced_pod(
@@ -66,15 +65,16 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
 
     pod = wait_for(running_executor, timeout=180, message="the guard's executor container to run")
 
-    def root_status(name: str) -> str | None:
-        item = next((i for i in kind_operator.instances() if i["metadata"]["name"] == name), {})
-        return rs.tree(item).get("rootStatus")
+    def root_status(robot: str) -> str | None:
+        return rs.tree(kind_operator.instance_of(robot) or {}).get("rootStatus")
 
     wait_for(
-        lambda: root_status(mine) == "RUNNING" and root_status(other) == "RUNNING",
+        lambda: root_status(robot) == "RUNNING" and root_status(other_robot) == "RUNNING",
         timeout=120,
         message=lambda: f"the executors' own tree status on their instances: {kind_operator.instances()}",
     )
+    mine = kind_operator.instance_of(robot)["metadata"]["name"]
+    other = kind_operator.instance_of(other_robot)["metadata"]["name"]
     token = cluster.kubectl(
         "exec", "-n", namespace, pod.metadata.name, "-c", "executor", "--",
         "cat", f"{SERVICE_ACCOUNT_DIR}/token",
@@ -114,5 +114,5 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     }  # fmt: skip
     allowed = [what for what, call in refused.items() if not denied(call)]
     assert not allowed, f"the executor's token was not refused: {allowed}"
-    assert root_status(other) == "RUNNING"
+    assert root_status(other_robot) == "RUNNING"
     assert "x" not in core.read_namespaced_pod(pod.metadata.name, namespace).metadata.labels

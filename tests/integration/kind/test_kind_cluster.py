@@ -42,6 +42,19 @@ def _ready(cluster: Cluster, node: str) -> str:
     ).stdout
 
 
+def _coredns_ready(cluster: Cluster) -> bool:
+    replicas = cluster.kubectl(
+        "get",
+        "deployment",
+        "coredns",
+        "-n",
+        "kube-system",
+        "-o",
+        "jsonpath={.status.replicas} {.status.readyReplicas}",
+    ).stdout.split()
+    return len(replicas) == 2 and replicas[0] == replicas[1]
+
+
 def _run_pod(cluster: Cluster, name: str, robot: str) -> str:
     """Runs the hello pod on `robot` to completion; its logs."""
     cluster.kubectl("apply", "-f", "-", input=POD % {"name": name, "robot": robot})
@@ -193,6 +206,16 @@ def test_a_power_cycled_robot_with_a_killed_containerd_runs_pods_again(
         timeout=180,
         interval=2,
         message=f"{node} Ready with containerd running again",
+    )
+    # kind schedules CoreDNS on any worker, this robot's too: names resolve again once its pods
+    # are Ready, after the robot's boot.
+    wait_for(
+        lambda: _coredns_ready(cluster),
+        timeout=180,
+        interval=2,
+        message=lambda: (
+            "CoreDNS Ready: " + cluster.kubectl("get", "pods", "-n", "kube-system", "-o", "wide").stdout
+        ),
     )
     logs = _run_pod(cluster, "after-power-cycle", "relay-survey")
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs

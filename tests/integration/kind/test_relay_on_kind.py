@@ -81,10 +81,12 @@ def test_relay_mission_runs_to_success_across_three_kind_robots(
     assert sum("SUCCESS" in line.split() for line in table.splitlines()) == 3, table
     # Each executor ran on its own robot, on that robot's network.
     executors = view.core.list_namespaced_pod(view.namespace, label_selector="coral.dev/role=executor").items
-    assert {p.spec.node_name for p in executors} == set(manifests.RELAY_ROBOTS)
+    nodes = {p.spec.node_name: view.core.read_node(p.spec.node_name) for p in executors}
+    assert {n.metadata.labels["coral.dev/robot"] for n in nodes.values()} == set(manifests.RELAY_ROBOTS)
     for pod in executors:
-        addresses = view.core.read_node(pod.spec.node_name).status.addresses
-        internal = next(a.address for a in addresses if a.type == "InternalIP")
+        internal = next(
+            a.address for a in nodes[pod.spec.node_name].status.addresses if a.type == "InternalIP"
+        )
         assert pod.spec.host_network and pod.status.pod_ip == internal, (pod.metadata.name, internal)
 
     # Each mission is over for good: every executor exits 0 once and is not started again.
