@@ -9,6 +9,7 @@ power-cycled and its containerd killed.
 from __future__ import annotations
 
 import pytest
+import yaml
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.kind import faults
 from coral_testbed.waiting import wait_for
@@ -17,23 +18,38 @@ from .fleet import ROBOTS, KindCluster
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 
-POD = """\
-apiVersion: v1
-kind: Pod
-metadata: {name: %(name)s, namespace: default}
-spec:
-  nodeSelector: {coral.dev/robot: %(robot)s}
-  restartPolicy: Never
-  containers:
-  - name: hello
-    image: coral/python:3.11-bookworm
-    command: [python, -c]
-    args:
-    - |
-      import socket
-      print("hello from", socket.gethostname())
-      print("kubernetes.default.svc is", socket.gethostbyname("kubernetes.default.svc.cluster.local"))
+HELLO = """\
+import socket
+print("hello from", socket.gethostname())
+print("kubernetes.default.svc is", socket.gethostbyname("kubernetes.default.svc.cluster.local"))
 """
+SERVE_PING = """\
+import http.server, pathlib
+pathlib.Path("/tmp/www").mkdir(exist_ok=True)
+pathlib.Path("/tmp/www/ping").write_text("pong")
+handler = lambda *a: http.server.SimpleHTTPRequestHandler(*a, directory="/tmp/www")
+http.server.ThreadingHTTPServer(("", 8765), handler).serve_forever()
+"""
+FETCH = "import sys, urllib.request; print(urllib.request.urlopen(sys.argv[1], timeout=3).read().decode())"
+
+
+def _python_pod(name: str, robot: str, script: str, restart: str, host_network: bool = False) -> str:
+    """A pod of the project's python image on `robot` running `script`, as YAML for kubectl."""
+    container = {"name": "main", "image": "coral/python:3.11-bookworm", "command": ["python", "-c", script]}
+    spec = {
+        "nodeSelector": {"coral.dev/robot": robot},
+        "restartPolicy": restart,
+        "hostNetwork": host_network,
+        "terminationGracePeriodSeconds": 1,
+        "containers": [container],
+    }
+    pod = {
+        "apiVersion": "v1",
+        "kind": "Pod",
+        "metadata": {"name": name, "namespace": "default"},
+        "spec": spec,
+    }
+    return yaml.safe_dump(pod)
 
 
 def _ready(cluster: Cluster, node: str) -> str:
@@ -57,7 +73,7 @@ def _coredns_ready(cluster: Cluster) -> bool:
 
 def _run_pod(cluster: Cluster, name: str, robot: str) -> str:
     """Runs the hello pod on `robot` to completion; its logs."""
-    cluster.kubectl("apply", "-f", "-", input=POD % {"name": name, "robot": robot})
+    cluster.kubectl("apply", "-f", "-", input=_python_pod(name, robot, HELLO, "Never"))
     wait_for(
         lambda: cluster.kubectl("get", "pod", name, "-o", "jsonpath={.status.phase}").stdout == "Succeeded",
         timeout=180,
@@ -100,29 +116,6 @@ def test_a_pod_on_a_robot_pulls_from_the_projects_registry_and_resolves_services
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs
 
 
-SERVER = """\
-apiVersion: v1
-kind: Pod
-metadata: {name: %(name)s, namespace: default}
-spec:
-  nodeSelector: {coral.dev/robot: %(robot)s}
-  hostNetwork: true
-  terminationGracePeriodSeconds: 1
-  containers:
-  - name: main
-    image: coral/python:3.11-bookworm
-    command: [python, -c]
-    args:
-    - |
-      import http.server, pathlib, sys
-      pathlib.Path("/tmp/www").mkdir(exist_ok=True)
-      pathlib.Path("/tmp/www/ping").write_text("pong")
-      handler = lambda *a: http.server.SimpleHTTPRequestHandler(*a, directory="/tmp/www")
-      http.server.ThreadingHTTPServer(("", 8765), handler).serve_forever()
-"""
-FETCH = "import sys, urllib.request; print(urllib.request.urlopen(sys.argv[1], timeout=3).read().decode())"
-
-
 def _running(cluster: Cluster, name: str) -> None:
     wait_for(
         lambda: cluster.kubectl("get", "pod", name, "-o", "jsonpath={.status.phase}").stdout == "Running",
@@ -143,8 +136,9 @@ def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
     address = cluster.kubectl(
         "get", "node", node, "-o", 'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}'
     ).stdout
-    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "server", "robot": "relay-survey"})
-    cluster.kubectl("apply", "-f", "-", input=SERVER % {"name": "prober", "robot": "relay-worker"})
+    for name, robot in (("server", "relay-survey"), ("prober", "relay-worker")):
+        pod = _python_pod(name, robot, SERVE_PING, "Always", host_network=True)
+        cluster.kubectl("apply", "-f", "-", input=pod)
     _running(cluster, "server")
     _running(cluster, "prober")
 

@@ -42,11 +42,23 @@ WAIT_LONG = rs.mission_tree(
 )
 
 
-def _assert_unreachable_since_the_lease(
-    kind_operator: KindMissionStack, mission: Mission, node: str
-) -> dict[str, Any]:
+def _running(
+    kind_operator: KindMissionStack, name: str, domain: int, tree: str, active: str
+) -> tuple[Mission, dict[str, Any]]:
+    """The mission on `ROBOT` once its tree runs `active`, the robot reachable; with its pods."""
+    mission = Mission(kind_operator, ROBOT, name, domain, tree)
+    mission.running_in(active, timeout=300)
+    assert rs.condition(mission.instance(), "RobotReachable")["status"] == "True"
+    pods = mission.pods()
+    assert set(pods) == {rs.SKILLSET, "executor"}
+    return mission, pods
+
+
+def _assert_unreachable_with_its_pods(
+    kind_operator: KindMissionStack, mission: Mission, node: str, before: dict[str, Any]
+) -> None:
     """Waits for the Node to turn Unknown and the instance to say `RobotReachable=False` with the
-    Lease's last renewal as the robot's last-seen time; returns that instance."""
+    Lease's last renewal as the robot's last-seen time; the pods `before` still bound to it."""
     wait_for(
         lambda: ready(kind_operator.core, node) == "Unknown",
         timeout=120,
@@ -66,7 +78,10 @@ def _assert_unreachable_since_the_lease(
     condition = rs.condition(unreachable, "RobotReachable")
     assert condition["reason"] == "NodeUnreachable", condition
     assert f"last seen {last_seen}" in condition["message"], condition
-    return unreachable
+    # Neither the operator nor the cluster replaces the pods of a robot that is away.
+    for component, pod in mission.pods().items():
+        assert pod.metadata.uid == before[component].metadata.uid, component
+        assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
 
 
 def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_runs_the_tree_again(
@@ -74,19 +89,12 @@ def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_ru
 ) -> None:
     running = kind_cluster.running
     node = faults.node_of(running, ROBOT)
-    mission = Mission(kind_operator, ROBOT, "power", int(ros_env["ROS_DOMAIN_ID"]), SLEEP_THEN_WAIT)
-    mission.running_in("Sleep", timeout=300)
-    assert rs.condition(mission.instance(), "RobotReachable")["status"] == "True"
-    before = mission.pods()
-    assert set(before) == {rs.SKILLSET, "executor"}
+    domain = int(ros_env["ROS_DOMAIN_ID"])
+    mission, before = _running(kind_operator, "power", domain, SLEEP_THEN_WAIT, "Sleep")
 
     faults.cut_power(running, ROBOT)
     try:
-        _assert_unreachable_since_the_lease(kind_operator, mission, node)
-        # The pods stay bound to the robot: neither the operator nor the cluster replaces them.
-        for component, pod in mission.pods().items():
-            assert pod.metadata.uid == before[component].metadata.uid, component
-            assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
+        _assert_unreachable_with_its_pods(kind_operator, mission, node, before)
     finally:
         faults.restore_power(running, ROBOT)
 
@@ -116,18 +124,12 @@ def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_k
 ) -> None:
     running = kind_cluster.running
     node = faults.node_of(running, ROBOT)
-    mission = Mission(kind_operator, ROBOT, "patrol", int(ros_env["ROS_DOMAIN_ID"]), WAIT_LONG)
-    mission.running_in("WaitForCount", timeout=300)
-    assert rs.condition(mission.instance(), "RobotReachable")["status"] == "True"
-    before = mission.pods()
-    assert set(before) == {rs.SKILLSET, "executor"}
+    domain = int(ros_env["ROS_DOMAIN_ID"])
+    mission, before = _running(kind_operator, "patrol", domain, WAIT_LONG, "WaitForCount")
 
     faults.stop_kubelet(running, ROBOT)
     try:
-        _assert_unreachable_since_the_lease(kind_operator, mission, node)
-        for component, pod in mission.pods().items():
-            assert pod.metadata.uid == before[component].metadata.uid, component
-            assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
+        _assert_unreachable_with_its_pods(kind_operator, mission, node, before)
         # The containers never stopped: the robot's containerd still runs them while its kubelet is down.
         listed = crictl(running, ROBOT, "ps", "-q").split()
         for component, pod in before.items():
