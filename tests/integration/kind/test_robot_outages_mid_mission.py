@@ -84,6 +84,17 @@ def _assert_unreachable_with_its_pods(
         assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
 
 
+def _reachable_again(mission: Mission, timeout: float) -> dict[str, Any]:
+    """The instance once `RobotReachable=True` again, with no last-seen time left."""
+    back = wait_for(
+        lambda: mission.reachable("True"),
+        timeout=timeout,
+        message=lambda: f"RobotReachable=True again: {mission.instance()}",
+    )
+    assert "lastSeen" not in back["status"]["robot"], back["status"]["robot"]
+    return back
+
+
 def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_runs_the_tree_again(
     kind_cluster: KindCluster, kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
@@ -98,12 +109,7 @@ def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_ru
     finally:
         faults.restore_power(running, ROBOT)
 
-    back = wait_for(
-        lambda: mission.reachable("True"),
-        timeout=180,
-        message=lambda: f"RobotReachable=True after the boot: {mission.instance()}",
-    )
-    assert "lastSeen" not in back["status"]["robot"], back["status"]["robot"]
+    _reachable_again(mission, timeout=180)
     # The boot ended every container: the kubelet starts them again in the same pods, so the
     # executor runs the tree from its root (through the sleep again) to SUCCESS.
     done = wait_for(
@@ -137,12 +143,7 @@ def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_k
     finally:
         faults.start_kubelet(running, ROBOT)
 
-    back = wait_for(
-        lambda: mission.reachable("True"),
-        timeout=90,
-        message=lambda: f"RobotReachable=True again: {mission.instance()}",
-    )
-    assert "lastSeen" not in back["status"]["robot"], back["status"]["robot"]
+    back = _reachable_again(mission, timeout=90)
     assert rs.tree(back)["rootStatus"] == "RUNNING", rs.tree(back)
     for component, pod in mission.pods().items():
         assert pod.metadata.uid == before[component].metadata.uid, component
