@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes test-kind kind test-kind-setup
+.PHONY: demo demo-local demo-cluster test test-images venv control-plane node-runtime images verdict-tools lint crds bench bench-bt bench-calls bench-slam bench-fleet bench-writes kind test-kind-setup
 
 $(STAMP): pyproject.toml setup.py constraints.txt
 	@echo "==> Creating $(VENV) and installing the project with its robot and test extras (first run: about 1-2 min)"
@@ -84,11 +84,6 @@ lint: venv
 crds: venv
 	@$(PY) hack/generate-crds.py
 	@$(PY) hack/render-manifest.py
-
-test-kind: venv
-	@command -v kind >/dev/null || { echo "kind is not installed"; exit 1; }
-	kind create cluster --name coral --config tests/kind/cluster.yaml
-	KUBECONFIG=$$(mktemp) && kind get kubeconfig --name coral > $$KUBECONFIG && KUBECONFIG=$$KUBECONFIG $(PY) -m pytest; rc=$$?; kind delete cluster --name coral; exit $$rc
 
 bench: bench-bt bench-calls bench-slam bench-fleet bench-writes
 

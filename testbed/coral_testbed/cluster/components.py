@@ -17,7 +17,7 @@ SERVICE_CIDR = "10.96.0.0/16"
 # The `kubernetes` Service's address (the first of SERVICE_CIDR), in the API server's certificate.
 KUBERNETES_SERVICE_IP = "10.96.0.1"
 # kwok hands out pod IPs from this CIDR starting at its address, so it starts at .1. It avoids
-# kind's pod subnet (10.244.0.0/16), where kwok also runs in `make test-kind`.
+# kind's pod subnet (10.244.0.0/16), where kwok also runs against a kind cluster given by KUBECONFIG.
 POD_CIDR = "10.250.0.1/16"
 SERVICE_ACCOUNT_ISSUER = "https://kubernetes.default.svc.cluster.local"
 # kwok manages Nodes carrying this label with the "online" value. A label rather than an annotation:

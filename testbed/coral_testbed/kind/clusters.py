@@ -55,6 +55,8 @@ class ClusterSpec:
     """HOST:PORT of the registry on the cluster's network gateway."""
     extra_workers: dict[str, dict[str, str]] = field(default_factory=dict)
     """Non-robot workers (the operator's node, say): name -> labels."""
+    robot_mounts: dict[str, str] = field(default_factory=dict)
+    """Path in every robot's node -> the host folder bound there: a site share all robots see."""
 
 
 def build_config(spec: ClusterSpec) -> str:
@@ -65,8 +67,12 @@ def build_config(spec: ClusterSpec) -> str:
         for host in ("docker.io", "coral.local", spec.registry_address)
     )
     nodes: list[dict[str, object]] = [{"role": "control-plane"}]
+    mounts = [{"hostPath": host, "containerPath": path} for path, host in sorted(spec.robot_mounts.items())]
     for robot, labels in spec.robots.items():
-        nodes.append({"role": "worker", "labels": {**labels, ROBOT_LABEL: robot}})
+        node: dict[str, object] = {"role": "worker", "labels": {**labels, ROBOT_LABEL: robot}}
+        if mounts:
+            node["extraMounts"] = mounts
+        nodes.append(node)
     for labels in spec.extra_workers.values():
         nodes.append({"role": "worker", "labels": dict(labels)})
     config = {
@@ -183,8 +189,10 @@ def create(
     node_image: str,
     progress: Callable[[str], None],
     extra_workers: dict[str, dict[str, str]] | None = None,
+    robot_mounts: dict[str, str] | None = None,
 ) -> Running:
     """Creates the kind cluster `name` with one worker per robot and waits until every node is Ready.
+    `robot_mounts` (path in the node -> host folder) are bound into every robot's node.
 
     Raises:
         ClusterError, engine.EngineError: naming the step and the log to read.
@@ -195,7 +203,7 @@ def create(
     subnet = create_network(node_engine, name)
     address = start_registry(name, subnet)
     progress(f"registry for the cluster's nodes on {address} (the network {network_name(name)}'s gateway)")
-    spec = ClusterSpec(name, robots, node_image, address, extra_workers or {})
+    spec = ClusterSpec(name, robots, node_image, address, extra_workers or {}, robot_mounts or {})
     config = folder / "kind-config.json"
     config.write_text(build_config(spec))
     kubeconfig = folder / "kubeconfig"

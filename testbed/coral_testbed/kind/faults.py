@@ -80,3 +80,15 @@ def restore_link(running: clusters.Running, robot: str) -> None:
 def power_cycle(running: clusters.Running, robot: str) -> None:
     """Restarts the robot's node container: every process in it starts again from boot."""
     running.engine.docker("restart", node_of(running, robot), timeout=180)
+
+
+def cut_power(running: clusters.Running, robot: str) -> None:
+    """SIGKILL to the robot's node container, as pulling its plug: no shutdown, every process gone.
+    The container (its disk) stays, so `restore_power` boots the same robot again."""
+    running.engine.docker("kill", node_of(running, robot), timeout=60)
+
+
+def restore_power(running: clusters.Running, robot: str) -> None:
+    """Boots the robot's node container that `cut_power` stopped."""
+    # The Node keeps its name and label while the container is down, so it is still found by them.
+    running.engine.docker("start", node_of(running, robot), timeout=180)

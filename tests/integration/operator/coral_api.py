@@ -1,9 +1,11 @@
-"""Small readers and writers of coral.dev objects and pods for the operator's integration tests."""
+"""Small readers and writers of coral.dev objects and pods for the operator's integration tests.
+
+`client_with_token` and `denied` live in fixtures.apiclients (the kind tests use them too).
+"""
 
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +13,8 @@ import yaml
 from coral_core import names
 from coral_core.names import GROUP, VERSION
 from coral_operator.planning.naming import EXECUTOR_ACCOUNT_PREFIX
+from fixtures.apiclients import client_with_token
+from fixtures.apiclients import denied as denied  # re-exported: the operator tests read it from here
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
@@ -42,26 +46,6 @@ def client_as(cluster: Any, namespace: str, account: str, pod: k8s.V1Pod | None 
         "create", "token", account, "-n", namespace, "--duration=10m", *bound
     ).stdout.strip()
     return client_with_token(cluster, token)
-
-
-def client_with_token(cluster: Any, token: str) -> k8s.ApiClient:
-    """An API client of the cluster's API server presenting `token` as its bearer token."""
-    base = cluster.api_client.configuration
-    configuration = k8s.Configuration()
-    configuration.host = base.host
-    configuration.ssl_ca_cert = base.ssl_ca_cert
-    configuration.verify_ssl = base.verify_ssl
-    configuration.api_key = {"authorization": f"Bearer {token}"}
-    return k8s.ApiClient(configuration)
-
-
-def denied(call: Callable[[], Any]) -> bool:
-    """Whether the API server refuses `call` as forbidden (403); another API error is not a refusal."""
-    try:
-        call()
-    except ApiException as error:
-        return error.status == 403
-    return False
 
 
 def executor_pod(cluster: Any, namespace: str, instance: str) -> k8s.V1Pod:

@@ -44,6 +44,13 @@ def test_a_non_robot_worker_carries_only_its_own_labels() -> None:
     assert config["nodes"][-1] == {"role": "worker", "labels": {"coral.dev/operator-node": "true"}}
 
 
+def test_a_site_share_is_bound_into_every_robot_and_no_other_node() -> None:
+    spec = _spec(robot_mounts={"/srv/maps": "/tmp/share"}, extra_workers={"ops": {}})
+    nodes = yaml.safe_load(clusters.build_config(spec))["nodes"]
+    share = [{"hostPath": "/tmp/share", "containerPath": "/srv/maps"}]
+    assert [node.get("extraMounts") for node in nodes] == [None, share, share, None]
+
+
 def test_docker_hub_names_and_coral_local_pull_from_the_clusters_registry() -> None:
     patch = yaml.safe_load(clusters.build_config(_spec()))["containerdConfigPatches"][0]
     for host in ("docker.io", "coral.local", "10.89.0.1:5000"):

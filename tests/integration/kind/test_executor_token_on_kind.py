@@ -1,22 +1,24 @@
-"""The token the kubelet projects into a real executor container may patch its own CoralInstance's
-status and nothing else: no other instance, no pods, no secrets, no CoralSystems."""
+"""The token a kind robot's kubelet projects into a real executor container may patch its own
+CoralInstance's status and nothing else: no other instance, no pods, no secrets, no CoralSystems."""
 
 from __future__ import annotations
 
 import base64
 import json
-from collections.abc import Callable
 from typing import Any
 
 import pytest
-from coral_api import GROUP, VERSION, Coral, client_with_token, denied, fleet_mission, is_current_and_true
+from coral_core.names import GROUP, VERSION
 from coral_operator.planning.pods import SERVICE_ACCOUNT_DIR
-from coral_testbed.cluster import realrobots
-from fixtures.operator import HelmOperator
-from fixtures.robots import REAL_ROBOTS
+from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.waiting import wait_for
+from fixtures.apiclients import client_with_token, denied
 from kubernetes import client as k8s
+from missions import realsystems as rs
 
-pytestmark = [pytest.mark.cluster, pytest.mark.real_robots, pytest.mark.slow]
+from .fleet import ROBOTS
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 
 MERGE = "application/merge-patch+json"
 # An executor with nothing to wait for: its tree sleeps while the test borrows its token.
@@ -26,13 +28,14 @@ GUARD_TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
 """
 
 
-def _guard_system(robot: str) -> dict[str, Any]:
+def _guard_system() -> dict[str, Any]:
+    """An executor on every kind robot: one CoralInstance each."""
     return {
         "apiVersion": f"{GROUP}/{VERSION}",
         "kind": "CoralSystem",
         "metadata": {"name": "guard"},
         "spec": {
-            "robots": {"matchLabels": {"coral.dev/robot": robot}},
+            "robots": {"matchLabels": {"coral.dev/model": "kind"}},
             "parameters": {"inline": "executor:\n  ros__parameters: {}\n"},
             "tree": {"inline": GUARD_TREE, "tickRateHz": 5.0},
             "executors": [{"name": "executor", "image": "coral/executor:0.1.0"}],
@@ -46,38 +49,32 @@ def _claims(token: str) -> dict[str, Any]:
 
 
 def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
-    cluster: Any,
-    namespace: str,
-    helm_operator: HelmOperator,
-    real_robots: realrobots.RealRobots,
-    robots: Callable[..., list[str]],
-    fleet_label: str,
-    wait: Any,
+    kind_operator: KindMissionStack,
 ) -> None:
-    robot = REAL_ROBOTS[0]
-    coral = Coral(cluster.api_client, namespace)
-    core = k8s.CoreV1Api(cluster.api_client)
-    robots(1, {"fleet": fleet_label})
-    coral.create_system(fleet_mission("fleet", fleet_label))
-    coral.create_system(_guard_system(robot))
-    wait(lambda: is_current_and_true(coral.system("fleet"), "Ready"), "the kwok system to become Ready")
+    robot, other_robot = sorted(ROBOTS)[:2]
+    namespace, cluster = kind_operator.namespace, kind_operator.cluster
+    core, custom_admin = kind_operator.core, kind_operator.custom
+    rs.create(custom_admin, namespace, _guard_system())
 
     def running_executor() -> k8s.V1Pod | None:
         pods = core.list_namespaced_pod(
-            namespace, label_selector="coral.dev/system=guard,coral.dev/role=executor"
+            namespace,
+            label_selector=f"coral.dev/system=guard,coral.dev/role=executor,coral.dev/robot={robot}",
         ).items
         return next((p for p in pods if p.status.phase == "Running"), None)
 
-    pod = wait(running_executor, "the guard's executor container to run", timeout=180)
-    mine = f"guard-{robot}"
-    wait(
-        lambda: (
-            ((coral.instances().get(mine) or {}).get("status") or {}).get("tree", {}).get("rootStatus")
-            == "RUNNING"
-        ),
-        "the executor's own tree status on its instance",
+    pod = wait_for(running_executor, timeout=180, message="the guard's executor container to run")
+
+    def root_status(robot: str) -> str | None:
+        return rs.tree(kind_operator.instance_of(robot) or {}).get("rootStatus")
+
+    wait_for(
+        lambda: root_status(robot) == "RUNNING" and root_status(other_robot) == "RUNNING",
         timeout=120,
+        message=lambda: f"the executors' own tree status on their instances: {kind_operator.instances()}",
     )
+    mine = kind_operator.instance_of(robot)["metadata"]["name"]
+    other = kind_operator.instance_of(other_robot)["metadata"]["name"]
     token = cluster.kubectl(
         "exec", "-n", namespace, pod.metadata.name, "-c", "executor", "--",
         "cat", f"{SERVICE_ACCOUNT_DIR}/token",
@@ -95,7 +92,6 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
         GROUP, VERSION, namespace, "coralinstances", mine,
         {"status": {"tree": {"rootStatus": "RUNNING"}}}, _content_type=MERGE,
     )  # fmt: skip
-    other = next(name for name in coral.instances() if name != mine)
     refused = {
         "another instance's status": lambda: custom.patch_namespaced_custom_object_status(
             GROUP, VERSION, namespace, "coralinstances", other,
@@ -118,5 +114,5 @@ def test_the_executors_projected_token_patches_its_own_status_and_nothing_else(
     }  # fmt: skip
     allowed = [what for what, call in refused.items() if not denied(call)]
     assert not allowed, f"the executor's token was not refused: {allowed}"
-    assert (coral.instances()[other].get("status") or {}).get("tree") is None
+    assert root_status(other_robot) == "RUNNING"
     assert "x" not in core.read_namespaced_pod(pod.metadata.name, namespace).metadata.labels

@@ -1,15 +1,12 @@
-"""The relay mission across three real robots, each in its own network namespace on the bridge.
+"""The relay mission across three kind robots, each its own node container on the cluster's network.
 
 The survey robot maps the bag with SLAM, saves the map on the site share and hands it to the
 server, which relays it to the worker, which loads it. Executors run on the host network of their
-own robot, so DDS between them crosses the robots' links. The share is the server's `/srv/maps`,
-mounted at the same path in the survey's and the worker's mount views (an NFS mount on a real
-site). With the server's link cut, the survey's `TriggerRemote` and the worker's
-`WaitForRemoteTrigger` time out and their Fallback branches run; with the link restored the next
-mission passes.
-
-The robots are this module's own (named as in the example), removed at the end of the module,
-which fails if any of their processes, mounts, network namespaces, links or cgroups is left.
+own robot (its node container's), so DDS between them crosses the kind network. The share is a
+host folder bound at `/srv/maps` into every robot's node (`kind_cluster`), as an NFS mount is on a
+real site. With the server's link cut (`docker network disconnect`), the survey's `TriggerRemote`
+and the worker's `WaitForRemoteTrigger` time out and their Fallback branches run; with the link
+restored the next mission passes.
 """
 
 from __future__ import annotations
@@ -19,94 +16,78 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import MissionView, following, manifests
-from coral_testbed.missions.stack import operator_policy
+from coral.lidar import generating
+from coral_testbed.kind import faults
+from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
-from fixtures.operator import HelmOperator
 from kubernetes import client as k8s
+from missions.conftest import TEST_SCANS, wait_finished
 
-from .conftest import wait_finished
+from .fleet import KindCluster
 
-pytestmark = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.ros, pytest.mark.real_robots]
+pytestmark = [pytest.mark.slow, pytest.mark.ros]
 
 SURVEY, SERVER, WORKER = manifests.RELAY_ROBOTS
 
 
 @pytest.fixture(scope="module")
-def relay_robots(cluster: Cluster, operator_node: str, short_bag: Path) -> Iterator[Path]:
-    """The example's three robots, started as real robots with the bag on the survey robot and the
-    server's site share mounted on the other two; yields where the share is on this machine."""
-    fleet = cluster.robots
-    names = list(manifests.RELAY_ROBOTS)
-    fleet.add(names)
-    layouts = [fleet.layout(name) for name in names]
-    try:
-        view = MissionView(cluster, "default")
-        view.place_bag(SURVEY, short_bag / "bag", manifests.SURVEY_BAG)
-        yield view.share_folder(SERVER, [SURVEY, WORKER])
-    finally:
-        fleet.remove(names)
-        left = realrobots.robot_leftovers(layouts)
-        assert not left, f"the relay robots left behind: {left}"
-
-
-@pytest.fixture
-def helm_policy(namespace: str) -> dict[str, tuple[str, ...]]:
-    """The missions' policy: the host network, and the bags and the site share as host paths."""
-    return operator_policy(namespace)
+def survey_bag(kind_missions: KindMissionStack) -> None:
+    """The short bag on the survey robot, where the mission's bag player reads it."""
+    bag = generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
+    kind_missions.place_bag(SURVEY, bag / "bag", manifests.SURVEY_BAG)
 
 
 @pytest.fixture
 def relay(
-    mission: MissionView, relay_robots: Path, helm_operator: HelmOperator
-) -> Iterator[tuple[MissionView, Path]]:
-    """The mission view and the share, emptied; the test's systems and pods are gone afterwards."""
-    for stale in relay_robots.iterdir():
+    kind_cluster: KindCluster, kind_operator: KindMissionStack, survey_bag: None
+) -> Iterator[tuple[KindMissionStack, Path]]:
+    """The mission view and the share, emptied (the test's systems go with `kind_operator`)."""
+    for stale in kind_cluster.share.iterdir():
         stale.unlink()
-    yield mission, relay_robots
-    mission.delete_systems(timeout=120)
+    yield kind_operator, kind_cluster.share
 
 
 def _mission(domain: int) -> str:
     return manifests.with_domain(manifests.RELAY_MISSION.read_text(), domain)
 
 
-def _wait(view: MissionView, operator: HelmOperator, robots: list[str]) -> dict[str, dict[str, Any]]:
-    return wait_finished(view, robots, timeout=300, operator_log=operator.logs)
+def _wait(view: KindMissionStack, robots: list[str]) -> dict[str, dict[str, Any]]:
+    return wait_finished(view, robots, timeout=300, operator_log=view.operator_log_tail)
 
 
-def _assert_relayed(view: MissionView, instances: dict[str, dict[str, Any]], share: Path) -> None:
+def _assert_relayed(view: KindMissionStack, instances: dict[str, dict[str, Any]], share: Path) -> None:
     roots = {robot: following.tree(i).get("rootStatus") for robot, i in instances.items()}
     assert roots == {SURVEY: "SUCCESS", SERVER: "SUCCESS", WORKER: "SUCCESS"}, roots
     # No fallback was needed: no remote trigger timed out anywhere.
     for robot, instance in instances.items():
         failure = following.tree(instance).get("lastFailure") or {}
         assert "Remote" not in failure.get("path", ""), (robot, failure)
-    # The survey's container wrote the map into its /srv/maps: the server's folder.
+    # The survey's container wrote the map into its /srv/maps: the share every robot sees.
     assert (share / "survey_map.ply").is_file(), sorted(p.name for p in share.iterdir())
     localizer = view.log_tail(WORKER, "localizer", chars=20000)
     assert "Loaded map of" in localizer and "survey_map.ply" in localizer, localizer
 
 
-@pytest.mark.timeout(600)
-def test_relay_mission_runs_to_success_across_three_real_robots(
-    cluster: Cluster,
-    relay: tuple[MissionView, Path],
-    helm_operator: HelmOperator,
-    ros_env: dict[str, str],
+@pytest.mark.timeout(900)
+def test_relay_mission_runs_to_success_across_three_kind_robots(
+    relay: tuple[KindMissionStack, Path], ros_env: dict[str, str]
 ) -> None:
     view, share = relay
     view.apply(_mission(int(ros_env["ROS_DOMAIN_ID"])))
-    instances = _wait(view, helm_operator, list(manifests.RELAY_ROBOTS))
+    instances = _wait(view, list(manifests.RELAY_ROBOTS))
     _assert_relayed(view, instances, share)
-    table = cluster.kubectl("get", "coralinstances", "-n", view.namespace).stdout
+    table = view.cluster.kubectl("get", "coralinstances", "-n", view.namespace).stdout
     assert sum("SUCCESS" in line.split() for line in table.splitlines()) == 3, table
     # Each executor ran on its own robot, on that robot's network.
     executors = view.core.list_namespaced_pod(view.namespace, label_selector="coral.dev/role=executor").items
-    assert {p.spec.node_name for p in executors} == set(manifests.RELAY_ROBOTS)
-    fleet = cluster.robots
-    assert all(p.spec.host_network and p.status.pod_ip == fleet.address(p.spec.node_name) for p in executors)
+    nodes = {p.spec.node_name: view.core.read_node(p.spec.node_name) for p in executors}
+    assert {n.metadata.labels["coral.dev/robot"] for n in nodes.values()} == set(manifests.RELAY_ROBOTS)
+    for pod in executors:
+        internal = next(
+            a.address for a in nodes[pod.spec.node_name].status.addresses if a.type == "InternalIP"
+        )
+        assert pod.spec.host_network and pod.status.pod_ip == internal, (pod.metadata.name, internal)
 
     # Each mission is over for good: every executor exits 0 once and is not started again.
     def current() -> list[k8s.V1Pod]:
@@ -126,15 +107,11 @@ def test_relay_mission_runs_to_success_across_three_real_robots(
     assert not restarted, f"{restarted}\n{logs()}"
 
 
-@pytest.mark.timeout(900)
+@pytest.mark.timeout(1200)
 def test_cut_link_times_out_remote_triggers_into_fallbacks_and_restore_lets_the_next_mission_pass(
-    cluster: Cluster,
-    relay: tuple[MissionView, Path],
-    helm_operator: HelmOperator,
-    ros_env: dict[str, str],
+    kind_cluster: KindCluster, relay: tuple[KindMissionStack, Path], ros_env: dict[str, str]
 ) -> None:
     view, share = relay
-    fleet = cluster.robots
     domain = int(ros_env["ROS_DOMAIN_ID"])
     # The worker would wait 240 s for the server; a shorter wait keeps the test short.
     view.apply(manifests.with_timeout(_mission(domain), "start_inspection", 40000))
@@ -143,9 +120,9 @@ def test_cut_link_times_out_remote_triggers_into_fallbacks_and_restore_lets_the_
         return following.tree(view.instance_of(SERVER) or {}).get("rootStatus") == "RUNNING"
 
     wait_for(server_waiting, timeout=240, message=lambda: f"server tree RUNNING: {view.instance_of(SERVER)}")
-    fleet.cut_link(SERVER)
+    faults.cut_link(kind_cluster.running, SERVER)
     try:
-        instances = _wait(view, helm_operator, [SURVEY, WORKER])
+        instances = _wait(view, [SURVEY, WORKER])
         for robot, waiting_node in ((SURVEY, "TriggerRemote"), (WORKER, "WaitForRemoteTrigger")):
             tree = following.tree(instances[robot])
             # The Fallback turned the timeout into SUCCESS through its other branch.
@@ -156,7 +133,7 @@ def test_cut_link_times_out_remote_triggers_into_fallbacks_and_restore_lets_the_
         assert "Loaded map" not in view.log_tail(WORKER, "localizer", chars=20000)
         assert "did not arrive in time" in view.log_tail(WORKER, "executor", chars=200000)
     finally:
-        fleet.restore_link(SERVER)
+        faults.restore_link(kind_cluster.running, SERVER)
 
     def server_back() -> bool:
         instance = view.instance_of(SERVER) or {}
@@ -171,5 +148,5 @@ def test_cut_link_times_out_remote_triggers_into_fallbacks_and_restore_lets_the_
     view.delete_systems(timeout=120)
     (share / "survey_map.ply").unlink(missing_ok=True)
     view.apply(_mission(domain))
-    instances = _wait(view, helm_operator, list(manifests.RELAY_ROBOTS))
+    instances = _wait(view, list(manifests.RELAY_ROBOTS))
     _assert_relayed(view, instances, share)

@@ -1,0 +1,114 @@
+"""One kind cluster for every test of this folder: three robot workers and the operator's node.
+
+`kind_cluster` creates it once, the way `coral dev-cluster kind up` does, and deletes it after the
+folder's last test; then nothing may be left (no container, network, registry, the project's
+dockerd, mount or cgroup; the host's ip_forward and iptables as before). `kind_missions` is the
+operator installed on it by its Helm chart, serving one namespace, with the mission images in the
+cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
+skip, with the reason, where kind cannot run.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from coral_core.component_image import COMPONENT_UID
+from coral_testbed import images
+from coral_testbed.cluster import binaries, operatorchart
+from coral_testbed.cluster.client import Cluster
+from coral_testbed.images import registry
+from coral_testbed.kind import clusters, engine, provisioning
+from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.missions import manifests, stack
+
+from .fleet import MISSIONS_NAMESPACE, NAME, ROBOTS, KindCluster
+
+
+def _host_network_state() -> tuple[str, str]:
+    forwarding = Path("/proc/sys/net/ipv4/ip_forward").read_text().strip()
+    rules = subprocess.run(["iptables-save"], capture_output=True, text=True).stdout
+    # iptables-save stamps each dump with the time; only the rules matter.
+    return forwarding, "\n".join(line for line in rules.splitlines() if not line.startswith("#"))
+
+
+def _mounts_under(folder: Path) -> list[str]:
+    return [line for line in Path("/proc/mounts").read_text().splitlines() if str(folder) in line]
+
+
+def _assert_nothing_left(node_engine: engine.Engine, engine_started_here: bool) -> None:
+    assert not registry.recorded_addresses(clusters.state_dir(NAME)), "the cluster's registry still runs"
+    if engine_started_here:
+        assert not node_engine.is_serving(), "the project's dockerd still runs"
+        assert not _mounts_under(engine.engine_dir()), "mounts of the project's dockerd are left"
+        assert not engine.leftover_cgroups(), "cgroups of the project's dockerd are left"
+    else:
+        assert not node_engine.containers(f"{clusters.KIND_CLUSTER_LABEL}={NAME}")
+        networks = node_engine.docker("network", "ls", "--format", "{{.Name}}").stdout.split()
+        assert clusters.network_name(NAME) not in networks
+
+
+@pytest.fixture(scope="package")
+def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindCluster]:
+    """The cluster, with the python image in its registry and a site share on every robot (a host
+    folder, as an NFS mount would be on a site); everything gone afterwards."""
+    reason = provisioning.unsupported_reason()
+    if reason:
+        pytest.skip(reason)
+    host_before = _host_network_state()
+    engine_was_running = engine.project_engine_running()
+    ready = provisioning.ensure(print)
+    started_here = ready.engine.owned and not engine_was_running
+    share = tmp_path_factory.mktemp("site-share")
+    # The components run as their own user and write the share, as on a site's NFS export.
+    os.chown(share, COMPONENT_UID, COMPONENT_UID)
+    try:
+        running = clusters.create(
+            NAME,
+            ROBOTS,
+            ready.engine,
+            ready.node_image,
+            print,
+            extra_workers={stack.OPERATOR_NODE: {operatorchart.OPERATOR_NODE_LABEL: "true"}},
+            robot_mounts={manifests.SITE_SHARE: str(share)},
+        )
+        images.build(["python"], registry_address=running.registry_address)
+        cluster = Cluster(running.kubeconfig, binaries.find_bin_dir(("kubectl", "helm")), is_local=False)
+        try:
+            yield KindCluster(running, cluster, share)
+        finally:
+            cluster.close()
+    finally:
+        clusters.delete(NAME, ready.engine, print)
+        if started_here:
+            engine.stop()
+    _assert_nothing_left(ready.engine, started_here)
+    assert _host_network_state() == host_before, "the host's ip_forward or iptables changed"
+
+
+@pytest.fixture(scope="package")
+def kind_missions(
+    kind_cluster: KindCluster, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[KindMissionStack]:
+    """The operator from its chart on the operator's node, serving `MISSIONS_NAMESPACE`, with the
+    mission images in the cluster's registry; uninstalled with its namespace afterwards."""
+    with KindMissionStack(
+        kind_cluster.running,
+        kind_cluster.cluster,
+        MISSIONS_NAMESPACE,
+        list(ROBOTS),
+        tmp_path_factory.mktemp("kind-missions"),
+        print,
+    ) as missions:
+        yield missions
+
+
+@pytest.fixture
+def kind_operator(kind_missions: KindMissionStack) -> Iterator[KindMissionStack]:
+    """`kind_missions` for one test: the CoralSystems it made are deleted afterwards, and their
+    pods gone, so the robots are free for the next test (also when this one failed)."""
+    yield kind_missions
+    kind_missions.delete_systems()

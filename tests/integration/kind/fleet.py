@@ -1,0 +1,85 @@
+"""What the kind tests of this folder share: the cluster's name, its robots, its handle, and a
+mission on one robot read as a user would."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from coral_testbed.cluster.client import Cluster
+from coral_testbed.kind import clusters, faults
+from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.missions import manifests
+from coral_testbed.waiting import wait_for
+from kubernetes import client as k8s
+from missions import realsystems as rs
+
+NAME = "coral-test"
+ROBOTS = {name: {"coral.dev/model": "kind"} for name in manifests.RELAY_ROBOTS}
+"""The relay example's three robots; the other tests use them too."""
+MISSIONS_NAMESPACE = "kind-missions"
+"""Where `kind_missions`' operator serves the tests' CoralSystems."""
+
+
+@dataclass(frozen=True)
+class KindCluster:
+    running: clusters.Running
+    cluster: Cluster
+    """kubectl, helm and the API client against the kind cluster."""
+    share: Path
+    """The host folder bound at the site share's path into every robot's node."""
+
+
+def ready(core: k8s.CoreV1Api, node: str) -> str:
+    """The Node's Ready status: True, False or Unknown (its kubelet not heard from)."""
+    conditions = core.read_node(node).status.conditions or []
+    return next((c.status for c in conditions if c.type == "Ready"), "")
+
+
+class Mission:
+    """One CoralSystem of `realsystems` on `robot`, in the namespace `missions`' operator serves,
+    read as a user would (`kubectl get coralinstance`, `kubectl get pods`, `kubectl logs`)."""
+
+    def __init__(
+        self, missions: KindMissionStack, robot: str, name: str, domain: int, tree: str, **spec: Any
+    ) -> None:
+        self.missions = missions
+        self.robot = robot
+        self.name = name
+        rs.create(missions.custom, missions.namespace, rs.system(name, robot, domain, tree, **spec))
+
+    def instance(self) -> dict[str, Any]:
+        return rs.instance(self.missions.custom, self.missions.namespace, self.name)
+
+    def with_root(self, *roots: str) -> dict[str, Any]:
+        return rs.with_root(self.missions.custom, self.missions.namespace, self.name, *roots)
+
+    def reachable(self, status: str) -> dict[str, Any]:
+        """The instance once `RobotReachable` has `status`, else {}."""
+        item = self.instance()
+        return item if rs.condition(item, "RobotReachable").get("status") == status else {}
+
+    def pods(self, component: str | None = None) -> dict[str, Any]:
+        """Component -> its pod."""
+        listed = rs.pods(self.missions.core, self.missions.namespace, self.name, component)
+        return {p.metadata.labels["coral.dev/component"]: p for p in listed}
+
+    def running_in(self, node_name: str, timeout: float) -> dict[str, Any]:
+        """Waits until the tree's active path goes through `node_name`; the instance then."""
+        return wait_for(
+            lambda: (i := self.instance()) and node_name in rs.tree(i).get("activePath", "") and i,
+            timeout=timeout,
+            message=lambda: f"the tree to run {node_name}: {self.instance()}\n{self.logs()}",
+        )
+
+    def logs(self) -> str:
+        return (
+            f"--- operator:\n{self.missions.operator_log_tail()}\n"
+            f"--- executor:\n{self.missions.log_tail(self.robot, 'executor')}"
+        )
+
+
+def crictl(running: clusters.Running, robot: str, *args: str) -> str:
+    """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
+    return running.engine.docker("exec", faults.node_of(running, robot), "crictl", *args).stdout
