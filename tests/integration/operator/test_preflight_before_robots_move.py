@@ -28,11 +28,11 @@ from coral_api import condition, is_current_and_true
 from coral_core.image_exports import EXPORTS_LABEL, DeclaredBehavior, ImageExports
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
-from coral_operator.planning import preflight, system_pass
+from coral_operator.planning import preflight
 from coral_operator.planning.observed import RobotNode
-from coral_operator.planning.policy import Policy
 from coral_operator.reconcile.declarations import ImageDeclarations
 from coral_testbed.images import registry
+from fixtures.system_passes import plan_system_pass
 from scenarios import Scenario
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
@@ -261,22 +261,7 @@ def test_a_hundred_robots_on_five_images_preflight_in_under_five_seconds(preflig
     for _ in range(2):
         started = time.monotonic()
         table = declarations.read(preflight.images_to_read(parsed))
-        plan = system_pass.plan_system(
-            system_pass.SystemObservation(
-                system=record,
-                spec=parsed,
-                tree=(parsed.tree.inline or "", "tree"),
-                parameters=(parsed.parameters.inline or "", "params"),
-                robots=robots,
-                instances=[],
-                stored_revisions=[],
-                expected={},
-                previous_rollout=None,
-                policy=Policy(host_network_namespaces=frozenset({"*"})),
-                now=datetime.now(UTC),
-                images=table,
-            )
-        )
+        plan = plan_system_pass(record, spec, robots, now=datetime.now(UTC), images=table)
         timings.append(time.monotonic() - started)
         assert plan.problem is None and len(plan.changes.create) == 100 and plan.preflight_notes == []
     assert declarations.labels.reads == 5

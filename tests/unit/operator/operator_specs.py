@@ -13,8 +13,8 @@ from coral_operator.kube import observing
 from coral_operator.planning import instances, pods, preflight, system_pass
 from coral_operator.planning import startup as startup_planning
 from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
-from coral_operator.planning.policy import Policy
 from coral_operator.status import instance_status
+from fixtures.system_passes import plan_system_pass
 
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
@@ -147,21 +147,14 @@ def plan_pass(
         "generation": 1,
         "annotations": annotations,
     }
-    record = observing.system_record({"metadata": metadata, "spec": spec})
-    parsed = CoralSystemSpec.model_validate(spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            spec=parsed,
-            tree=(parsed.tree.inline or "", "tree"),
-            parameters=(parsed.parameters.inline or "", "params"),
-            robots=robots,
-            instances=instances or [],
-            stored_revisions=stored or [],
-            expected=expected or {},
-            previous_rollout=previous_rollout,
-            policy=Policy(host_network_namespaces=frozenset({"*"})),
-            now=NOW,
-            images=images or preflight.ImageTable(),
-        )
+    return plan_system_pass(
+        observing.system_record({"metadata": metadata, "spec": spec}),
+        spec,
+        robots,
+        now=NOW,
+        instances=instances,
+        stored=stored,
+        expected=expected,
+        previous_rollout=previous_rollout,
+        images=images,
     )

@@ -18,9 +18,9 @@ import yaml
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
 from coral_operator.planning import budgets, system_pass
-from coral_operator.planning.observed import RobotNode
 from coral_operator.planning.policy import Policy
 from coral_operator.status.conditions import Reason
+from fixtures.system_passes import fleet_robots, plan_system_pass
 from pydantic import ValidationError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -47,27 +47,13 @@ def _record(name: str, spec: dict[str, Any], created: str = "2026-01-01T00:00:00
 def _plan(
     record: Any, robots: int, neighbours: list[budgets.Footprint] | None = None
 ) -> system_pass.SystemPlan:
-    nodes = [
-        RobotNode(node_name=f"n{i}", robot=f"r{i}", labels={"fleet": "f"}, ready=True) for i in range(robots)
-    ]
-    spec = CoralSystemSpec.model_validate(record.spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            spec=spec,
-            tree=(spec.tree.inline or "", "tree"),
-            parameters=(spec.parameters.inline or "", "params"),
-            robots=nodes,
-            instances=[],
-            stored_revisions=[],
-            expected={},
-            previous_rollout=None,
-            policy=Policy(
-                host_network_namespaces=frozenset({"*"}), host_paths=(("*", "/var/lib/coral/bags"),)
-            ),
-            now=datetime(2026, 1, 1, tzinfo=UTC),
-            neighbours=neighbours or [],
-        )
+    return plan_system_pass(
+        record,
+        record.spec,
+        fleet_robots(robots),
+        now=datetime(2026, 1, 1, tzinfo=UTC),
+        policy=Policy(host_network_namespaces=frozenset({"*"}), host_paths=(("*", "/var/lib/coral/bags"),)),
+        neighbours=neighbours,
     )
 
 

@@ -16,15 +16,16 @@ import pytest
 import yaml
 from coral_core import names
 from coral_operator.api.rollout import PrePullStatus, PullFailure, RolloutStatus
-from coral_operator.api.system import CoralSystemSpec, PrePullSpec, RolloutSpec
+from coral_operator.api.system import PrePullSpec, RolloutSpec
 from coral_operator.kube import observing
 from coral_operator.planning import prepull, system_pass
-from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
+from coral_operator.planning.observed import ObservedInstance, ObservedPod
 from coral_operator.planning.policy import Policy
 from coral_operator.planning.prepull import PullingRobot
 from coral_operator.planning.pull_state import PULL_COMMAND, PULL_ROLE, Pull, PullState, read_pull
 from coral_operator.planning.rollout import RobotView, RolloutRequest, plan_rollout
 from coral_operator.rollout_control import describe
+from fixtures.system_passes import fleet_robots, plan_system_pass
 
 NOW = datetime(2026, 1, 1, 12, 0, tzinfo=UTC)
 OLD, NEW = "old0000000", "new0000000"
@@ -327,25 +328,8 @@ def system_pass_of(
     record = observing.system_record(
         {"metadata": {"name": "fleet", "namespace": "ns", "uid": "u-fleet"}, "spec": spec}
     )
-    parsed = CoralSystemSpec.model_validate(spec)
-    return system_pass.plan_system(
-        system_pass.SystemObservation(
-            system=record,
-            spec=parsed,
-            tree=(parsed.tree.inline or "", "tree"),
-            parameters=(parsed.parameters.inline or "", "params"),
-            robots=[
-                RobotNode(node_name=f"n{i}", robot=f"r{i}", labels={"fleet": "f"}, ready=True)
-                for i in range(3)
-            ],
-            instances=instances,
-            stored_revisions=[],
-            expected={},
-            previous_rollout=None,
-            policy=POLICY,
-            now=NOW,
-            pods=pods,
-        )
+    return plan_system_pass(
+        record, spec, fleet_robots(3), now=NOW, policy=POLICY, instances=instances, pods=pods
     )
 
 
