@@ -15,10 +15,12 @@ CoralSystem of the example skillset and an executor runs on one robot worker.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pytest
-from coral_testbed.kind import faults
+from coral_testbed.kind import clusters, faults
 from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
@@ -54,6 +56,35 @@ def _running(
     return mission, pods
 
 
+def _same_pods(mission: Mission, before: dict[str, Any]) -> dict[str, Any]:
+    """The mission's pods, asserted to be the very pods `before` (same uids), not replacements."""
+    pods = mission.pods()
+    for component, pod in pods.items():
+        assert pod.metadata.uid == before[component].metadata.uid, component
+    return pods
+
+
+@contextmanager
+def _robot_away(
+    kind_cluster: KindCluster,
+    kind_operator: KindMissionStack,
+    mission: Mission,
+    before: dict[str, Any],
+    leave: Callable[[clusters.Running, str], None],
+    come_back: Callable[[clusters.Running, str], None],
+) -> Iterator[clusters.Running]:
+    """`leave` takes `ROBOT` away; the body runs once the robot is reported unreachable with its
+    pods `before` kept, and `come_back` follows whatever the body did."""
+    running = kind_cluster.running
+    node = faults.node_of(running, ROBOT)
+    leave(running, ROBOT)
+    try:
+        _assert_unreachable_with_its_pods(kind_operator, mission, node, before)
+        yield running
+    finally:
+        come_back(running, ROBOT)
+
+
 def _assert_unreachable_with_its_pods(
     kind_operator: KindMissionStack, mission: Mission, node: str, before: dict[str, Any]
 ) -> None:
@@ -79,8 +110,7 @@ def _assert_unreachable_with_its_pods(
     assert condition["reason"] == "NodeUnreachable", condition
     assert f"last seen {last_seen}" in condition["message"], condition
     # Neither the operator nor the cluster replaces the pods of a robot that is away.
-    for component, pod in mission.pods().items():
-        assert pod.metadata.uid == before[component].metadata.uid, component
+    for component, pod in _same_pods(mission, before).items():
         assert pod.spec.node_name == node and pod.metadata.deletion_timestamp is None, component
 
 
@@ -98,16 +128,11 @@ def _reachable_again(mission: Mission, timeout: float) -> dict[str, Any]:
 def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_runs_the_tree_again(
     kind_cluster: KindCluster, kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
-    running = kind_cluster.running
-    node = faults.node_of(running, ROBOT)
     domain = int(ros_env["ROS_DOMAIN_ID"])
     mission, before = _running(kind_operator, "power", domain, SLEEP_THEN_WAIT, "Sleep")
 
-    faults.cut_power(running, ROBOT)
-    try:
-        _assert_unreachable_with_its_pods(kind_operator, mission, node, before)
-    finally:
-        faults.restore_power(running, ROBOT)
+    with _robot_away(kind_cluster, kind_operator, mission, before, faults.cut_power, faults.restore_power):
+        pass  # Nothing runs on a robot without power: there is nothing more to see while it is off.
 
     _reachable_again(mission, timeout=180)
     # The boot ended every container: the kubelet starts them again in the same pods, so the
@@ -118,9 +143,7 @@ def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_ru
         message=lambda: f"the tree to end: {mission.instance()}\n{mission.logs()}",
     )
     assert rs.tree(done)["rootStatus"] == "SUCCESS", f"{rs.tree(done)}\n{mission.logs()}"
-    after = mission.pods()
-    for component, pod in after.items():
-        assert pod.metadata.uid == before[component].metadata.uid, component
+    _same_pods(mission, before)
     restarts = {c["name"]: c["restarts"] for c in done["status"]["components"]}
     assert restarts[rs.SKILLSET] >= 1 and restarts["executor"] >= 1, done["status"]["components"]
 
@@ -128,23 +151,18 @@ def test_a_robot_whose_power_is_cut_mid_mission_is_unreachable_then_boots_and_ru
 def test_a_stopped_kubelet_makes_the_robot_unreachable_with_its_lease_time_and_keeps_its_pods(
     kind_cluster: KindCluster, kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
-    running = kind_cluster.running
-    node = faults.node_of(running, ROBOT)
     domain = int(ros_env["ROS_DOMAIN_ID"])
     mission, before = _running(kind_operator, "patrol", domain, WAIT_LONG, "WaitForCount")
 
-    faults.stop_kubelet(running, ROBOT)
-    try:
-        _assert_unreachable_with_its_pods(kind_operator, mission, node, before)
+    with _robot_away(
+        kind_cluster, kind_operator, mission, before, faults.stop_kubelet, faults.start_kubelet
+    ) as running:
         # The containers never stopped: the robot's containerd still runs them while its kubelet is down.
         listed = crictl(running, ROBOT, "ps", "-q").split()
         for component, pod in before.items():
             assert rs.container_id(pod.status.container_statuses[0]) in listed, component
-    finally:
-        faults.start_kubelet(running, ROBOT)
 
     back = _reachable_again(mission, timeout=90)
     assert rs.tree(back)["rootStatus"] == "RUNNING", rs.tree(back)
-    for component, pod in mission.pods().items():
-        assert pod.metadata.uid == before[component].metadata.uid, component
+    for component, pod in _same_pods(mission, before).items():
         assert pod.status.container_statuses[0].restart_count == 0, component
