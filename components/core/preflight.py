@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from coral_core import bt, names
 from coral_core.bt.nodes.base import TreeNode
+from coral_core.bt.ports import declared_ports
 from coral_core.image_exports import BTCPP_COMPATIBLE, ImageExports, major_of
 
 _UNKNOWN = re.compile(r"Node not recognized: (\w+)")
@@ -76,16 +77,7 @@ def _registry(images: Mapping[str, ImageExports]) -> tuple[bt.NodeRegistry, dict
                 continue
             if registry.has(behavior.id):
                 continue
-            ports = [
-                bt.PortSpec(
-                    name=p.name,
-                    direction=bt.PortDirection(p.direction),
-                    type=p.type,
-                    default=p.default,
-                    required=False,
-                )
-                for p in behavior.ports
-            ]
+            ports = declared_ports(behavior.ports)
             # The class is never built: the registry only lends its kind and ports to validation.
             registry.register(behavior.id, TreeNode, kind=behavior.kind, ports=ports, source=image)
             owner[behavior.id] = image

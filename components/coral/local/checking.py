@@ -118,6 +118,7 @@ def registry_for(manifests: dict[str, object]) -> object:
     node types for every manifest behavior."""
     from coral_core import bt
     from coral_core.bt import leaves
+    from coral_core.bt.ports import declared_ports
 
     from coral import coordination
 
@@ -128,16 +129,7 @@ def registry_for(manifests: dict[str, object]) -> object:
         for entry in manifest.behaviors:  # type: ignore[attr-defined]
             if registry.has(entry.id):
                 continue
-            ports = [
-                bt.PortSpec(
-                    name=p.name,
-                    direction=bt.PortDirection(p.direction),
-                    type=p.type,
-                    default=p.default,
-                    description=p.description,
-                )
-                for p in entry.ports
-            ]
+            ports = declared_ports(entry.ports)
             placeholder = type(entry.id, (bases.get(entry.kind, leaves.SyncAction),), {"PORTS": ports})
             registry.register(entry.id, placeholder, kind=entry.kind, ports=ports, source=component)
     return registry

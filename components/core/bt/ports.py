@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import re
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from coral_core import parsing
 from coral_core.bt.anyvalue import (
@@ -33,6 +33,38 @@ class PortSpec:
     description: str = ""
     required: bool = False
     """The node cannot run without this port (BT.CPP finds out at the first tick; we at load time)."""
+
+
+class DeclaredPort(Protocol):
+    """A port as a behavior's declaration writes it (an image label, a plugin manifest): the direction
+    by name; a description only where the declaration carries one."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def direction(self) -> str: ...
+
+    @property
+    def type(self) -> str: ...
+
+    @property
+    def default(self) -> str | None: ...
+
+
+def declared_ports(declared: Iterable[DeclaredPort]) -> list[PortSpec]:
+    """The engine's specs of declared ports. None is required: a declaration names what a node
+    accepts, and BT.CPP itself only finds a missing port when the node runs."""
+    return [
+        PortSpec(
+            name=p.name,
+            direction=PortDirection(p.direction),
+            type=p.type,
+            default=p.default,
+            description=getattr(p, "description", ""),
+        )
+        for p in declared
+    ]
 
 
 # Every C++ integer type a port may name, with its width and whether it is signed: BT.CPP's own
