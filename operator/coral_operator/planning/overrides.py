@@ -53,8 +53,9 @@ class ConfigError:
 
 
 @dataclass(frozen=True)
-class BaseConfig:
-    """What every robot runs before overrides: the system's validated files and components."""
+class RobotConfiguration:
+    """The files and components a robot runs: the system's (`BaseConfig`) or one robot's
+    (`EffectiveConfig`)."""
 
     tree: str
     tree_files: Mapping[str, str]
@@ -63,6 +64,11 @@ class BaseConfig:
     drivers: Sequence[Component]
     skillsets: Sequence[Component]
     executors: Sequence[ExecutorComponent]
+
+
+@dataclass(frozen=True)
+class BaseConfig(RobotConfiguration):
+    """What every robot runs before overrides: the system's validated files and components."""
 
     @classmethod
     def of_spec(cls, spec: CoralSystemSpec, tree: str, parameters: str) -> BaseConfig:
@@ -78,16 +84,9 @@ class BaseConfig:
 
 
 @dataclass(frozen=True)
-class EffectiveConfig:
+class EffectiveConfig(RobotConfiguration):
     """What one robot runs."""
 
-    tree: str
-    tree_files: dict[str, str]
-    main_tree_id: str | None
-    parameters: str
-    drivers: list[Component]
-    skillsets: list[Component]
-    executors: list[ExecutorComponent]
     applied: tuple[str, ...] = ()
     """Names of the overrides that match the robot, in spec order."""
     changed: frozenset[str] = field(default_factory=frozenset)
