@@ -7,10 +7,8 @@ the executors stop ticking their trees; drivers and skillsets keep running. Load
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Callable
-from typing import Any
 
 import click
 from coral_core import polling
@@ -18,18 +16,11 @@ from coral_core.halt import MAX_PARK_SECONDS
 
 from coral_operator import halt_control
 from coral_operator.api.system import HaltSpec
+from coral_operator.system_cli import system_target
 
 
 def _target(function: Callable[..., None]) -> Callable[..., None]:
-    """SYSTEM, --robot, --namespace, --wait and --timeout, with halt errors shown as clean CLI errors."""
-
-    @functools.wraps(function)
-    def run(*args: Any, **kwargs: Any) -> None:
-        try:
-            function(*args, **kwargs)
-        except halt_control.HaltError as error:
-            raise click.ClickException(str(error)) from error
-
+    """SYSTEM, --namespace, --robot, --wait and --timeout, with halt errors shown as clean CLI errors."""
     run = click.option(
         "--timeout",
         "timeout_s",
@@ -37,11 +28,10 @@ def _target(function: Callable[..., None]) -> Callable[..., None]:
         default=60.0,
         show_default=True,
         help="Seconds --wait waits at most.",
-    )(run)
+    )(function)
     run = click.option("--wait", is_flag=True, help="Wait until every robot's executor acknowledged.")(run)
-    run = click.option("-n", "--namespace", default="default", show_default=True)(run)
     run = click.option("--robot", default=None, help="Only this robot (its coral.dev/robot label).")(run)
-    return click.argument("system")(run)
+    return system_target(halt_control.HaltError)(run)
 
 
 def _wait(

@@ -12,14 +12,13 @@ from collections.abc import Mapping
 from typing import Any
 
 from coral_core import names
-from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 from pydantic import ValidationError
 
-from coral_operator import user_client
 from coral_operator.api import keys
 from coral_operator.api.system import HaltSpec
 from coral_operator.planning import naming
+from coral_operator.system_control import SystemControl
 
 # Writes that raced another writer of the system are tried again this many times.
 _ATTEMPTS = 5
@@ -70,26 +69,10 @@ def wanted_on(instance: Mapping[str, Any], halt: HaltSpec | None) -> bool:
     return ((instance.get("spec") or {}).get("halt") is not None) == should_halt
 
 
-class HaltControl:
+class HaltControl(SystemControl):
     """Halts and resumes the CoralSystems of one namespace."""
 
-    def __init__(self, api_client: k8s.ApiClient, namespace: str) -> None:
-        self.custom = k8s.CustomObjectsApi(api_client)
-        self.namespace = namespace
-
-    @classmethod
-    def from_kubeconfig(cls, namespace: str) -> HaltControl:
-        return cls(user_client.user_api_client(), namespace)
-
-    def read(self, system: str) -> dict[str, Any]:
-        try:
-            return self.custom.get_namespaced_custom_object(
-                names.GROUP, names.VERSION, self.namespace, names.SYSTEM_PLURAL, system
-            )
-        except ApiException as error:
-            if error.status == 404:
-                raise HaltError(f"coralsystem/{system} not found in namespace {self.namespace}") from error
-            raise
+    error = HaltError
 
     def change(self, system: str, how: Any) -> HaltSpec | None:
         """Sets `spec.halt` to `how(current)`, again on a conflict with another writer; returns it."""
@@ -102,15 +85,7 @@ class HaltControl:
                 "spec": {"halt": None if new is None else new.to_wire()},
             }
             try:
-                self.custom.patch_namespaced_custom_object(
-                    names.GROUP,
-                    names.VERSION,
-                    self.namespace,
-                    names.SYSTEM_PLURAL,
-                    system,
-                    patch,
-                    _content_type="application/merge-patch+json",
-                )
+                self.patch(system, patch)
                 return new
             except ApiException as error:
                 if error.status != 409:

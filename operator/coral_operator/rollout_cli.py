@@ -7,10 +7,7 @@ reads: `spec.rollout.paused` (pause, resume), the removal of a recorded health-g
 
 from __future__ import annotations
 
-import functools
 import json
-from collections.abc import Callable
-from typing import Any
 
 import click
 from coral_core import polling, terminal
@@ -20,23 +17,12 @@ from rich.text import Text
 
 from coral_operator import rollout_control
 from coral_operator.api import keys
+from coral_operator.system_cli import system_target
 
 TONE_STYLE = {"ok": "green", "warn": "yellow", "bad": "red", "": ""}
 """How a terminal colours the tone of a line of `rollout_control.Report`."""
 
-
-def _target(function: Callable[..., None]) -> Callable[..., None]:
-    """SYSTEM and --namespace, and rollout errors shown as clean CLI errors."""
-
-    @functools.wraps(function)
-    def run(*args: Any, **kwargs: Any) -> None:
-        try:
-            function(*args, **kwargs)
-        except rollout_control.RolloutError as error:
-            raise click.ClickException(str(error)) from error
-
-    run = click.option("-n", "--namespace", default="default", show_default=True)(run)
-    return click.argument("system")(run)
+_target = system_target(rollout_control.RolloutError)
 
 
 def _view(said: rollout_control.Report) -> Group:

@@ -14,55 +14,26 @@ from dataclasses import dataclass
 from typing import Any
 
 from coral_core import names
-from kubernetes import client as k8s
-from kubernetes.client.exceptions import ApiException
 from pydantic import ValidationError
 
-from coral_operator import user_client
 from coral_operator.api import keys
 from coral_operator.api.rollout import PrePullStatus
 from coral_operator.planning.rollout_report import describe_pre_pull
+from coral_operator.system_control import SystemControl
 
 
 class RolloutError(Exception):
     """The rollout cannot be steered that way; the message says why."""
 
 
-class RolloutControl:
+class RolloutControl(SystemControl):
     """Reads and steers the rollouts of one namespace."""
 
-    def __init__(self, api_client: k8s.ApiClient, namespace: str) -> None:
-        self.custom = k8s.CustomObjectsApi(api_client)
-        self.namespace = namespace
-
-    @classmethod
-    def from_kubeconfig(cls, namespace: str) -> RolloutControl:
-        return cls(user_client.user_api_client(), namespace)
-
-    def read(self, name: str) -> dict[str, Any]:
-        try:
-            return self.custom.get_namespaced_custom_object(
-                names.GROUP, names.VERSION, self.namespace, names.SYSTEM_PLURAL, name
-            )
-        except ApiException as error:
-            if error.status == 404:
-                raise RolloutError(f"coralsystem/{name} not found in namespace {self.namespace}") from error
-            raise
-
-    def _patch(self, name: str, body: dict[str, Any]) -> None:
-        self.custom.patch_namespaced_custom_object(
-            names.GROUP,
-            names.VERSION,
-            self.namespace,
-            names.SYSTEM_PLURAL,
-            name,
-            body,
-            _content_type="application/merge-patch+json",
-        )
+    error = RolloutError
 
     def pause(self, name: str) -> None:
         self.read(name)
-        self._patch(name, {"spec": {"rollout": {"paused": True}}})
+        self.patch(name, {"spec": {"rollout": {"paused": True}}})
 
     def resume(self, name: str) -> None:
         body = self.read(name)
@@ -71,7 +42,7 @@ class RolloutControl:
         failed_at = (rollout.get(keys.ROLLOUT.failure) or {}).get(keys.ROLLOUT_FAILURE.time)
         if failed_at:
             patch["metadata"] = {"annotations": {names.ANNOTATION_ROLLOUT_RESUME: failed_at}}
-        self._patch(name, patch)
+        self.patch(name, patch)
 
     def undo(self, name: str) -> str:
         """Roll back from the spec's newest revision; returns that revision."""
@@ -85,7 +56,7 @@ class RolloutControl:
             raise RolloutError(f"coralsystem/{name} has no revision before {newest} to return to")
         if (rollout.get(keys.ROLLOUT.rolled_back) or {}).get(keys.ROLLED_BACK.from_revision) == newest:
             raise RolloutError(f"coralsystem/{name} is already rolled back from revision {newest}")
-        self._patch(name, {"metadata": {"annotations": {names.ANNOTATION_ROLLOUT_UNDO: newest}}})
+        self.patch(name, {"metadata": {"annotations": {names.ANNOTATION_ROLLOUT_UNDO: newest}}})
         return str(newest)
 
 
