@@ -171,14 +171,20 @@ def _polling_answers(loop: TickLoop) -> list[bool]:
     return answers
 
 
-def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
-    loop = _loop(
-        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>', Collect(), 10.0
-    )
+def _booking_loop(xml: str) -> tuple[TickLoop, list[bool]]:
+    """A loop of `xml` whose nodes book their wake-up times in a schedule of its own, and the answers
+    it gets from `needs_polling`."""
+    loop = _loop(xml, Collect(), 10.0)
     schedule = WakeSchedule()
     loop.context.wakeups = schedule
     loop.context.wake_at = schedule.add
-    polled = _polling_answers(loop)
+    return loop, _polling_answers(loop)
+
+
+def test_a_booked_deadline_ticks_the_tree_although_nothing_wakes_it() -> None:
+    loop, polled = _booking_loop(
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Deadline/></BehaviorTree></root>'
+    )
     stop = threading.Event()
     # The tree is never polled and nothing wakes it: only the booked time can end it before the
     # status heartbeat (1 s) ticks it.
@@ -251,11 +257,7 @@ WAKE_UP_KINDS = {
 def test_each_kind_of_wake_up_ticks_the_tree_without_waiting_for_the_heartbeat(kind: str) -> None:
     body, expected = WAKE_UP_KINDS[kind]
     FailsFirstRun.RUNS[0] = 0
-    loop = _loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>', Collect(), 10.0)
-    schedule = WakeSchedule()
-    loop.context.wakeups = schedule
-    loop.context.wake_at = schedule.add
-    polled = _polling_answers(loop)
+    loop, polled = _booking_loop(f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>')
     stop = threading.Event()
     started = time.monotonic()
     finished = start(loop, stop)
