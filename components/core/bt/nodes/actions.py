@@ -3,6 +3,7 @@ Sleep and WasEntryUpdated, with BT.CPP 4 semantics; registered by the registry."
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from coral_core.bt.blackboard import EMPTY, parses_text, strongly_typed
@@ -27,24 +28,28 @@ class AlwaysFailure(SyncAction):
         return FAILURE
 
 
-def _compile_code(node: Any, config: NodeConfig) -> Any:
+def _load_error(config: NodeConfig, message: str) -> BTLoadError:
+    return BTLoadError(message, file=config.file, line=config.line, node_path=config.path)
+
+
+def _compile_code(node: Any, config: NodeConfig) -> Callable[[], Any]:
+    """The node's [code] script, compiled once at load time (a bad one is a load error), as a call
+    that runs it on the node's blackboard and attributes a script error to the node."""
     raw = config.ports.get("code")
     if raw is None:
-        raise BTLoadError(
-            f"{config.node_id} needs the port [code]",
-            file=config.file,
-            line=config.line,
-            node_path=config.path,
-        )
+        raise _load_error(config, f"{config.node_id} needs the port [code]")
     try:
-        return compile_script(raw)
+        script = compile_script(raw)
     except ScriptError as err:
-        raise BTLoadError(
-            f"invalid script in [code]: {err.message}",
-            file=config.file,
-            line=config.line,
-            node_path=config.path,
-        ) from None
+        raise _load_error(config, f"invalid script in [code]: {err.message}") from None
+
+    def run() -> Any:
+        try:
+            return script(node._env)
+        except ScriptError as err:
+            raise BTRuntimeError(f"Error in script [{raw}]: {err.message}", node_path=node.path) from None
+
+    return run
 
 
 class Script(SyncAction):
@@ -54,16 +59,10 @@ class Script(SyncAction):
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)
-        self._code = config.ports.get("code", "")
-        self._script = _compile_code(self, config)
+        self._run_code = _compile_code(self, config)
 
     def tick(self) -> int:  # type: ignore[override]
-        try:
-            self._script(self._env)
-        except ScriptError as err:
-            raise BTRuntimeError(
-                f"Error in script [{self._code}]: {err.message}", node_path=self.path
-            ) from None
+        self._run_code()
         return SUCCESS
 
 
@@ -79,17 +78,10 @@ class ScriptCondition(ConditionNode):
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)
-        self._code = config.ports.get("code", "")
-        self._script = _compile_code(self, config)
+        self._run_code = _compile_code(self, config)
 
     def tick(self) -> int:  # type: ignore[override]
-        try:
-            result = self._script(self._env)
-        except ScriptError as err:
-            raise BTRuntimeError(
-                f"Error in script [{self._code}]: {err.message}", node_path=self.path
-            ) from None
-        return SUCCESS if truthy(result) else FAILURE
+        return SUCCESS if truthy(self._run_code()) else FAILURE
 
 
 class SetBlackboard(SyncAction):
