@@ -12,6 +12,14 @@ def _threshold(value: int, count: int) -> int:
     return max(count + value + 1, 0) if value < 0 else value
 
 
+def _reachable(node: ControlNode, count: int, needed: int, outcome: str) -> None:
+    """Refuses, as BT.CPP does, a threshold of more children than the node has."""
+    if count < needed:
+        raise BTRuntimeError(
+            f"Number of children is less than threshold. Can never {outcome}.", node_path=node.path
+        )
+
+
 class Parallel(ControlNode):
     """M-of-N success / F-of-N failure with early exit; completed children are not re-ticked."""
 
@@ -33,14 +41,8 @@ class Parallel(ControlNode):
         count = len(children)
         need_s = _threshold(s_raw, count)
         need_f = _threshold(f_raw, count)
-        if count < need_s:
-            raise BTRuntimeError(
-                "Number of children is less than threshold. Can never succeed.", node_path=self.path
-            )
-        if count < need_f:
-            raise BTRuntimeError(
-                "Number of children is less than threshold. Can never fail.", node_path=self.path
-            )
+        _reachable(self, count, need_s, "succeed")
+        _reachable(self, count, need_f, "fail")
         self.set_status(RUNNING)
         skipped = 0
         for i, child in enumerate(children):
@@ -90,10 +92,7 @@ class ParallelAll(ControlNode):
         children = self.children
         count = len(children)
         need_f = _threshold(int(self.require_input("max_failures")), count)
-        if count < need_f:
-            raise BTRuntimeError(
-                "Number of children is less than threshold. Can never fail.", node_path=self.path
-            )
+        _reachable(self, count, need_f, "fail")
         self.set_status(RUNNING)
         skipped = 0
         for i, child in enumerate(children):
