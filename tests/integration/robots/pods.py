@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import yaml
-from coral_testbed.cluster import nodeimages
+from coral_testbed.cluster import Cluster, nodeimages
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 
@@ -46,6 +46,13 @@ def robot_pod(
         container["volumeMounts"] = [{"name": "shared", "mountPath": "/shared"}]
         spec["volumes"] = [{"name": "shared", "hostPath": {"path": host_path, "type": "DirectoryOrCreate"}}]
     return yaml.safe_dump({"apiVersion": "v1", "kind": "Pod", "metadata": {"name": name}, "spec": spec})
+
+
+def apply_robot_pod(
+    cluster: Cluster, namespace: str, name: str, robot: str, script: str, **options: Any
+) -> None:
+    """Creates `robot_pod(name, robot, script, **options)` in `namespace`."""
+    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=robot_pod(name, robot, script, **options))
 
 
 def condition(pod: Any, kind: str) -> str | None:

@@ -16,7 +16,7 @@ from coral_testbed.waiting import wait_for
 from fixtures.robots import REAL_ROBOTS
 from kubernetes import client as k8s
 
-from .pods import condition, events_for, robot_pod, wait_pod
+from .pods import apply_robot_pod, condition, events_for, robot_pod, wait_pod
 
 pytestmark = [pytest.mark.cluster, pytest.mark.real_robots]
 
@@ -97,7 +97,7 @@ def test_containers_are_visible_through_the_cri(
 ) -> None:
     robot = REAL_ROBOTS[1]
     core = k8s.CoreV1Api(cluster.api_client)
-    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=robot_pod("seen", robot, "exec sleep 3600"))
+    apply_robot_pod(cluster, namespace, "seen", robot, "exec sleep 3600")
     pod = wait_pod(core, namespace, "seen")
     container_id = pod.status.container_statuses[0].container_id
     assert container_id.startswith("containerd://")
@@ -130,14 +130,7 @@ def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
         "/apis/authentication.k8s.io/v1/selfsubjectreviews; echo; "
         "exec sleep 3600"
     )
-    cluster.kubectl(
-        "apply",
-        "-n",
-        namespace,
-        "-f",
-        "-",
-        input=robot_pod("whoami", robot, script, host_network=host_network),
-    )
+    apply_robot_pod(cluster, namespace, "whoami", robot, script, host_network=host_network)
     wait_pod(core, namespace, "whoami")
     expected = f"system:serviceaccount:{namespace}:default"
 
@@ -185,14 +178,7 @@ def test_host_network_pods_of_two_robots_are_isolated_and_reach_each_other(
     core = k8s.CoreV1Api(cluster.api_client)
     serve = "mkdir -p /www && hostname > /www/name && exec httpd -f -p 8766 -h /www"
     for robot in REAL_ROBOTS:
-        cluster.kubectl(
-            "apply",
-            "-n",
-            namespace,
-            "-f",
-            "-",
-            input=robot_pod(f"web-{robot}", robot, serve, host_network=True),
-        )
+        apply_robot_pod(cluster, namespace, f"web-{robot}", robot, serve, host_network=True)
     for robot in REAL_ROBOTS:
         assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == real_robots.address(robot)
     first, second = REAL_ROBOTS

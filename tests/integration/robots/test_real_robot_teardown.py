@@ -11,7 +11,7 @@ from coral_testbed.cluster import Cluster, cgroups, mountview, realrobots
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
-from .pods import robot_pod, wait_pod
+from .pods import apply_robot_pod, wait_pod
 
 pytestmark = [pytest.mark.cluster, pytest.mark.real_robots]
 
@@ -31,22 +31,8 @@ def test_removed_robot_leaves_nothing_behind(
 ) -> None:
     real_robots.add([ROBOT])
     core = k8s.CoreV1Api(cluster.api_client)
-    cluster.kubectl(
-        "apply",
-        "-n",
-        namespace,
-        "-f",
-        "-",
-        input=robot_pod("doomed", ROBOT, "exec sleep 3600", host_path="/var/lib/coral/doomed"),
-    )
-    cluster.kubectl(
-        "apply",
-        "-n",
-        namespace,
-        "-f",
-        "-",
-        input=robot_pod("doomed-host", ROBOT, "exec sleep 3600", host_network=True),
-    )
+    apply_robot_pod(cluster, namespace, "doomed", ROBOT, "exec sleep 3600", host_path="/var/lib/coral/doomed")
+    apply_robot_pod(cluster, namespace, "doomed-host", ROBOT, "exec sleep 3600", host_network=True)
     wait_pod(core, namespace, "doomed")
     wait_pod(core, namespace, "doomed-host")
     layout = real_robots.layout(ROBOT)
