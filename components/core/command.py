@@ -8,6 +8,8 @@ rclpy and the Kubernetes client out of every other verb.
 
 from __future__ import annotations
 
+import signal
+import threading
 from importlib import metadata
 
 import click
@@ -18,6 +20,15 @@ VERB_GROUP = "coral.verbs"
 def installed_verbs() -> dict[str, metadata.EntryPoint]:
     """The verbs of every installed part, by name."""
     return {entry.name: entry for entry in metadata.entry_points(group=VERB_GROUP)}
+
+
+def stop_on_ctrl_c() -> None:
+    """Make Ctrl-C (SIGINT) raise KeyboardInterrupt in a verb that runs until it comes, also when
+    the process started with SIGINT ignored: a shell starts its background jobs so, and Python then
+    installs no handler, so a supervisor's or a script's SIGINT would never stop the verb. Go
+    programs that wait for the signal take it back the same way."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 class LazyGroup(click.Group):

@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import click
+from coral_core.command import stop_on_ctrl_c
 
 from coral_operator import groot2_target, port_forwarding, user_client
 from coral_operator.api.components import GROOT2_DEFAULT_PORT
@@ -65,6 +66,7 @@ def groot2_command(system: str, robot: str, namespace: str, port: int, executor:
     Forwarding sends no request of its own: an executor holding its first tick for a debugger
     (`groot2.waitForClientSeconds`) goes on waiting until Groot2 connects.
     """
+    stop_on_ctrl_c()
     with forwarded(
         namespace=namespace, system=system, robot=robot, executor=executor, local_ports=[port, port + 1]
     ) as (target, _forward):

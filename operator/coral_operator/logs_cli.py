@@ -11,6 +11,7 @@ import sys
 
 import click
 from coral_core import logs_verb
+from coral_core.command import stop_on_ctrl_c
 from kubernetes import config as k8s_config
 from kubernetes.client.exceptions import ApiException
 
@@ -59,6 +60,8 @@ def logs_command(
     Lines of one container keep their order; containers interleave as their lines arrive. With
     -f it follows until Ctrl-C.
     """
+    if follow:
+        stop_on_ctrl_c()
     colour = color == "always" or (color == "auto" and sys.stdout.isatty())
     width = 0
 

@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass
 
 import click
+from coral_core.command import stop_on_ctrl_c
 
 
 @click.group("tree")
@@ -54,6 +55,8 @@ def watch_command(
     if as_json and not once:
         raise click.UsageError("--json needs --once")
     view = View(once=once, as_json=as_json, blackboards=blackboards, interval=interval, timeout=timeout)
+    if not once:
+        stop_on_ctrl_c()
     if not robot_of_system:
         host = host or "127.0.0.1"
         _watch(host, port, f"{host}:{port}", view)
