@@ -10,7 +10,6 @@ See docs/architecture.md.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ from coral_operator.planning.observed import ObservedInstance, ObservedPod, Syst
 from coral_operator.planning.policy import Policy
 from coral_operator.reconcile import events
 from coral_operator.reconcile.declarations import ImageDeclarations
+from coral_operator.reconcile.file_slots import FileSlots
 from coral_operator.reconcile.indexes import (
     ALL_ROBOTS,
     config_maps_of_system,
@@ -68,9 +68,8 @@ class SystemReconciler(Reconciler):
     declarations: ImageDeclarations = field(default_factory=ImageDeclarations)
     """What component images declare, read from their registries for preflight."""
     """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
-    _files_at_once: threading.BoundedSemaphore = field(
-        default_factory=lambda: threading.BoundedSemaphore(FILES_AT_ONCE), init=False, repr=False
-    )
+    file_slots: FileSlots = field(default_factory=lambda: FileSlots(FILES_AT_ONCE), repr=False)
+    """Taken by each pass that holds a system's large files."""
 
     def reconcile(self, key: Key) -> None:
         records = self.indexes.read("coral_systems", key)
@@ -83,11 +82,18 @@ class SystemReconciler(Reconciler):
         # The index keeps no large file (docs/architecture.md, "The operator's memory"): this pass
         # reads them and lets go of them when it ends, and only FILES_AT_ONCE passes hold them at
         # once (a megabyte each, twice over while decoded). A newer version read here is only
-        # what the watch is about to bring.
-        with self._files_at_once:
+        # what the watch is about to bring. A pass that finds no free slot gives its worker back
+        # and is passed again when a slot frees (`reconcile.file_slots`).
+        if not self.file_slots.take(key):
+            return
+        try:
             body = self.writer.read_system(*key)
             if body is not None:
                 self._reconcile(key, observing.system_record(body, keep_files=True))
+        finally:
+            waiting = self.file_slots.give_back()
+            if waiting is not None:
+                self.requeue(waiting, 0.0)
         self.trim()
 
     def _reconcile(self, key: Key, system: SystemRecord) -> None:

@@ -145,7 +145,10 @@ def test_two_hundred_maximal_systems_leave_room_and_time_for_a_new_one(
             lambda: _served(coral, "newcomer"),
             timeout=60,
             interval=0.1,
-            message="the newcomer's first status",
+            message=lambda: (
+                f"the newcomer's first status ({'; '.join(operator.problems()) or 'operator alive'}); "
+                f"operator log:\n{operator.logs()[-3000:]}"
+            ),
         )
         first_status_s = time.monotonic() - asked
         wait_for(lambda: coral.instances(), timeout=60, interval=0.1, message="the newcomer's CoralInstance")

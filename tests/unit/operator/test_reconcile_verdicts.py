@@ -26,7 +26,7 @@ from coral_operator.planning.status_pacing import PROGRESS_INTERVAL_S, progress_
 from coral_operator.reconcile.indexes import ALL_ROBOTS, Indexes, instance_named, instances_of_system
 from coral_operator.reconcile.instances import InstanceReconciler
 from coral_operator.reconcile.memory import Memory
-from coral_operator.reconcile.systems import SystemReconciler
+from coral_operator.reconcile.systems import FILES_AT_ONCE, SystemReconciler
 from fake_writer import FakeWriter
 from operator_specs import BASE_SPEC, NOW, robot
 
@@ -725,3 +725,38 @@ def test_system_stalled_naming_the_owner_of_an_instance_name_it_needs(harness: H
     stalled = _stalled(harness.pass_system(_spec()))
     assert (stalled["status"], stalled["reason"]) == ("True", "NameTaken")
     assert "belongs to CoralSystem other" in stalled["message"]
+
+
+def test_a_system_with_large_files_gives_its_worker_back_while_every_file_slot_is_taken(
+    harness: Harness,
+) -> None:
+    """Passes waiting for a file slot would hold every worker of the queue, and a small system
+    created meanwhile would wait behind them all (200 maximal systems: over a minute). The
+    waiting system is passed again when a slot frees."""
+    spec = copy.deepcopy(BASE_SPEC)
+    spec["parameters"] = {"inline": "driver:\n  ros__parameters:\n    rate: 10\n" + "#" * 100_000 + "\n"}
+    for name in ("big", "other"):
+        body = {
+            "metadata": {"name": name, "namespace": NS, "uid": f"uid-{name}", "generation": 1},
+            "spec": spec,
+        }
+        harness.kube.systems[name] = body
+        harness.tables["coral_systems"][(NS, name)] = [observing.system_record(body)]
+        assert harness.tables["coral_systems"][(NS, name)][0].files_left_out
+    for _ in range(FILES_AT_ONCE - 1):
+        assert harness.systems.file_slots.take(("elsewhere", "held"))
+    read_system = harness.kube.read_system
+
+    def big_passes_meanwhile(namespace: str, name: str) -> dict[str, Any] | None:
+        # While "other" holds the last slot, "big" is passed on another worker.
+        if name == "other":
+            harness.systems.reconcile((NS, "big"))
+            assert "big" not in harness.kube.status and harness.requeued == []
+        return read_system(namespace, name)
+
+    harness.kube.read_system = big_passes_meanwhile  # type: ignore[method-assign]
+    harness.systems.reconcile((NS, "other"))
+    assert harness.kube.status["other"]["observedGeneration"] == 1
+    assert harness.requeued == [((NS, "big"), 0.0)]
+    harness.systems.reconcile((NS, "big"))
+    assert harness.kube.status["big"]["observedGeneration"] == 1
