@@ -220,14 +220,8 @@ def _tree_reported(view: InstanceView) -> Verdict:
         return Verdict(C.TREE_HEALTHY, False, R.TREE_FAILED, f"The tree failed{detail}.")
     stuck = view.tree.no_progress
     if root == "RUNNING" and stuck and stuck.model_fields_set:
-        since = stuck.since or "a while"
-        return Verdict(
-            C.TREE_HEALTHY,
-            False,
-            R.NO_PROGRESS,
-            f"The tree makes no progress: {stuck.path} has failed the same way since {since}: "
-            f"{stuck.message}",
-        )
+        what = f"{stuck.path} has failed the same way since {stuck.since or 'a while'}: {stuck.message}"
+        return Verdict(C.TREE_HEALTHY, False, R.NO_PROGRESS, f"The tree makes no progress: {what}")
     return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {root}.")
 
 
