@@ -2,12 +2,15 @@
 
 The operator writes the conditions, `robot` and `components`; the robot's executor writes `tree` and
 `plugins` through its status sink (`coral.executor.kubernetes_sink`), with an identity that may
-write nothing else. Both sides read and write these fields by their wire names (`coral_core.keys`).
+write nothing else. These models are the one shape of the tree status: the sink builds a
+`TreeState` and `PluginState` and patches them (`to_patch`), and the operator reads what an
+executor wrote back into them (`coral_operator.status.executor_report`). Code that handles the raw
+wire dict takes the field names from `coral_core.keys`.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 from coral_core.wire import CamelModel, Condition
 from pydantic import Field
@@ -15,6 +18,7 @@ from pydantic import Field
 Role = Literal["driver", "skillset", "executor"]
 RootStatus = Literal["IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED"]
 """What a tree's root can report, BT.CPP's node statuses."""
+ROOT_STATUSES: tuple[str, ...] = get_args(RootStatus)
 
 
 class RobotState(CamelModel):
@@ -77,6 +81,7 @@ class NoProgress(CamelModel):
 
 ParkStatus = Literal["SUCCESS", "FAILURE", "TIMEOUT", "MISSING"]
 """How a park tree ended: its root's status, out of time, or not in the tree document."""
+PARK_STATUSES: tuple[str, ...] = get_args(ParkStatus)
 
 
 class TreeHalt(CamelModel):

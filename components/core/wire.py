@@ -29,6 +29,11 @@ class CamelModel(BaseModel):
         """The JSON-ready dict as the API server stores it (aliases, unset optionals dropped)."""
         return self.model_dump(mode="json", by_alias=True, exclude_none=True)
 
+    def to_patch(self) -> dict[str, Any]:
+        """The fields that were set, by wire name, a None among them included: the body of a merge
+        patch, in which a null clears the field it names."""
+        return self.model_dump(mode="json", by_alias=True, exclude_unset=True)
+
 
 class Condition(CamelModel):
     """A `metav1.Condition`: one aspect of the resource's state."""

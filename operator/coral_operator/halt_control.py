@@ -15,9 +15,9 @@ from coral_core import names
 from kubernetes.client.exceptions import ApiException
 from pydantic import ValidationError
 
-from coral_operator.api import keys
 from coral_operator.api.system import HaltSpec
 from coral_operator.planning import naming
+from coral_operator.status import executor_report
 from coral_operator.system_control import SystemControl
 
 # Writes that raced another writer of the system are tried again this many times.
@@ -58,8 +58,8 @@ def resumed(current: HaltSpec | None, robot: str | None, system: str) -> HaltSpe
 def acknowledged(instance: Mapping[str, Any]) -> bool:
     """The instance's executor did what its `spec.halt` asks: halted while set, ticking while unset."""
     spec = instance.get("spec") or {}
-    tree = (instance.get("status") or {}).get(keys.INSTANCE_STATUS.tree) or {}
-    return (spec.get("halt") is not None) == bool(tree.get(keys.TREE.halted))
+    tree = executor_report.read_executor_report(instance.get("status") or {}).tree
+    return (spec.get("halt") is not None) == (tree is not None and tree.halted is not None)
 
 
 def wanted_on(instance: Mapping[str, Any], halt: HaltSpec | None) -> bool:

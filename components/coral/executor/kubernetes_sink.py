@@ -29,6 +29,14 @@ from datetime import UTC, datetime
 from typing import Any
 
 from coral_core import keys, names
+from coral_core.instance_status import (
+    CoralInstanceStatus,
+    NoProgress,
+    PluginState,
+    TreeFailure,
+    TreeHalt,
+    TreeState,
+)
 
 LOG = logging.getLogger(__name__)
 Patcher = Callable[[dict[str, Any]], None]
@@ -61,83 +69,82 @@ def _rfc3339(seconds: float | None) -> str | None:
     return datetime.fromtimestamp(float(seconds), UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def summarize(state: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
+def _degraded(condition: dict[str, Any]) -> list[str]:
+    """`plugins.degraded` from a `LibraryDegraded` condition: its message while it holds."""
+    return [str(condition.get("message", ""))] if condition.get("status") == "True" else []
+
+
+def summarize(state: CoralInstanceStatus, record: dict[str, Any]) -> CoralInstanceStatus:
     """The status summary after one executor record (pure; unknown events change nothing).
 
-    `state` and the result hold `tree` and `plugins` in the CoralInstance's wire format, keyed by
-    the wire names of `coral_core.instance_status.TreeState` and `PluginState`.
+    `state` and the result set only `tree` and `plugins`, the executor's fields; `to_patch()` gives
+    what to send, a null among it clearing a field that was set before.
     """
-    tree = dict(state.get(keys.INSTANCE_STATUS.tree) or {})
-    plugins = dict(state.get(keys.INSTANCE_STATUS.plugins) or {})
+    tree = state.tree.model_copy() if state.tree is not None else TreeState()
+    plugins = state.plugins.model_copy() if state.plugins is not None else PluginState()
     event = record.get("event")
     if event == "status":
-        tree[keys.TREE.root_status] = str(record.get("root_status", tree.get(keys.TREE.root_status, "IDLE")))
-        tree[keys.TREE.tick_count] = int(record.get("tick_count", tree.get(keys.TREE.tick_count, 0)))
-        tree[keys.TREE.active_path] = str(record.get("active_path") or "")
+        tree.root_status = str(record.get("root_status", tree.root_status))  # type: ignore[assignment]
+        tree.tick_count = int(record.get("tick_count", tree.tick_count))
+        tree.active_path = str(record.get("active_path") or "")
         if record.get("last_transition_time") is not None:
-            tree[keys.TREE.last_transition_time] = _rfc3339(record["last_transition_time"])
+            tree.last_transition_time = _rfc3339(record["last_transition_time"])
         failure = record.get("last_failure") or {}
         if failure.get("path") or failure.get("message"):
-            last_failure = {
-                keys.TREE_FAILURE.path: str(failure.get("path", "")),
-                keys.TREE_FAILURE.message: str(failure.get("message", "")),
-            }
-            if failure.get("time") is not None:
-                last_failure[keys.TREE_FAILURE.time] = _rfc3339(failure["time"])
-            tree[keys.TREE.last_failure] = last_failure
+            when = {"time": _rfc3339(failure["time"])} if failure.get("time") is not None else {}
+            tree.last_failure = TreeFailure(
+                path=str(failure.get("path", "")), message=str(failure.get("message", "")), **when
+            )
         stuck = record.get("no_progress") or {}
         if stuck:
-            tree[keys.TREE.no_progress] = {
-                keys.NO_PROGRESS.path: str(stuck.get("path", "")),
-                keys.NO_PROGRESS.message: str(stuck.get("message", "")),
-                keys.NO_PROGRESS.since: _rfc3339(stuck.get("since")),
-            }
-        elif tree.get(keys.TREE.no_progress):
-            tree[keys.TREE.no_progress] = None  # a merge patch's null clears the field
+            tree.no_progress = NoProgress(
+                path=str(stuck.get("path", "")),
+                message=str(stuck.get("message", "")),
+                since=_rfc3339(stuck.get("since")),
+            )
+        elif tree.no_progress is not None:
+            tree.no_progress = None  # a merge patch's null clears the field
         for condition in record.get("conditions") or []:
             if condition.get("type") == "LibraryDegraded":
-                plugins[keys.PLUGINS.degraded] = (
-                    [str(condition.get("message", ""))] if condition.get("status") == "True" else []
-                )
-        tree[keys.TREE.message] = ""
+                plugins.degraded = _degraded(condition)
+        tree.message = ""
     elif event == "waiting":
         missing = [str(m) for m in record.get("missing", [])]
-        plugins[keys.PLUGINS.missing] = missing
-        tree.setdefault(keys.TREE.root_status, "IDLE")
-        tree[keys.TREE.message] = "Waiting for node types: " + ", ".join(missing)
+        plugins.missing = missing
+        if "root_status" not in tree.model_fields_set:
+            tree.root_status = "IDLE"
+        tree.message = "Waiting for node types: " + ", ".join(missing)
     elif event == "plugins":
-        plugins[keys.PLUGINS.loaded] = sorted(str(p.get("component", "")) for p in record.get("loaded", []))
-        plugins[keys.PLUGINS.conflicts] = [str(c.get("message", "")) for c in record.get("conflicts", [])] + [
+        plugins.loaded = sorted(str(p.get("component", "")) for p in record.get("loaded", []))
+        plugins.conflicts = [str(c.get("message", "")) for c in record.get("conflicts", [])] + [
             f"{r.get('plugin')} refused: {r.get('reason')}" for r in record.get("refused", [])
         ]
     elif event == "condition" and record.get("type") == "PluginsReady" and record.get("status") == "True":
-        plugins[keys.PLUGINS.missing] = []
+        plugins.missing = []
     elif event == "condition" and record.get("type") == "LibraryDegraded":
-        degraded = record.get("status") == "True"
-        plugins[keys.PLUGINS.degraded] = [str(record.get("message", ""))] if degraded else []
+        plugins.degraded = _degraded(record)
     elif event == "halted":
-        halted = {
-            keys.TREE_HALT.since: _rfc3339(record.get("since")),
-            keys.TREE_HALT.park_tree: record.get("park_tree"),
-            keys.TREE_HALT.park_status: record.get("park_status"),
+        halted = {"since": _rfc3339(record.get("since"))} | {
+            key: record.get(key) for key in ("park_tree", "park_status")
         }
-        tree[keys.TREE.halted] = {key: value for key, value in halted.items() if value is not None}
+        tree.halted = TreeHalt(**{key: value for key, value in halted.items() if value is not None})
     elif event == "resumed":
-        tree[keys.TREE.halted] = None  # a merge patch's null clears the field
+        tree.halted = None  # a merge patch's null clears the field
     elif event in ("finished", "error"):
         if record.get("status"):
-            tree[keys.TREE.root_status] = str(record["status"])
+            tree.root_status = str(record["status"])  # type: ignore[assignment]
         if record.get("message") or record.get("error"):
-            tree[keys.TREE.message] = str(record.get("message") or record.get("error"))
+            tree.message = str(record.get("message") or record.get("error"))
     else:
         return state
-    result = dict(state)
-    if tree:
-        result[keys.INSTANCE_STATUS.tree] = tree
-    if plugins:
-        plugins.setdefault(keys.PLUGINS.loaded, [])
-        plugins.setdefault(keys.PLUGINS.missing, [])
-        result[keys.INSTANCE_STATUS.plugins] = plugins
+    result = state.model_copy()
+    if tree.model_fields_set:
+        result.tree = tree
+    if plugins.model_fields_set:
+        for empty in ("loaded", "missing"):
+            if empty not in plugins.model_fields_set:
+                setattr(plugins, empty, [])
+        result.plugins = plugins
     return result
 
 
@@ -162,8 +169,9 @@ class KubernetesStatusSink:
         self._ended_by_itself = False
         self._clock = clock
         self._wall = wall
-        self._state: dict[str, Any] = {}
+        self._state = CoralInstanceStatus()
         self._written: dict[str, Any] = {}
+        """The last patch that landed, without `tree.updatedAt`."""
         self._not_before = float("-inf")
         self._failures = 0
         self._refused = False
@@ -197,7 +205,7 @@ class KubernetesStatusSink:
     def pending(self) -> bool:
         """Whether the summary has changed since the last patch that landed."""
         with self._lock:
-            return self._state != self._written
+            return self._state.to_patch() != self._written
 
     def flush(self) -> bool:
         """Patch if the summary changed and the rate limit (or a failure's pause) allows; True if it
@@ -213,13 +221,14 @@ class KubernetesStatusSink:
 
     def _send(self, force: bool) -> bool:
         with self._lock:
-            if self._state == self._written:
+            state = self._state.to_patch()
+            if state == self._written:
                 return False
             if not force and self._clock() < self._not_before:
                 self._wake.set()
                 return False
-            state = {key: dict(value) for key, value in self._state.items()}
             self._not_before = self._clock() + self._interval
+        written = {key: dict(value) for key, value in state.items()}
         if keys.INSTANCE_STATUS.tree in state:
             state[keys.INSTANCE_STATUS.tree][keys.TREE.updated_at] = _rfc3339(self._wall())
         try:
@@ -228,8 +237,7 @@ class KubernetesStatusSink:
             self._failed(error)
             return False
         with self._lock:
-            for key in state:
-                self._written[key] = {k: v for k, v in state[key].items() if k != keys.TREE.updated_at}
+            self._written = written
             self.patches += 1
             failures, self._failures = self._failures, 0
             self._refused = False

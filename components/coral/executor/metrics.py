@@ -10,11 +10,11 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from coral_core.instance_status import ROOT_STATUSES
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, start_http_server
 
 from coral.executor import records
 
-ROOT_STATUSES = ("IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED")
 # The end of a mission says HALTED (stopped) or ERROR (the engine failed); the root then is idle
 # or failed.
 _FINISHED_AS = {"HALTED": "IDLE", "ERROR": "FAILURE"}

@@ -6,6 +6,7 @@ Parsed by the system reconciler (`reconcile.systems`), turned into CoralInstance
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -208,6 +209,9 @@ class UnavailableBudget:
         return max(1, self.count)
 
 
+# Reading the spec checks the value and every rollout decision asks for its budget: a fleet's few
+# values are parsed once each. `typed`, so True is not taken for the count 1.
+@functools.lru_cache(maxsize=256, typed=True)
 def parse_max_unavailable(value: int | str) -> UnavailableBudget:
     """The one parser of `maxUnavailable`: a count of at least 0, or a percentage from 0% to 100%.
 

@@ -15,6 +15,7 @@ from datetime import datetime
 from typing import Any
 
 from coral_core import names
+from coral_core.instance_status import ROOT_STATUSES
 
 from coral_operator.api import keys
 from coral_operator.planning import budgets, naming, provenance
@@ -27,7 +28,7 @@ from coral_operator.planning.observed import (
     SystemRecord,
     shared_spec_key,
 )
-from coral_operator.status import executor_report, transitions
+from coral_operator.status import transitions
 
 parse_time = transitions.parse_rfc3339
 
@@ -50,7 +51,7 @@ def _mapping(value: Any) -> Mapping[str, Any]:
 def _root_status(status: Mapping[str, Any]) -> str | None:
     """The executor's `tree.rootStatus`, if it is one (it feeds the system's counts and rollout)."""
     root = _mapping(status.get(keys.INSTANCE_STATUS.tree)).get(keys.TREE.root_status)
-    return root if isinstance(root, str) and root in executor_report.ROOT_STATUSES else None
+    return root if isinstance(root, str) and root in ROOT_STATUSES else None
 
 
 UNREACHABLE_TAINT = "node.kubernetes.io/unreachable"

@@ -36,13 +36,13 @@ from dataclasses import dataclass, field
 from datetime import datetime
 
 from coral_operator.api.rollout import RolledBack, RolloutCounts, RolloutStatus
-from coral_operator.api.system import RolloutSpec, parse_max_unavailable
+from coral_operator.api.system import RolloutSpec
 from coral_operator.planning import prepull, rollout_checks, rollout_report
 from coral_operator.planning.pull_state import Pull
 from coral_operator.planning.rollout_checks import RobotView
 
 RolloutEvent = rollout_report.RolloutEvent
-__all__ = ["RobotView", "RolloutDecision", "RolloutRequest", "plan_rollout", "resolve_max_unavailable"]
+__all__ = ["RobotView", "RolloutDecision", "RolloutRequest", "plan_rollout"]
 
 
 @dataclass
@@ -62,15 +62,6 @@ class RolloutDecision:
     pulls: list[str] = field(default_factory=list)
     """Robots that must pull the target's images (`spec.rollout.prePull`); an offline one's kubelet
     pulls once it is back."""
-
-
-def resolve_max_unavailable(value: int | str, total: int) -> int:
-    """`maxUnavailable` as a count of robots out of `total`: at least 1; a percentage rounds up.
-
-    Raises:
-        ValueError: the value is neither a non-negative count nor a percentage; names the field.
-    """
-    return parse_max_unavailable(value).resolve(total)
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ older chart may admit more. A value the operator cannot read (a `tree.updatedAt`
 RFC 3339 time, a `plugins.missing` that is no list of names) is dropped and named in a sentence,
 never raised: an exception here used to stop every pass of the instance before it wrote its own
 conditions, so a forged `Ready=True` stuck (issue 47, item 5). The sentences reach the
-`TreeHealthy` and `PluginsReady` conditions (`status.instance_status`). Pure; called by
+`TreeHealthy` and `PluginsReady` conditions (`status.instance_status`). What remains is read into
+the models the executor's sink wrote from (`coral_core.instance_status`). Pure; called by
 `reconcile.instances` once per pass.
 """
 
@@ -14,14 +15,13 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any, get_args
+from typing import Any
 
-from coral_core.instance_status import ParkStatus
+from coral_core.instance_status import PARK_STATUSES, ROOT_STATUSES, PluginState, TreeState
 
 from coral_operator.api import keys
 from coral_operator.status.transitions import parse_rfc3339
 
-ROOT_STATUSES = frozenset({"IDLE", "RUNNING", "SUCCESS", "FAILURE", "SKIPPED"})
 # A forged value is quoted to say what was ignored, never whole: it could be 1 MB long.
 _QUOTED = 40
 _MAX_ENTRIES = 1000
@@ -32,8 +32,8 @@ _MAX_TEXT = 32768
 class ExecutorReport:
     """The executor's fields the operator can read, and a sentence per field it ignored."""
 
-    tree: dict[str, Any] | None = None
-    plugins: dict[str, Any] | None = None
+    tree: TreeState | None = None
+    plugins: PluginState | None = None
     ignored_tree: list[str] = field(default_factory=list)
     ignored_plugins: list[str] = field(default_factory=list)
 
@@ -66,31 +66,36 @@ def _is_names(value: Any) -> bool:
     return isinstance(value, list) and len(value) <= _MAX_ENTRIES and all(_is_text(v) for v in value)
 
 
-def _is_object_of(checks: Mapping[str, Callable[[Any], bool]]) -> Callable[[Any], bool]:
-    """A check of an optional object whose present fields each pass theirs."""
+@dataclass(frozen=True)
+class _ObjectCheck:
+    """A check of an optional object whose present fields each pass theirs; `known` keeps those
+    fields only (a key the schema does not know is nothing anyone reads)."""
 
-    def check(value: Any) -> bool:
+    checks: Mapping[str, Callable[[Any], bool]]
+
+    def __call__(self, value: Any) -> bool:
         if value is None:
             return True
         if not isinstance(value, Mapping):
             return False
-        return all(check(value[key]) for key, check in checks.items() if key in value)
+        return all(check(value[key]) for key, check in self.checks.items() if key in value)
 
-    return check
+    def known(self, value: Mapping[str, Any] | None) -> dict[str, Any] | None:
+        return None if value is None else {k: v for k, v in value.items() if k in self.checks}
 
 
 def _is_optional_time(value: Any) -> bool:
     return value is None or _is_time(value)
 
 
-_is_failure = _is_object_of(
+_is_failure = _ObjectCheck(
     {
         keys.TREE_FAILURE.path: _is_text,
         keys.TREE_FAILURE.message: _is_text,
         keys.TREE_FAILURE.time: _is_optional_time,
     }
 )
-_is_no_progress = _is_object_of(
+_is_no_progress = _ObjectCheck(
     {
         keys.NO_PROGRESS.path: _is_text,
         keys.NO_PROGRESS.message: _is_text,
@@ -98,8 +103,7 @@ _is_no_progress = _is_object_of(
     }
 )
 
-PARK_STATUSES = frozenset(get_args(ParkStatus))
-_is_halt = _is_object_of(
+_is_halt = _ObjectCheck(
     {
         keys.TREE_HALT.since: _is_optional_time,
         keys.TREE_HALT.park_tree: lambda v: v is None or _is_text(v),
@@ -143,11 +147,12 @@ def _read(
         check = fields.get(key) if isinstance(key, str) else None
         if check is None:
             continue  # not a field of the schema: nothing reads it
-        if check[0](item):
-            kept[key] = item
-        else:
+        if not check[0](item):
             ignored.append(f"{where}.{key}: {_quoted(item)} is not {check[1]}")
-    return kept, ignored
+        else:
+            kept[key] = check[0].known(item) if isinstance(check[0], _ObjectCheck) else item
+    # Nothing readable is no report at all, as for an executor that has not written yet.
+    return kept or None, ignored
 
 
 def read_executor_report(status: Mapping[str, Any]) -> ExecutorReport:
@@ -156,8 +161,12 @@ def read_executor_report(status: Mapping[str, Any]) -> ExecutorReport:
     plugins, ignored_plugins = _read(
         status.get(keys.INSTANCE_STATUS.plugins), "status.plugins", _PLUGIN_FIELDS
     )
+    # What passed the checks is valid for the models: they admit more than the checks do.
     return ExecutorReport(
-        tree=tree, plugins=plugins, ignored_tree=ignored_tree, ignored_plugins=ignored_plugins
+        tree=None if tree is None else TreeState.model_validate(tree),
+        plugins=None if plugins is None else PluginState.model_validate(plugins),
+        ignored_tree=ignored_tree,
+        ignored_plugins=ignored_plugins,
     )
 
 

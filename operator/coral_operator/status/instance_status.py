@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from coral_core.instance_status import PluginState, TreeHalt, TreeState
+
 from coral_operator.api import keys
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.planning.observed import ObservedPod, RobotNode
@@ -31,8 +33,8 @@ class InstanceView:
     pods: list[ObservedPod]
     plan: StartupPlan
     transient: set[str]
-    tree: dict[str, Any] | None
-    plugins: dict[str, Any] | None
+    tree: TreeState | None
+    plugins: PluginState | None
     refused: Mapping[str, str] = field(default_factory=dict)
     """Components whose pod the API server refused in this pass, with the server's message."""
     ignored_tree: list[str] = field(default_factory=list)
@@ -163,9 +165,9 @@ def _plugins_verdict(view: InstanceView) -> Verdict:
 
 
 def _plugins_reported(view: InstanceView) -> Verdict:
-    if not view.plugins:
+    if view.plugins is None:
         return Verdict(C.PLUGINS_READY, None, R.NO_REPORT, "The executor has not reported plugins yet.")
-    missing = view.plugins.get(keys.PLUGINS.missing) or []
+    missing = view.plugins.missing
     if missing:
         return Verdict(
             C.PLUGINS_READY, False, R.PLUGINS_MISSING, f"No plugin provides: {', '.join(missing)}."
@@ -174,7 +176,7 @@ def _plugins_reported(view: InstanceView) -> Verdict:
 
 
 def _library_verdict(view: InstanceView) -> Verdict:
-    degraded = (view.plugins or {}).get(keys.PLUGINS.degraded) or []
+    degraded = view.plugins.degraded if view.plugins is not None else []
     if degraded:
         return Verdict(
             C.LIBRARY_DEGRADED,
@@ -190,7 +192,7 @@ def _tree_is_stale(view: InstanceView) -> bool:
 
     Without this, a FAILURE from the previous revision would fail the robot on the new one.
     """
-    written = parse_rfc3339((view.tree or {}).get(keys.TREE.updated_at))
+    written = parse_rfc3339(view.tree.updated_at) if view.tree is not None else None
     if written is None:
         return False
     live = [p for p in view.pods if not p.deleting and p.created is not None]
@@ -204,28 +206,22 @@ def _tree_verdict(view: InstanceView) -> Verdict:
 
 
 def _tree_reported(view: InstanceView) -> Verdict:
-    if not view.tree:
+    if view.tree is None:
         return Verdict(C.TREE_HEALTHY, None, R.NO_REPORT, "The executor has not reported tree status yet.")
     if _tree_is_stale(view):
         return Verdict(
             C.TREE_HEALTHY, None, R.NO_REPORT, "The restarted executor has not reported tree status yet."
         )
-    root = view.tree.get(keys.TREE.root_status, "IDLE")
+    root = view.tree.root_status
     if root == "FAILURE":
-        failure = view.tree.get(keys.TREE.last_failure) or {}
-        where, what = failure.get(keys.TREE_FAILURE.path), failure.get(keys.TREE_FAILURE.message)
-        detail = f" at {where}: {what}" if failure else ""
+        failure = view.tree.last_failure
+        # An object with no field set says nothing about the failure.
+        detail = f" at {failure.path}: {failure.message}" if failure and failure.model_fields_set else ""
         return Verdict(C.TREE_HEALTHY, False, R.TREE_FAILED, f"The tree failed{detail}.")
-    stuck = view.tree.get(keys.TREE.no_progress)
-    if root == "RUNNING" and stuck:
-        where, what = stuck.get(keys.NO_PROGRESS.path, ""), stuck.get(keys.NO_PROGRESS.message, "")
-        since = stuck.get(keys.NO_PROGRESS.since) or "a while"
-        return Verdict(
-            C.TREE_HEALTHY,
-            False,
-            R.NO_PROGRESS,
-            f"The tree makes no progress: {where} has failed the same way since {since}: {what}",
-        )
+    stuck = view.tree.no_progress
+    if root == "RUNNING" and stuck and stuck.model_fields_set:
+        what = f"{stuck.path} has failed the same way since {stuck.since or 'a while'}: {stuck.message}"
+        return Verdict(C.TREE_HEALTHY, False, R.NO_PROGRESS, f"The tree makes no progress: {what}")
     return Verdict(C.TREE_HEALTHY, True, R.TREE_OK, f"The tree is {root}.")
 
 
@@ -235,12 +231,11 @@ def _tree_not_failed(view: InstanceView) -> Verdict:
     return verdict if verdict.status is False else Verdict(C.TREE_HEALTHY, True, R.TREE_OK)
 
 
-def _halt_acknowledged(view: InstanceView) -> dict[str, Any] | None:
+def _halt_acknowledged(view: InstanceView) -> TreeHalt | None:
     """The executor's halt acknowledgement, unless it came from an executor that has since restarted."""
-    if not view.tree or _tree_is_stale(view):
+    if view.tree is None or _tree_is_stale(view):
         return None
-    halted = view.tree.get(keys.TREE.halted)
-    return halted if isinstance(halted, Mapping) else None
+    return view.tree.halted
 
 
 def _halt_verdict(view: InstanceView) -> Verdict | None:
@@ -257,9 +252,9 @@ def _halt_verdict(view: InstanceView) -> Verdict | None:
         message = "A halt is asked for; the executor has not acknowledged it yet."
         return Verdict(C.HALTED, False, R.HALT_REQUESTED, message)
     assert acknowledged is not None
-    since = acknowledged.get(keys.TREE_HALT.since) or "an unknown time"
-    park = acknowledged.get(keys.TREE_HALT.park_tree)
-    ended = acknowledged.get(keys.TREE_HALT.park_status) or "unknown"
+    since = acknowledged.since or "an unknown time"
+    park = acknowledged.park_tree
+    ended = acknowledged.park_status or "unknown"
     parked = f"; park tree {park} ended {ended}" if park else ""
     if not asked:
         return Verdict(

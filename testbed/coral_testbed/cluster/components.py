@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from coral_testbed.cluster import pki as pki_module
+from coral_testbed.cluster.paths import Under
 
 SERVICE_CIDR = "10.96.0.0/16"
 # The `kubernetes` Service's address (the first of SERVICE_CIDR), in the API server's certificate.
@@ -50,28 +51,19 @@ class Layout:
     def pki(self) -> pki_module.Pki:
         return pki_module.Pki(self.state_dir / "pki")
 
-    @property
-    def logs_dir(self) -> Path:
-        return self.state_dir / "logs"
+    logs_dir = Under("state_dir", "logs")
 
     @property
     def server(self) -> str:
         return f"https://127.0.0.1:{self.ports.apiserver}"
 
-    @property
-    def admin_kubeconfig(self) -> Path:
-        return self.state_dir / "kubeconfig"
+    admin_kubeconfig = Under("state_dir", "kubeconfig")
 
     def kubeconfig_for(self, identity: str) -> Path:
         return self.admin_kubeconfig if identity == "admin" else self.state_dir / f"{identity}.kubeconfig"
 
-    @property
-    def kwok_config(self) -> Path:
-        return self.state_dir / "kwok.yaml"
-
-    @property
-    def audit_policy(self) -> Path:
-        return self.state_dir / "audit-policy.yaml"
+    kwok_config = Under("state_dir", "kwok.yaml")
+    audit_policy = Under("state_dir", "audit-policy.yaml")
 
     @property
     def audit_log(self) -> Path:

@@ -19,6 +19,7 @@ import yaml
 from coral_core import offline
 
 from coral_testbed.cluster import kubeconfigs, mountview, nodeimages, robotnet
+from coral_testbed.cluster.paths import Under
 
 KUBELET_PORT = 10250
 KUBELET_HEALTHZ_PORT = 10248
@@ -83,25 +84,11 @@ class RobotLayout:
     def registry_port(self) -> int:
         return int(self.registry.rpartition(":")[2])
 
-    @property
-    def containerd_config(self) -> Path:
-        return self.dir / "containerd.toml"
-
-    @property
-    def cni_conf_dir(self) -> Path:
-        return self.dir / "cni" / "net.d"
-
-    @property
-    def registry_hosts_dir(self) -> Path:
-        return self.dir / "certs.d"
-
-    @property
-    def kubelet_config(self) -> Path:
-        return self.dir / "kubelet.yaml"
-
-    @property
-    def kubelet_kubeconfig(self) -> Path:
-        return self.dir / "kubelet.kubeconfig"
+    containerd_config = Under("dir", "containerd.toml")
+    cni_conf_dir = Under("dir", "cni", "net.d")
+    registry_hosts_dir = Under("dir", "certs.d")
+    kubelet_config = Under("dir", "kubelet.yaml")
+    kubelet_kubeconfig = Under("dir", "kubelet.kubeconfig")
 
     @property
     def image_cache(self) -> Path:

@@ -15,6 +15,8 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
+from coral_testbed.cluster.paths import Under
+
 # The in-cluster names and the first service IP, so in-cluster clients could verify the server too.
 SERVER_SANS = (
     "IP:127.0.0.1",
@@ -50,29 +52,12 @@ class Pki:
 
     dir: Path
 
-    @property
-    def ca_cert(self) -> Path:
-        return self.dir / "ca.crt"
-
-    @property
-    def ca_key(self) -> Path:
-        return self.dir / "ca.key"
-
-    @property
-    def server_cert(self) -> Path:
-        return self.dir / "apiserver.crt"
-
-    @property
-    def server_key(self) -> Path:
-        return self.dir / "apiserver.key"
-
-    @property
-    def sa_key(self) -> Path:
-        return self.dir / "service-account.key"
-
-    @property
-    def sa_pub(self) -> Path:
-        return self.dir / "service-account.pub"
+    ca_cert = Under("dir", "ca.crt")
+    ca_key = Under("dir", "ca.key")
+    server_cert = Under("dir", "apiserver.crt")
+    server_key = Under("dir", "apiserver.key")
+    sa_key = Under("dir", "service-account.key")
+    sa_pub = Under("dir", "service-account.pub")
 
     def client_cert(self, name: str) -> Path:
         return self.dir / f"{name}.crt"

@@ -23,7 +23,7 @@ from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
 from coral.local.console import outline_of
-from coral_core import terminal
+from coral_core import keys, terminal
 from rich.live import Live
 
 from coral_testbed.cluster import binaries, controlplane, realrobots
@@ -85,7 +85,7 @@ def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) 
             instances = watch(show=lambda items: live.update(following.table(items), refresh=True))
     else:
         instances = watch(echo=echo)
-    return {following.robot(i): str(following.tree(i).get("rootStatus")) for i in instances}
+    return {following.robot(i): str(following.tree(i).get(keys.TREE.root_status)) for i in instances}
 
 
 def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) -> None:
@@ -159,7 +159,8 @@ def draw_trees(stack: MissionView, robots: list[str], target: Path, echo: Echo) 
             outline = outline_of(tree_file, spec.get("mainTreeId"))
         path = target if len(robots) == 1 else target.with_name(f"{target.stem}-{robot}.png")
         status = following.tree(instance)
-        title = f"{robot}: tree {status.get('rootStatus')} after {status.get('tickCount', 0)} ticks"
+        root, ticks = status.get(keys.TREE.root_status), status.get(keys.TREE.tick_count, 0)
+        title = f"{robot}: tree {root} after {ticks} ticks"
         tree_picture.draw_tree(outline, following.tree_statuses(instance), path, title)
         echo(f"Tree picture      : {path}")
 

@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from coral_core import terminal
+from coral_core import keys, terminal
 from rich.table import Table
 from rich.text import Text
 
@@ -20,7 +20,8 @@ DONE = ("SUCCESS", "FAILURE")
 
 
 def tree(instance: dict[str, Any]) -> dict[str, Any]:
-    return (instance.get("status") or {}).get("tree") or {}
+    """The executor's tree status as written (the wire names of `coral_core.instance_status.TreeState`)."""
+    return (instance.get("status") or {}).get(keys.INSTANCE_STATUS.tree) or {}
 
 
 def condition(instance: dict[str, Any], kind: str) -> dict[str, Any]:
@@ -35,11 +36,12 @@ def robot(instance: dict[str, Any]) -> str:
 def describe(instance: dict[str, Any], width: int = 70) -> str:
     """`robot-1  RUNNING  ticks 120  Main/.../ProcessScan` plus what is wrong, if anything."""
     status = tree(instance)
-    root = status.get("rootStatus") or ("IDLE" if status else "-")
-    path = str(status.get("activePath") or "")
+    root = status.get(keys.TREE.root_status) or ("IDLE" if status else "-")
+    path = str(status.get(keys.TREE.active_path) or "")
     if len(path) > width:
         path = "..." + path[-(width - 3) :]
-    parts = [f"{robot(instance):<16}", f"{root:<8}", f"ticks {status.get('tickCount', 0):<5}", path]
+    ticks = status.get(keys.TREE.tick_count, 0)
+    parts = [f"{robot(instance):<16}", f"{root:<8}", f"ticks {ticks:<5}", path]
     return "  ".join(p for p in [*parts, *problems(instance)] if p).rstrip()
 
 
@@ -52,7 +54,7 @@ def problems(instance: dict[str, Any]) -> list[str]:
     degraded = condition(instance, "LibraryDegraded")
     if degraded.get("status") == "True":
         notes.append(f"[LibraryDegraded: {degraded.get('message')}]")
-    message = tree(instance).get("message")
+    message = tree(instance).get(keys.TREE.message)
     if message:
         notes.append(f"({message})")
     return notes
@@ -63,13 +65,13 @@ def table(instances: list[dict[str, Any]]) -> Table:
     rows = []
     for instance in sorted(instances, key=robot):
         status = tree(instance)
-        root = status.get("rootStatus") or ("IDLE" if status else "-")
+        root = status.get(keys.TREE.root_status) or ("IDLE" if status else "-")
         rows.append(
             [
                 robot(instance),
                 terminal.status_text(str(root)),
-                str(status.get("tickCount", 0)),
-                str(status.get("activePath") or ""),
+                str(status.get(keys.TREE.tick_count, 0)),
+                str(status.get(keys.TREE.active_path) or ""),
                 Text("  ".join(problems(instance)), style="red"),
             ]
         )
@@ -85,12 +87,12 @@ def tree_statuses(instance: dict[str, Any]) -> dict[int, str]:
     chain while the tree runs, and the node of the last failure. Other nodes are not reported."""
     status = tree(instance)
     statuses: dict[int, str] = {}
-    root = status.get("rootStatus")
+    root = status.get(keys.TREE.root_status)
     if root:
         statuses[1] = str(root)
     if root == "RUNNING":
-        statuses.update(dict.fromkeys(_uids(str(status.get("activePath") or "")), "RUNNING"))
-    failed = _uids(str((status.get("lastFailure") or {}).get("path") or ""))
+        statuses.update(dict.fromkeys(_uids(str(status.get(keys.TREE.active_path) or "")), "RUNNING"))
+    failed = _uids(str((status.get(keys.TREE.last_failure) or {}).get(keys.TREE_FAILURE.path) or ""))
     if failed:
         statuses[failed[-1]] = "FAILURE"
     return statuses
@@ -98,7 +100,7 @@ def tree_statuses(instance: dict[str, Any]) -> dict[int, str]:
 
 def finished(instances: list[dict[str, Any]], robots: list[str]) -> bool:
     """True when every one of `robots` has an instance whose tree ended (SUCCESS or FAILURE)."""
-    ended = {robot(i) for i in instances if tree(i).get("rootStatus") in DONE}
+    ended = {robot(i) for i in instances if tree(i).get(keys.TREE.root_status) in DONE}
     return set(robots) <= ended
 
 
@@ -129,7 +131,7 @@ def follow(
         for instance in sorted(instances, key=robot):
             # Tick counts change on every report; show a robot again only when something else did.
             line = describe(instance)
-            key = line.replace(f"ticks {tree(instance).get('tickCount', 0):<5}", "")
+            key = line.replace(f"ticks {tree(instance).get(keys.TREE.tick_count, 0):<5}", "")
             if echo is not None and shown.get(robot(instance)) != key:
                 echo(f"    {line}")
             shown[robot(instance)] = key

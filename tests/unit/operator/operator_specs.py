@@ -7,13 +7,14 @@ from datetime import UTC, datetime
 from typing import Any
 
 from coral_core import names
+from coral_core.instance_status import PluginState, TreeState
 from coral_operator.api.instance import CoralInstanceSpec
 from coral_operator.api.system import CoralSystemSpec, StartupSpec
 from coral_operator.kube import observing
 from coral_operator.planning import instances, pods, preflight, system_pass
 from coral_operator.planning import startup as startup_planning
 from coral_operator.planning.observed import ObservedInstance, ObservedPod, RobotNode
-from coral_operator.status import instance_status
+from coral_operator.status import executor_report, instance_status
 from fixtures.system_passes import plan_system_pass
 
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -68,12 +69,19 @@ def instance_view(
     *,
     startup: StartupSpec,
     node: RobotNode | None = None,
-    tree: dict[str, Any] | None = None,
-    plugins: dict[str, Any] | None = None,
+    tree: dict[str, Any] | TreeState | None = None,
+    plugins: dict[str, Any] | PluginState | None = None,
     refused: dict[str, str] | None = None,
 ) -> instance_status.InstanceView:
     """What an instance's status is computed from, on robot r1 unless `node` says otherwise, with
-    its start-up planned at NOW as the reconciler plans it."""
+    its start-up planned at NOW as the reconciler plans it. `tree` and `plugins` as the executor
+    wrote them (read as the reconciler reads them) or as read already."""
+    if isinstance(tree, dict) or isinstance(plugins, dict):
+        written = (("tree", tree), ("plugins", plugins))
+        wire = {key: value for key, value in written if isinstance(value, dict)}
+        report = executor_report.read_executor_report(wire)
+        tree = report.tree if isinstance(tree, dict) else tree
+        plugins = report.plugins if isinstance(plugins, dict) else plugins
     plan = startup_planning.plan_startup(
         desired=desired, observed=observed, transient=set(), startup=startup, now=NOW
     )
@@ -95,8 +103,8 @@ def view_with_pods_running(
     *,
     ready: bool = True,
     node_ready: bool = True,
-    tree: dict[str, Any] | None = None,
-    plugins: dict[str, Any] | None = None,
+    tree: dict[str, Any] | TreeState | None = None,
+    plugins: dict[str, Any] | PluginState | None = None,
 ) -> instance_status.InstanceView:
     """The instance of system `sys` with `spec` on robot r1, every component's pod Running (Ready or
     not), and the executor's report `tree` and `plugins`."""

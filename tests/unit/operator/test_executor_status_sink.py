@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from coral.executor import kubernetes_sink as sink
+from coral_core.instance_status import CoralInstanceStatus
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 
@@ -37,7 +38,7 @@ def _sink(patches: list[dict[str, Any]], clock: Clock) -> sink.KubernetesStatusS
 
 def test_a_status_record_becomes_the_tree_summary() -> None:
     state = sink.summarize(
-        {},
+        CoralInstanceStatus(),
         {
             "event": "status",
             "root_status": "RUNNING",
@@ -46,7 +47,7 @@ def test_a_status_record_becomes_the_tree_summary() -> None:
             "last_failure": {"path": "Main/Seq/Check", "message": "no scan", "time": 0.0},
             "conditions": [{"type": "LibraryDegraded", "status": "True", "message": "slam died"}],
         },
-    )
+    ).to_patch()
     assert state["tree"] == {
         "rootStatus": "RUNNING",
         "tickCount": 12,
@@ -58,7 +59,7 @@ def test_a_status_record_becomes_the_tree_summary() -> None:
 
 
 def test_waiting_and_plugin_records_fill_the_plugin_summary() -> None:
-    state = sink.summarize({}, {"event": "waiting", "missing": ["EstimatePose"]})
+    state = sink.summarize(CoralInstanceStatus(), {"event": "waiting", "missing": ["EstimatePose"]})
     state = sink.summarize(
         state,
         {
@@ -68,13 +69,13 @@ def test_waiting_and_plugin_records_fill_the_plugin_summary() -> None:
             "refused": [],
         },
     )
-    state = sink.summarize(state, {"event": "condition", "type": "PluginsReady", "status": "True"})
+    state = sink.summarize(state, {"event": "condition", "type": "PluginsReady", "status": "True"}).to_patch()
     assert state["plugins"] == {"missing": [], "loaded": ["slam"], "conflicts": []}
     assert state["tree"]["message"] == "Waiting for node types: EstimatePose"
 
 
 def test_transitions_alone_change_nothing() -> None:
-    assert sink.summarize({}, {"event": "transition", "path": "a"}) == {}
+    assert sink.summarize(CoralInstanceStatus(), {"event": "transition", "path": "a"}).to_patch() == {}
 
 
 def test_it_patches_on_change_only_and_at_most_once_per_interval() -> None:

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 from coral_core import names
+from coral_core.instance_status import RootStatus, TreeState
 from coral_operator.api.system import CoralSystemSpec
 from coral_operator.kube import observing
 from coral_operator.planning import instance_pass, instances
@@ -83,7 +84,7 @@ def _running(since: float) -> dict[str, Any]:
 
 
 def _conditions(
-    build: dict[str, Any], node: RobotNode | None = None, tree: str = "RUNNING"
+    build: dict[str, Any], node: RobotNode | None = None, tree: RootStatus = "RUNNING"
 ) -> dict[str, tuple[str, str]]:
     """The instance's conditions once its pass has seen the pods `build` gives per component."""
     record = _record()
@@ -108,7 +109,7 @@ def _conditions(
         pods=observed,
         plan=plan.startup,
         transient=plan.transient,
-        tree={"rootStatus": tree, "updatedAt": _at(1)},
+        tree=TreeState(root_status=tree, updated_at=_at(1)),
         plugins=None,
     )
     status = instance_status.build_instance_status(view, old_conditions=[], generation=1, now=NOW)

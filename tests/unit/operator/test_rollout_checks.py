@@ -48,9 +48,24 @@ def test_max_unavailable_is_parsed_once_into_a_budget(
 
 
 @pytest.mark.parametrize(
+    ("value", "total", "expected"),
+    [
+        row("a tenth of a thousand", "10%", 1000, 100),
+        row("a tenth of fifteen rounds up", "10%", 15, 2),
+        row("a count larger than the fleet stays", 5, 3, 5),
+        row("a count in a string of a hundred", "7", 100, 7),
+        row("every robot of forty", "100%", 40, 40),
+    ],
+)
+def test_a_budget_resolves_against_the_matched_robots(value: int | str, total: int, expected: int) -> None:
+    assert parse_max_unavailable(value).resolve(total) == expected
+
+
+@pytest.mark.parametrize(
     ("value", "message"),
     [
         row("a negative count", -1, "at least 0"),
+        row("a negative percentage", "-3%", "expected a count or a percentage"),
         row("a word", "ten", "expected a count or a percentage"),
         row("a percentage over 100", "150%", "expected a count or a percentage"),
         row("a space before the sign", "10 %", "expected a count or a percentage"),

@@ -54,17 +54,17 @@ def _key_uses(path: Path) -> list[tuple[int, str, str]]:
 def test_every_status_key_used_names_a_field_of_its_model() -> None:
     problems = []
     used = 0
-    for path in USERS:
+    for path in [*USERS, SINK]:
         for line, table, field in _key_uses(path):
             used += 1
-            where = f"{path.relative_to(PACKAGE)}:{line}"
+            where = f"{path.name if path == SINK else path.relative_to(PACKAGE)}:{line}"
             if table not in TABLES:
                 problems.append(f"{where}: keys.{table} is no model of api.keys")
             elif field not in TABLES[table].model.model_fields:
                 problems.append(f"{where}: {TABLES[table].model.__name__} has no field {field!r}")
     assert not problems, problems
-    # The scan sees the sink and the status builders, so it cannot pass by finding nothing.
-    assert len(_key_uses(SINK)) >= 15 and used >= 100, used
+    # The scan sees the status builders, so it cannot pass by finding nothing.
+    assert used >= 100, used
 
 
 def test_a_misspelled_key_is_refused_where_it_is_used() -> None:
@@ -150,7 +150,7 @@ def test_the_models_refuse_a_key_they_do_not_have_at_any_depth() -> None:
 
 @pytest.mark.parametrize("online", [True, False], ids=["robot online", "robot away"])
 def test_the_status_the_operator_writes_is_a_valid_status(spec_dict: Any, online: bool) -> None:
-    summary = sink.summarize({}, EXECUTOR_RECORDS[3])
+    summary = sink.summarize(CoralInstanceStatus(), EXECUTOR_RECORDS[3])
     template = instances.build_template(CoralSystemSpec.model_validate(spec_dict()), "t", "p")
     parsed = CoralInstanceSpec.model_validate(instances.build_instance_spec("sys", robot("r1"), template))
     desired = pods.build_pods(spec=parsed, instance="sys-r1", namespace="ns", instance_uid="u")
@@ -172,8 +172,8 @@ def test_the_status_the_operator_writes_is_a_valid_status(spec_dict: Any, online
         [running],
         startup=StartupSpec(),
         node=robot("r1", ready=online),
-        tree=summary[keys.INSTANCE_STATUS.tree],
-        plugins=summary[keys.INSTANCE_STATUS.plugins],
+        tree=summary.tree,
+        plugins=summary.plugins,
     )
     written = instance_status.build_instance_status(view, old_conditions=[], generation=3, now=NOW)
     on_the_wire(CoralInstanceStatus, written)

@@ -13,12 +13,7 @@ from typing import Any
 import pytest
 from coral_operator.api.rollout import RolloutStatus
 from coral_operator.api.system import RolloutSpec
-from coral_operator.planning.rollout import (
-    RobotView,
-    RolloutRequest,
-    plan_rollout,
-    resolve_max_unavailable,
-)
+from coral_operator.planning.rollout import RobotView, RolloutRequest, plan_rollout
 
 NOW = datetime(2026, 1, 1, 12, 0, tzinfo=UTC)
 OLD, NEW = "old0000000", "new0000000"
@@ -55,31 +50,6 @@ def decide(
             resumed=resumed,
         )
     )
-
-
-@pytest.mark.parametrize(
-    ("value", "total", "expected"),
-    [
-        ("10%", 1000, 100),
-        ("10%", 15, 2),
-        ("25%", 10, 3),
-        ("1%", 10, 1),
-        (0, 10, 1),
-        (5, 3, 5),
-        ("7", 100, 7),
-        ("100%", 40, 40),
-    ],
-)
-def test_max_unavailable_resolves_counts_and_rounds_percentages_up(
-    value: Any, total: int, expected: int
-) -> None:
-    assert resolve_max_unavailable(value, total) == expected
-
-
-@pytest.mark.parametrize("value", ["ten", "10 %", "150%", -1, "-3%"])
-def test_a_malformed_max_unavailable_is_refused_naming_the_field(value: Any) -> None:
-    with pytest.raises(ValueError, match=r"spec\.rollout\.maxUnavailable"):
-        resolve_max_unavailable(value, 10)
 
 
 @pytest.mark.parametrize(

@@ -160,10 +160,10 @@ def test_a_robot_halted_before_its_executor_started_never_ticks() -> None:
 
 
 def test_the_acknowledgement_lands_on_the_instance_status_and_a_resume_clears_it() -> None:
-    halted = summarize(
-        {}, {"event": "halted", "since": 1767268800.0, "park_tree": "GoHome", "park_status": "SUCCESS"}
-    )
-    tree = CoralInstanceStatus.model_validate(halted).tree
+    acknowledgement = {"event": "halted", "since": 1767268800.0, "park_tree": "GoHome"}
+    acknowledgement["park_status"] = "SUCCESS"
+    halted = summarize(CoralInstanceStatus(), acknowledgement)
+    tree = CoralInstanceStatus.model_validate(halted.to_patch()).tree
     assert tree is not None and tree.halted is not None
     assert (tree.halted.since, tree.halted.park_tree, tree.halted.park_status) == (
         "2026-01-01T12:00:00Z",
@@ -172,7 +172,7 @@ def test_the_acknowledgement_lands_on_the_instance_status_and_a_resume_clears_it
     )
     resumed = summarize(halted, {"event": "resumed"})
     # Null in the merge patch: the API server removes the field.
-    assert resumed["tree"]["halted"] is None
+    assert resumed.to_patch()["tree"]["halted"] is None
 
 
 def test_the_executor_reads_its_halt_from_its_instance_and_halts_on_one_it_cannot_read() -> None:

@@ -16,6 +16,7 @@ from coral.executor.progress import ProgressWatch
 from coral.executor.ticking import TickLoop
 from coral_core.bt import Status
 from coral_core.bt.leaves import StatefulAction
+from coral_core.instance_status import CoralInstanceStatus
 from coral_testbed.waiting import wait_for
 
 from .tree_fakes import Collect, FailsAtOnce, build_loop
@@ -126,11 +127,11 @@ def test_the_executor_reports_a_retry_loop_that_makes_no_progress_and_its_sink_w
     finally:
         _stop(loop, stop, finished)
     assert "FailsAtOnce" in stuck["path"] and stuck["message"] == DISABLED
-    state: dict[str, Any] = {}
+    state = CoralInstanceStatus()
     written = []
     for record in records.records:
         state = kubernetes_sink.summarize(state, record)
-        written.append((state.get("tree") or {}).get("noProgress", "absent"))
+        written.append((state.to_patch().get("tree") or {}).get("noProgress", "absent"))
     assert written[0] == "absent", "nothing to say while the loop is young"
     assert any(
         w and w != "absent" and w["path"] == stuck["path"] and w["message"] == DISABLED for w in written
@@ -143,10 +144,11 @@ def test_the_sink_clears_the_report_when_the_loop_ends() -> None:
         "root_status": "RUNNING",
         "no_progress": {"path": "M/A", "message": "m", "since": 0.0},
     }
-    state = kubernetes_sink.summarize({}, loop)
-    assert state["tree"]["noProgress"] == {"path": "M/A", "message": "m", "since": "1970-01-01T00:00:00Z"}
+    state = kubernetes_sink.summarize(CoralInstanceStatus(), loop)
+    reported = state.to_patch()["tree"]["noProgress"]
+    assert reported == {"path": "M/A", "message": "m", "since": "1970-01-01T00:00:00Z"}
     state = kubernetes_sink.summarize(state, {**loop, "no_progress": None})
-    assert state["tree"]["noProgress"] is None, "a merge patch's null clears the field"
+    assert state.to_patch()["tree"]["noProgress"] is None, "a merge patch's null clears the field"
 
 
 def test_a_healthy_loop_whose_conditions_say_no_each_pass_makes_progress() -> None:

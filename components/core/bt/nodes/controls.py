@@ -13,6 +13,7 @@ class Sequence(ControlNode):
     ASYNC = False
     ON_DONE = SUCCESS  # the child result that moves on
     ON_STOP = FAILURE  # the child result that ends the sequence
+    MEMORY = False  # a stop keeps the index (halting the children from it) instead of starting over
 
     def __init__(self, name: str, config: NodeConfig) -> None:
         super().__init__(name, config)
@@ -33,8 +34,11 @@ class Sequence(ControlNode):
             if st == RUNNING:
                 return RUNNING
             if st == stop:
-                self.reset_children()
-                self.index = 0
+                if self.MEMORY:
+                    self.halt_children_from(self.index)
+                else:
+                    self.reset_children()
+                    self.index = 0
                 return st
             if st == done:
                 self.index += 1
@@ -72,45 +76,15 @@ class AsyncFallback(Fallback):
     ASYNC = True
 
 
-class SequenceWithMemory(ControlNode):
+class SequenceWithMemory(Sequence):
     """Like Sequence, but FAILURE keeps the index: the next tick resumes at the failed child."""
 
-    def __init__(self, name: str, config: NodeConfig) -> None:
-        super().__init__(name, config)
-        self.index = 0
-        self.skipped = 0
+    ASYNC = True
+    MEMORY = True
 
-    def tick(self) -> int:
-        children = self.children
-        count = len(children)
-        if self._status == IDLE or self._status == SKIPPED:
-            self.skipped = 0
-        self.set_status(RUNNING)
-        while self.index < count:
-            child = children[self.index]
-            prev = child._status
-            st = child.execute_tick()
-            if st == RUNNING:
-                return RUNNING
-            if st == FAILURE:
-                self.halt_children_from(self.index)
-                return FAILURE
-            if st == SUCCESS:
-                self.index += 1
-                if prev == IDLE and self.index < count:
-                    self.rt.wake_up()
-                    return RUNNING
-            elif st == SKIPPED:
-                self.index += 1
-                self.skipped += 1
-            else:
-                raise BTRuntimeError("a child returned IDLE", node_path=self.path)
-        all_skipped = self.skipped == count
-        if self.index == count:
-            self.reset_children()
-            self.index = 0
-            self.skipped = 0
-        return SKIPPED if all_skipped else SUCCESS
+    def halt(self) -> None:
+        # BT.CPP's SequenceWithMemory keeps its index through a halt too.
+        ControlNode.halt(self)
 
 
 class ReactiveSequence(ControlNode):

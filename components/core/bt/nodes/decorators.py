@@ -58,9 +58,65 @@ class KeepRunningUntilFailure(DecoratorNode):
         return self._status
 
 
-class Repeat(DecoratorNode):
+class _Loop(DecoratorNode):
+    """Ticks the child again while it returns `AGAIN`, up to the port's count (-1 = forever), and
+    yields after a synchronous `AGAIN`; the other final result ends the loop at once.
+
+    `Repeat` and `RetryUntilSuccessful` are this loop with SUCCESS and FAILURE swapped, as in BT.CPP
+    (repeat_node.cpp, retry_node.cpp).
+    """
+
+    AGAIN: int
+    COUNT_PORT: str
+    REREAD_COUNT = False
+    """Read the count again after every `AGAIN`, as BT.CPP's retry does (its repeat reads it once)."""
+
+    def __init__(self, name: str, config: NodeConfig) -> None:
+        super().__init__(name, config)
+        self.count = 0
+
+    def tick(self) -> int:
+        limit = int(self.require_input(self.COUNT_PORT))
+        loop = self.count < limit or limit == -1
+        self.set_status(RUNNING)
+        child = self.children[0]
+        again = self.AGAIN
+        while loop:
+            prev = child._status
+            st = child.execute_tick()
+            if st == again:
+                self.count += 1
+                if self.REREAD_COUNT:
+                    limit = int(self.get_input(self.COUNT_PORT, limit))
+                loop = self.count < limit or limit == -1
+                self.reset_child()
+                if prev == IDLE and loop:
+                    self.rt.wake_up()
+                    return RUNNING
+            elif st == SUCCESS or st == FAILURE:
+                self.count = 0
+                self.reset_child()
+                return st
+            elif st == RUNNING:
+                return RUNNING
+            elif st == SKIPPED:
+                self.reset_child()
+                return SKIPPED
+            else:
+                raise BTRuntimeError("a child returned IDLE", node_path=self.path)
+        self.count = 0
+        return again
+
+    def halt(self) -> None:
+        self.count = 0
+        DecoratorNode.halt(self)
+
+
+class Repeat(_Loop):
     """Repeats while the child succeeds, num_cycles times (-1 = forever); yields after sync successes."""
 
+    AGAIN = SUCCESS
+    COUNT_PORT = "num_cycles"
     PORTS = [
         PortSpec(
             "num_cycles",
@@ -70,47 +126,13 @@ class Repeat(DecoratorNode):
         )
     ]
 
-    def __init__(self, name: str, config: NodeConfig) -> None:
-        super().__init__(name, config)
-        self.count = 0
 
-    def tick(self) -> int:
-        cycles = int(self.require_input("num_cycles"))
-        loop = self.count < cycles or cycles == -1
-        self.set_status(RUNNING)
-        child = self.children[0]
-        while loop:
-            prev = child._status
-            st = child.execute_tick()
-            if st == SUCCESS:
-                self.count += 1
-                loop = self.count < cycles or cycles == -1
-                self.reset_child()
-                if prev == IDLE and loop:
-                    self.rt.wake_up()
-                    return RUNNING
-            elif st == FAILURE:
-                self.count = 0
-                self.reset_child()
-                return FAILURE
-            elif st == RUNNING:
-                return RUNNING
-            elif st == SKIPPED:
-                self.reset_child()
-                return SKIPPED
-            else:
-                raise BTRuntimeError("a child returned IDLE", node_path=self.path)
-        self.count = 0
-        return SUCCESS
-
-    def halt(self) -> None:
-        self.count = 0
-        DecoratorNode.halt(self)
-
-
-class RetryUntilSuccessful(DecoratorNode):
+class RetryUntilSuccessful(_Loop):
     """Retries while the child fails, num_attempts times (-1 = forever); re-reads the port each failure."""
 
+    AGAIN = FAILURE
+    COUNT_PORT = "num_attempts"
+    REREAD_COUNT = True
     PORTS = [
         PortSpec(
             "num_attempts",
@@ -119,44 +141,6 @@ class RetryUntilSuccessful(DecoratorNode):
             description="Execute again a failing child up to N times. Use -1 to create an infinite loop.",
         )
     ]
-
-    def __init__(self, name: str, config: NodeConfig) -> None:
-        super().__init__(name, config)
-        self.tries = 0
-
-    def tick(self) -> int:
-        attempts = int(self.require_input("num_attempts"))
-        loop = self.tries < attempts or attempts == -1
-        self.set_status(RUNNING)
-        child = self.children[0]
-        while loop:
-            prev = child._status
-            st = child.execute_tick()
-            if st == SUCCESS:
-                self.tries = 0
-                self.reset_child()
-                return SUCCESS
-            if st == FAILURE:
-                self.tries += 1
-                attempts = int(self.get_input("num_attempts", attempts))
-                loop = self.tries < attempts or attempts == -1
-                self.reset_child()
-                if prev == IDLE and loop:
-                    self.rt.wake_up()
-                    return RUNNING
-            elif st == RUNNING:
-                return RUNNING
-            elif st == SKIPPED:
-                self.reset_child()
-                return SKIPPED
-            else:
-                raise BTRuntimeError("a child returned IDLE", node_path=self.path)
-        self.tries = 0
-        return FAILURE
-
-    def halt(self) -> None:
-        self.tries = 0
-        DecoratorNode.halt(self)
 
 
 class RunOnce(DecoratorNode):
