@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from importlib import metadata
 from pathlib import Path
 
 import pytest
+import yaml
 from click.testing import CliRunner
 from coral.local.cli import validate_command
 
@@ -65,3 +67,32 @@ def test_validate_names_the_system_and_field_of_a_bad_manifest() -> None:
     assert result.exit_code == 1
     assert "coralsystem/fleet: spec.tree:" in result.output and "NoSuchNode" in result.output
     assert "coralsystem/fleet: spec.skillsets[0] (slam)" in result.output
+
+
+SITE_MODELS = ("survey-rover", "quadruped", "arm", "server")
+
+
+@pytest.mark.parametrize("model", SITE_MODELS)
+def test_each_robot_model_of_the_site_runs_a_tree_its_own_images_export(model: str) -> None:
+    """`coral validate` checks the system's own tree; each model's effective tree (after its
+    override) is checked here against its effective components, as the operator's preflight does."""
+    from coral.local import checking
+    from coral_core import bt, image_exports, preflight
+    from coral_operator.api.system import CoralSystemSpec
+    from coral_operator.planning.observed import RobotNode
+    from coral_operator.planning.overrides import BaseConfig, EffectiveConfig, effective_config
+
+    system = yaml.safe_load((EXAMPLES / "site" / "mission.yaml").read_text())
+    spec = CoralSystemSpec.model_validate(system["spec"])
+    base = BaseConfig.of_spec(spec, spec.tree.inline or "", spec.parameters.inline or "")
+    labels = {"coral.dev/robot": f"site-{model}", "coral.dev/model": model, "coral.dev/site": "plant-a"}
+    config = effective_config(base, spec.overrides, RobotNode(f"site-{model}", f"site-{model}", labels, True))
+    assert isinstance(config, EffectiveConfig), config
+    declared: dict[str, image_exports.ImageExports | None] = {}
+    for component in [*config.drivers, *config.skillsets]:
+        verification = checking.verify_component(component.image)
+        assert verification.manifest is not None, verification.problems
+        declared[component.image] = verification.manifest.image_exports()
+    document = bt.load_tree_text(config.tree, filename=f"site {model}", main_tree=config.main_tree_id)
+    verdict = preflight.check_document(document, declared, metadata.version("coral-on-kubernetes"))
+    assert verdict.problems == [] and verdict.undeclared == [], verdict
