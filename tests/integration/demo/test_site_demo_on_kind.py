@@ -25,14 +25,19 @@ def test_the_site_demo_ends_in_success_on_four_robots_of_their_own_models(tmp_pa
     if reason:
         pytest.skip(reason)
     lines: list[str] = []
-    outcome = demo.run(
-        "site", 40, timeout=600, echo=lines.append, tree_png=tmp_path / "site.png", on_kind=True
-    )
+
+    def echo(line: str) -> None:
+        # Printed as well, so the captured output of a failure shows how far the demo got.
+        lines.append(line)
+        print(line, flush=True)
+
+    outcome = demo.run("site", 40, timeout=600, echo=echo, tree_png=tmp_path / "site.png", on_kind=True)
     output = "\n".join(lines)
     assert outcome.roots == dict.fromkeys(manifests.SITE_ROBOTS, "SUCCESS"), output
     assert lines[-1].startswith("==> Demo finished in ") and lines[-1].endswith(": SUCCESS"), output
     # The survey's map reached the share, and no robot got there through a Fallback.
-    assert "Site share      : site_map.ply" in output, output
+    share = next(line for line in lines if line.startswith("Site share"))
+    assert "site_map.ply" in share.split(":", 1)[1].split(", "), output
     for fallback in ("KeepMapOnRobot", "ReportSiteIncomplete", "InspectWithoutMap", "ArmStaysParked"):
         assert fallback not in output, output
     # Each model ran its own components, on its own robot (the demo's `kubectl get pods -o wide`).
