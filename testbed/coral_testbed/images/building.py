@@ -19,6 +19,8 @@ from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
+from coral_core.image_exports import EXPORTS_LABEL
+
 from coral_testbed.cluster import binaries
 from coral_testbed.images import buildah, catalog, fingerprints, registry, rootfs
 
@@ -125,13 +127,36 @@ def exclusive(progress: Progress = say) -> Iterator[None]:
         yield
 
 
-def _registry_has_fingerprint(address: str, spec: catalog.ImageSpec, fingerprint: str) -> bool:
+def is_current(spec: catalog.ImageSpec, labels: dict[str, str], fingerprint: str) -> bool:
+    """Whether an image with `labels` is what building `spec` now would give: same inputs, and the
+    exports declaration where the image's component makes one (images built before the label
+    existed lack it and are built again)."""
+    declares = spec.name not in catalog.EXPORTING or EXPORTS_LABEL in labels
+    return labels.get(fingerprints.LABEL) == fingerprint and declares
+
+
+def _registry_is_current(address: str, spec: catalog.ImageSpec, fingerprint: str) -> bool:
     found = registry.manifest(address, spec.repository, spec.tag)
     if found is None:
         return False
     config = registry.image_config(address, spec.repository, found.config_digest)
-    labels = (config.get("config") or {}).get("Labels") or {}
-    return labels.get(fingerprints.LABEL) == fingerprint
+    return is_current(spec, (config.get("config") or {}).get("Labels") or {}, fingerprint)
+
+
+def _exports_labels(
+    tool: buildah.Buildah, spec: catalog.ImageSpec, parent_ids: dict[str, str]
+) -> dict[str, str]:
+    """The `dev.coral.exports` label of a component image, from the manifest its component exports,
+    read in the runtime image it starts FROM (which holds every component; the image adds none)."""
+    if spec.name not in catalog.EXPORTING:
+        return {}
+    done = tool.run(parent_ids["RUNTIME"], ["coral", "verify", spec.repository, "--print-label"])
+    if done.returncode != 0 or not done.stdout.strip():
+        raise ImageBuildError(
+            f"{spec.name}: `coral verify {spec.repository} --print-label` in the runtime image failed "
+            f"(exit {done.returncode}): {(done.stderr or done.stdout).strip()[-2000:]}"
+        )
+    return {EXPORTS_LABEL: done.stdout.strip().splitlines()[-1]}
 
 
 def _push(
@@ -162,10 +187,10 @@ def _build_one(
     parent_ids = {arg: done[parent].image_id for arg, parent in spec.parents.items()}
     fingerprint = fingerprints.compute(dockerfile, context, build_args={}, parent_ids=parent_ids)
     local = local_reference(spec)
-    if tool.labels(local).get(fingerprints.LABEL) == fingerprint:
+    if is_current(spec, tool.labels(local), fingerprint):
         outcome = "cached"
         image_id = tool.image_id(local) or ""
-    elif address is not None and _registry_has_fingerprint(address, spec, fingerprint):
+    elif address is not None and _registry_is_current(address, spec, fingerprint):
         outcome = "pulled"
         progress(f"{spec.name}: unchanged, taking it from {address}")
         image_id = tool.pull(f"{address}/{spec.reference}", local)
@@ -179,7 +204,7 @@ def _build_one(
                 tag=local,
                 # Parents by image ID: exactly the image the fingerprint covered.
                 build_args=parent_ids,
-                labels={fingerprints.LABEL: fingerprint},
+                labels={fingerprints.LABEL: fingerprint, **_exports_labels(tool, spec, parent_ids)},
                 volumes=_volumes(spec),
                 log=cache / "logs" / f"{spec.name}.log",
                 on_step=lambda step: progress(f"{spec.name}: {step}"),
@@ -229,10 +254,7 @@ def build(
     return done
 
 
-
-def publish(
-    address: str, names: Iterable[str] | None = None, progress: Progress = say
-) -> dict[str, Built]:
+def publish(address: str, names: Iterable[str] | None = None, progress: Progress = say) -> dict[str, Built]:
     """Keeps a registry serving on `address` (starting one if none is) and builds the images into it.
 
     The registry outlives this call; `registry.down(registry_state_dir(), address)` stops it.

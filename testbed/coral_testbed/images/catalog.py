@@ -69,6 +69,9 @@ IMAGES: tuple[ImageSpec, ...] = (
 
 COMPONENTS = ("executor", "bag-player", "examples-skillset", "slam-skillset", "snapshot-skillset")
 """The images that run Coral components: all FROM runtime, as the non-root user coral."""
+EXPORTING = ("bag-player", "examples-skillset", "slam-skillset", "snapshot-skillset")
+"""The component images whose component exports a plugin manifest: their build writes the
+`dev.coral.exports` label the operator's preflight reads (docs/preflight.md)."""
 
 
 def by_name() -> dict[str, ImageSpec]:

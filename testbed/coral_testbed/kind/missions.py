@@ -15,26 +15,31 @@ from pathlib import Path
 from coral_testbed.cluster import binaries, operatorchart
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.kind import clusters, engine, faults, provisioning
-from coral_testbed.missions import stack
+from coral_testbed.missions import manifests, stack
 
 DEMO_CLUSTER = "coral-demo"
+DEMO_CLUSTERS = {"slam": DEMO_CLUSTER, "relay": "relay-demo", "site": "site-demo"}
+"""The kind cluster of each mission's demo: demos of different missions on one machine do not collide."""
 
 
 @contextlib.contextmanager
 def demo_cluster(
-    robots: list[str], echo: Callable[[str], None]
+    robots: list[str], echo: Callable[[str], None], share: Path, name: str = DEMO_CLUSTER
 ) -> Iterator[tuple[clusters.Running, Cluster]]:
-    """A kind cluster for the mission's robots and the operator's node; deleted on the way out."""
+    """A kind cluster `name` for the mission's robots and the operator's node, with the host folder
+    `share` bound at the site share's path into every robot (an NFS mount on a site); deleted on
+    the way out."""
     engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(lambda line: echo(f"    {line}"))
     try:
         running = clusters.create(
-            DEMO_CLUSTER,
+            name,
             {robot: {} for robot in robots},
             ready.engine,
             ready.node_image,
             lambda line: echo(f"    {line}"),
             extra_workers={stack.OPERATOR_NODE: {operatorchart.OPERATOR_NODE_LABEL: "true"}},
+            robot_mounts={manifests.SITE_SHARE: str(share)},
         )
         cluster = Cluster(running.kubeconfig, binaries.find_bin_dir(("kubectl", "helm")), is_local=False)
         try:
@@ -42,8 +47,8 @@ def demo_cluster(
         finally:
             cluster.close()
     finally:
-        echo(f"==> Deleting kind cluster {DEMO_CLUSTER}")
-        clusters.delete(DEMO_CLUSTER, ready.engine, lambda line: echo(f"    {line}"))
+        echo(f"==> Deleting kind cluster {name}")
+        clusters.delete(name, ready.engine, lambda line: echo(f"    {line}"))
         if ready.engine.owned and not engine_was_running:
             engine.stop()
             echo("==> Stopped the project's dockerd")
@@ -60,9 +65,12 @@ class KindMissionStack(stack.MissionStack):
         robots: list[str],
         root: Path,
         echo: Callable[[str], None] = lambda _: None,
+        share: Path | None = None,
     ) -> None:
         super().__init__(cluster, namespace, robots, root, echo)
         self.running = running
+        self.share = share
+        """The host folder bound at the site share's path into every robot, if any."""
 
     def _serve_registry(self) -> str:
         return self.running.registry_address
@@ -80,3 +88,9 @@ class KindMissionStack(stack.MissionStack):
         self.running.engine.docker("exec", node, "mkdir", "-p", str(Path(robot_path).parent))
         self.running.engine.docker("cp", str(bag), f"{node}:{robot_path}")
         return Path(f"{node}:{robot_path}")
+
+    def share_folder(self, server: str, clients: list[str], robot_path: str = manifests.SITE_SHARE) -> Path:
+        """The site share every robot's node has bound at `robot_path` since the cluster was made."""
+        if self.share is None or robot_path != manifests.SITE_SHARE:
+            raise ValueError(f"this cluster's robots share no folder at {robot_path}")
+        return self.share

@@ -12,13 +12,17 @@ from coral.local.cli import TREE_PNG, output_option
 @click.command("demo")
 @click.option(
     "--mission",
-    type=click.Choice(["slam", "relay"]),
+    type=click.Choice(["slam", "relay", "site"]),
     default="slam",
     show_default=True,
-    help="slam: examples/lidar-slam on one robot; relay: examples/relay on three.",
+    help="slam: examples/lidar-slam on one robot; relay: examples/relay on three; "
+    "site: examples/site on a mixed fleet of four.",
 )
 @click.option(
-    "--scans", type=click.IntRange(min=10), default=None, help="Bag length (default: 300 slam, 60 relay)."
+    "--scans",
+    type=click.IntRange(min=10),
+    default=None,
+    help="Bag length (default: 300 slam, 60 relay and site).",
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
 @click.option(

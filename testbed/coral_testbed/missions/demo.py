@@ -24,6 +24,7 @@ from coral.lidar import demo as slam_demo
 from coral.lidar import generating
 from coral.local.console import outline_of
 from coral_core import keys, terminal
+from coral_core.component_image import COMPONENT_UID
 from rich.live import Live
 
 from coral_testbed.cluster import binaries, controlplane, realrobots
@@ -165,24 +166,61 @@ def draw_trees(stack: MissionView, robots: list[str], target: Path, echo: Echo) 
         echo(f"Tree picture      : {path}")
 
 
-def _relay(
-    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+def _coordinated(
+    stack: MissionStack,
+    mission: Path,
+    robots: list[str],
+    dataset: Path,
+    domain: int,
+    timeout: float,
+    echo: Echo,
 ) -> dict[str, str]:
-    """The three-robot relay; its results stay on the site share, so `kept` is not used."""
-    survey, server, worker = manifests.RELAY_ROBOTS
+    """A mission of several robots: the first (the survey) maps the bag, the second (the server)
+    exports the site share the others mount. Its results stay on the share, so nothing is kept."""
+    survey, server, *others = robots
     stack.place_bag(survey, dataset / "bag", manifests.SURVEY_BAG)
-    share = stack.share_folder(server, [survey, worker])
-    echo(f"==> {server} exports {manifests.SITE_SHARE} ({share}); {survey} and {worker} mount it")
-    _apply(stack, manifests.RELAY_MISSION, domain, echo)
-    roots = _follow(stack, list(manifests.RELAY_ROBOTS), timeout, echo)
+    share = stack.share_folder(server, [survey, *others])
+    echo(f"==> {server} exports {manifests.SITE_SHARE} ({share}); {', '.join([survey, *others])} mount it")
+    _apply(stack, mission, domain, echo)
+    roots = _follow(stack, robots, timeout, echo)
     _await_executors_done(stack, echo)
     _kubectl(stack.cluster, echo, "get", "coralsystems,coralinstances", "-n", NAMESPACE)
     echo("")
-    for robot in manifests.RELAY_ROBOTS:
-        echo(f"{robot:<14}: {roots.get(robot)}")
+    for robot in robots:
+        echo(f"{robot:<16}: {roots.get(robot)}")
     shared = sorted(p.name for p in share.iterdir())
     echo(f"Site share      : {', '.join(shared) or '(empty)'}")
     return roots
+
+
+def _relay(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
+    """The three-robot relay, one CoralSystem a robot."""
+    return _coordinated(
+        stack, manifests.RELAY_MISSION, list(manifests.RELAY_ROBOTS), dataset, domain, timeout, echo
+    )
+
+
+def _site(
+    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+) -> dict[str, str]:
+    """The mixed fleet: one CoralSystem whose overrides pick each robot's components and tree by the
+    model label its Node carries, labelled here as an administrator would."""
+    for robot, model in manifests.SITE_ROBOTS.items():
+        _kubectl(
+            stack.cluster,
+            echo,
+            "label",
+            "node",
+            "-l",
+            f"coral.dev/robot={robot}",
+            f"coral.dev/model={model}",
+            manifests.SITE_LABEL,
+        )
+    return _coordinated(
+        stack, manifests.SITE_MISSION, list(manifests.SITE_ROBOTS), dataset, domain, timeout, echo
+    )
 
 
 class DemoUnsupported(RuntimeError):
@@ -237,28 +275,44 @@ def _run_on_local(robots: list[str], folder: Path, echo: Echo, on_stack: OnStack
     return roots
 
 
-def _run_on_kind(robots: list[str], folder: Path, echo: Echo, on_stack: OnStack) -> dict[str, str]:
+def _run_on_kind(
+    robots: list[str], folder: Path, echo: Echo, on_stack: OnStack, mission: str
+) -> dict[str, str]:
     from coral_testbed.kind import missions as kind_missions
 
     echo(f"==> A kind cluster: a control plane; robots {', '.join(robots)} and {OPERATOR_NODE} as workers")
-    with kind_missions.demo_cluster(robots, echo) as (running, cluster):
+    share = folder / "site-share"
+    share.mkdir()
+    # The components run as their own user and write the share, as on a site's NFS export.
+    os.chown(share, COMPONENT_UID, COMPONENT_UID)
+    with kind_missions.demo_cluster(robots, echo, share, kind_missions.DEMO_CLUSTERS[mission]) as (
+        running,
+        cluster,
+    ):
         _kubectl(cluster, echo, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot")
         with kind_missions.KindMissionStack(
-            running, cluster, NAMESPACE, robots, folder / "mission", echo
+            running, cluster, NAMESPACE, robots, folder / "mission", echo, share
         ) as stack:
             roots = on_stack(stack)
             _kubectl(cluster, echo, "get", "pods", "-A", "-o", "wide")
     return roots
 
 
-def _check_kind(mission: str) -> None:
+def _check_kind() -> None:
     from coral_testbed.kind import provisioning
 
-    if mission != "slam":
-        raise DemoUnsupported("on kind, the demo runs the slam mission only (the relay needs a site share)")
     missing = provisioning.unsupported_reason()
     if missing is not None:
         raise DemoUnsupported(f"the demo runs on a kind cluster, which this machine cannot host: {missing}")
+
+
+RunMission = Callable[[MissionStack, Path, int, float, Echo, Path], dict[str, str]]
+"""Runs a mission on a started stack (dataset, ROS domain, timeout, echo, where outputs are kept)."""
+MISSIONS: dict[str, tuple[list[str], RunMission]] = {
+    "slam": ([manifests.SLAM_ROBOT], _slam),
+    "relay": (list(manifests.RELAY_ROBOTS), _relay),
+    "site": (list(manifests.SITE_ROBOTS), _site),
+}
 
 
 def run(
@@ -270,7 +324,7 @@ def run(
     output_dir: Path = DEFAULT_OUTPUT,
     on_kind: bool = False,
 ) -> Outcome:
-    """Runs `mission` (`slam` or `relay`) from start to stop; see the module docstring.
+    """Runs `mission` (a key of `MISSIONS`) from start to stop; see the module docstring.
 
     `on_kind` runs it on a throwaway kind cluster (docs/kind.md) instead of the local control plane.
 
@@ -278,7 +332,7 @@ def run(
         DemoUnsupported: this machine cannot host real robots (checked before anything starts).
     """
     if on_kind:
-        _check_kind(mission)
+        _check_kind()
     else:
         _check_machine()
     began = time.monotonic()
@@ -287,8 +341,7 @@ def run(
     with terminal.progress("    Generating the bag") as step:
         dataset = generating.cached_dataset(params, progress=step)
     echo(f"    {dataset / 'bag'}")
-    robots = [manifests.SLAM_ROBOT] if mission == "slam" else list(manifests.RELAY_ROBOTS)
-    run_mission = _slam if mission == "slam" else _relay
+    robots, run_mission = MISSIONS[mission]
     roots: dict[str, str] = {}
     domain, lock = domains.claim_domain()
 
@@ -300,8 +353,10 @@ def run(
 
     try:
         with tempfile.TemporaryDirectory(prefix="coral-demo-") as folder:
-            run_on = _run_on_kind if on_kind else _run_on_local
-            roots = run_on(robots, Path(folder), echo, on_stack)
+            if on_kind:
+                roots = _run_on_kind(robots, Path(folder), echo, on_stack, mission)
+            else:
+                roots = _run_on_local(robots, Path(folder), echo, on_stack)
     finally:
         os.close(lock)
     outcome = Outcome(roots=roots, duration_s=time.monotonic() - began)

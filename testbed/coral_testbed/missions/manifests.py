@@ -16,8 +16,18 @@ import yaml
 ROOT = Path(__file__).resolve().parents[3]
 SLAM_MISSION = ROOT / "examples" / "lidar-slam" / "mission.yaml"
 RELAY_MISSION = ROOT / "examples" / "relay" / "mission.yaml"
+SITE_MISSION = ROOT / "examples" / "site" / "mission.yaml"
 SLAM_ROBOT = "robot-1"
 RELAY_ROBOTS = ("relay-survey", "relay-server", "relay-worker")
+SITE_ROBOTS = {
+    "site-survey": "survey-rover",
+    "site-server": "server",
+    "site-quadruped": "quadruped",
+    "site-arm": "arm",
+}
+"""The site example's robots and their models (`coral.dev/model`), which pick their overrides."""
+SITE_LABEL = "coral.dev/site=plant-a"
+"""The label the site example's CoralSystem selects its robots by."""
 BAGS = "/var/lib/coral/bags"
 """The robot folder the examples' bag players read (an administrator opens it per namespace)."""
 SLAM_BAG = f"{BAGS}/lidar-slam"

@@ -10,6 +10,8 @@ from __future__ import annotations
 import shlex
 
 import pytest
+from coral.local import checking
+from coral_core import image_exports, image_labels
 from coral_testbed import images
 from coral_testbed.images import building, catalog, registry
 
@@ -117,6 +119,19 @@ def test_skillset_images_export_their_plugin_and_stop_cleanly(
     )
     output = _run(built_images[name], script)
     assert "exported" in output and "exit=0" in output, output
+
+
+@pytest.mark.parametrize("name", catalog.EXPORTING)
+def test_component_images_declare_what_their_component_exports_to_preflight(
+    built_images: dict[str, images.Built], image_registry: str, name: str
+) -> None:
+    """The label preflight reads from the registry by digest is the component's own manifest."""
+    spec = built_images[name].spec
+    digest, labels = image_labels.ImageLabels().labels(f"{image_registry}/{spec.reference}")
+    assert digest == built_images[name].digest
+    declared = image_exports.from_labels(labels, spec.reference)
+    manifest = checking.verify_component(spec.repository).manifest
+    assert manifest is not None and declared == manifest.image_exports()  # type: ignore[attr-defined]
 
 
 def test_the_operator_image_runs_coral(built_images: dict[str, images.Built]) -> None:
