@@ -93,5 +93,6 @@ bench: bench-bt bench-calls bench-slam bench-fleet bench-writes
 # cluster (`CLUSTER=local`: the testbed's own control plane); `BASELINE=DIR` also measures the
 # operator of the checkout DIR (with its own .venv) against this one (docs/performance.md).
 bench-fleet bench-writes: control-plane
+bench-fleet: $(if $(filter local,$(CLUSTER)),,node-runtime)
 bench-bt bench-calls bench-slam bench-fleet bench-writes: venv
 	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f $(if $(and $(PLOT),$(filter bench-fleet bench-slam,$@)),--plot $(PLOT)) $(if $(filter bench-fleet,$@),$(SIZES) $(if $(LAYOUT),--layout $(LAYOUT)) $(if $(CLUSTER),--cluster $(CLUSTER)) $(if $(BASELINE),--baseline $(BASELINE))); else echo "$$f: not written yet"; fi

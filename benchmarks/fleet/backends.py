@@ -63,6 +63,9 @@ def _say(line: str) -> None:
 
 
 def _start_kind(work: Path, extra_args: Mapping[str, Sequence[str]], audit_folder: Path) -> BenchCluster:
+    reason = provisioning.unsupported_reason()
+    if reason is not None:
+        raise RuntimeError(f"{reason}; `--cluster local` runs on the testbed's own control plane")
     engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(_say)
     if clusters.load(KIND_NAME, ready.engine) is not None:
