@@ -88,8 +88,9 @@ TARGET_APISERVER_CPU = 1.5
 TARGET_METRICS_CPU = 1.05
 SCRAPE_INTERVAL_S = 5.0
 # This checkout against an earlier one (`--baseline`), same runs, optional features at their
-# defaults: no regression beyond a run's noise on a busy 2-core machine, and no more writes.
-TARGET_BASELINE_TIME, TARGET_BASELINE_CPU, TARGET_BASELINE_WRITES = 1.1, 1.1, 1.0
+# defaults: no regression beyond a run's noise on a busy 2-core machine. Writes move a little with
+# time too: a start that lasts longer gets another progress write.
+TARGET_BASELINE_TIME, TARGET_BASELINE_CPU, TARGET_BASELINE_WRITES = 1.1, 1.1, 1.05
 # Seconds per robot at one size over the size before: near linear. Judged for Coral's layouts.
 TARGET_GROWTH = 1.25
 # Each Coral layout, its reference run, how that reference is built, and its time targets.
