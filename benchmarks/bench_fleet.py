@@ -5,10 +5,12 @@ size (`make bench-fleet SIZES=100` likewise); `--plot DIR` also draws the times 
 count into DIR/fleet.png, and `--logs DIR` keeps the operator's log of each size in DIR (its work
 queue says every 10 s how many passes ran, how long they took and how late they started).
 
-For each size, on a fresh local control plane (etcd, kube-apiserver, controller manager,
-scheduler, kwok) with that many kwok robots, in the same run, pairs of runs, each Coral run next to
-its reference (a cluster that has already created and deleted thousands of pods is slower than a
-fresh one, and that drift must not land in a ratio), and each run once the control plane is quiet
+For each size, on a fresh cluster with that many kwok robots (`--cluster local`, the default: the
+testbed's own control plane of etcd, kube-apiserver, controller manager, scheduler and kwok;
+`--cluster kind`: a kind cluster, kwok against its API server; `fleet.backends`), in the same run,
+pairs of runs, each Coral run next to its reference (a cluster that has already created and
+deleted thousands of pods is slower than a fresh one, and that drift must not land in a ratio),
+and each run once the control plane is quiet
 (a thousand new robots keep it busy for 10 to 15 s after they are Ready, and a deleted run's
 objects for a while after they are gone). At the largest size each pair is run `--pairs` times
 (default 3), in ABBA order, and each ratio is the median pair's (every pair is printed too):
@@ -33,6 +35,9 @@ pairs:
    process, with its metrics served and scraped every 5 s against metrics off, in ABBA pairs; the
    operator's CPU from its start to the run's deletion, as a ratio (target: under 1.05x), and the
    series one scrape holds.
+6. With `--baseline CHECKOUT` (an earlier commit with its own .venv): this operator against that
+   one, each with its own CRDs, the same `PodPerComponent` runs in ABBA pairs with every optional
+   feature at its default; the ratios of the times, the operator's CPU and its writes.
 
 For each run it prints the API server's CPU seconds and every client's requests by kind, and for
 the Coral runs the operator's writes per robot by kind (a collection delete counts as one), for
@@ -64,8 +69,7 @@ from pathlib import Path
 from typing import Any
 
 import plots
-from coral_testbed.cluster import controlplane
-from fleet import audit, coral, daemonset, robots, scraping
+from fleet import audit, backends, coral, daemonset, robots, scraping
 from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 
@@ -83,6 +87,10 @@ TARGET_APISERVER_CPU = 1.5
 # The operator's CPU over a run with its metrics served and scraped, against metrics off.
 TARGET_METRICS_CPU = 1.05
 SCRAPE_INTERVAL_S = 5.0
+# This checkout against an earlier one (`--baseline`), same runs, optional features at their
+# defaults: no regression beyond a run's noise on a busy 2-core machine. Writes move a little with
+# time too: a start that lasts longer gets another progress write.
+TARGET_BASELINE_TIME, TARGET_BASELINE_CPU, TARGET_BASELINE_WRITES = 1.1, 1.1, 1.05
 # Seconds per robot at one size over the size before: near linear. Judged for Coral's layouts.
 TARGET_GROWTH = 1.25
 # Each Coral layout, its reference run, how that reference is built, and its time targets.
@@ -126,6 +134,18 @@ def note(text: str) -> None:
     print(f"# {text}", flush=True)
 
 
+@dataclass(frozen=True)
+class Options:
+    """What every size's run shares, from the command line."""
+
+    backend: str = "kind"
+    logs: Path | None = None
+    """Where the operators' logs are kept (default: the run's temporary folder)."""
+    layouts: tuple[str, ...] = CORAL_LAYOUTS
+    baseline: Path | None = None
+    """A checkout of an earlier commit with its own .venv, measured against this one."""
+
+
 @dataclass
 class SizeFigures:
     """The times of one size's runs, for the growth lines and the plot."""
@@ -134,28 +154,23 @@ class SizeFigures:
     times: dict[str, float]
 
 
-def run_size(
-    count: int,
-    work: Path,
-    logs: Path | None = None,
-    pairs: int = 1,
-    layouts: tuple[str, ...] = CORAL_LAYOUTS,
-    largest: bool = True,
-) -> SizeFigures:
+def run_size(count: int, work: Path, options: Options, pairs: int = 1, largest: bool = True) -> SizeFigures:
     """`largest`: the run's largest size, where the metrics' cost is judged (elsewhere printed)."""
+    logs, layouts = options.logs, options.layouts
     timeout = 300 + count * 1.2
     extra, audit_path = audit.audit_flags(work / "audit")
     kwok_config = work / "kwok-options.yaml"
     kwok_config.write_text(KWOK_CONFIG)
-    state = controlplane.start(
-        work / "control-plane",
-        die_with_parent=True,
-        extra_args={
+    state = backends.start(
+        options.backend,
+        work,
+        {
             "kube-apiserver": extra,
             "kube-controller-manager": CLIENT_LIMITS + NODE_GRACE,
             "kube-scheduler": CLIENT_LIMITS,
             "kwok": [f"--config={kwok_config}"],
         },
+        audit_path.parent,
     )
     log = audit.AuditLog(audit_path)
     operator = None
@@ -203,7 +218,7 @@ def run_size(
                         operator = operator or _start_operator(
                             api, state, (logs or work) / f"operator-{count}.log"
                         )
-                        result, apiserver = _coral_run(
+                        result, apiserver, _ = _coral_run(
                             api, state, log, operator, count, timeout, layout, judge_writes=index == 0
                         )
                         figures[side] = (result.ready_seconds, result.update_seconds, apiserver)
@@ -242,18 +257,21 @@ def run_size(
             # The metrics runs start operators of their own; two serving one namespace would race.
             operator.stop()
             operator = None
+        runs = OperatorRuns(api, state, log, count, timeout, logs or work, pairs)
         if "PodPerComponent" in layouts:
-            _metrics_cost(api, state, log, count, timeout, logs or work, pairs, judge=largest)
+            _metrics_cost(runs, judge=largest)
+        if options.baseline is not None:
+            _baseline_cost(runs, options.baseline)
         return SizeFigures(robots=count, times=times)
     finally:
         if operator is not None:
             operator.stop()
-        controlplane.stop(work / "control-plane")
+        state.stop()
 
 
 def _reference_run(
     api: k8s.ApiClient,
-    state: controlplane.State,
+    state: backends.BenchCluster,
     log: audit.AuditLog,
     count: int,
     timeout: float,
@@ -290,7 +308,9 @@ def _reference_run(
     return ds.ready_seconds, ds.update_seconds, apiserver
 
 
-def _start_operator(api: k8s.ApiClient, state: controlplane.State, log_path: Path) -> coral.OperatorProcess:
+def _start_operator(
+    api: k8s.ApiClient, state: backends.BenchCluster, log_path: Path
+) -> coral.OperatorProcess:
     operator = coral.OperatorProcess(coral.kube_env(state.kubeconfig), "bench-coral", log_path)
     coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
     return operator
@@ -298,7 +318,7 @@ def _start_operator(api: k8s.ApiClient, state: controlplane.State, log_path: Pat
 
 def _coral_run(
     api: k8s.ApiClient,
-    state: controlplane.State,
+    state: backends.BenchCluster,
     log: audit.AuditLog,
     operator: coral.OperatorProcess,
     count: int,
@@ -306,8 +326,9 @@ def _coral_run(
     layout: str,
     *,
     judge_writes: bool = True,
-) -> tuple[coral.CoralResult, float]:
-    """One Coral run in `layout`: its times, with its figures printed; returns the API server's CPU.
+) -> tuple[coral.CoralResult, float, float]:
+    """One Coral run in `layout`: its times, with its figures printed; returns the API server's CPU
+    and the operator's writes per robot (deployment and update).
     `judge_writes`: print the writes per robot as BENCH lines (the first run of a layout's pairs)."""
     _wait_quiet(state, layout, count)
     cpu_before = coral.cpu_seconds(operator.process.pid)
@@ -334,6 +355,7 @@ def _coral_run(
         f"coral {layout} n={count}: CPU seconds by process: {_cpu_since(state, cpu_mark)}, operator {cpu:.1f}"
     )
     total = sum(kinds["deploy"].values()) + sum(kinds["update"].values())
+    written = 0
     note(
         f"coral {layout} n={count}: ready {result.ready_seconds:.1f} s, "
         f"rolling update {result.update_seconds:.1f} s, "
@@ -352,6 +374,7 @@ def _coral_run(
             + ", ".join(f"{k}={v}" for k, v in counted.most_common(10))
         )
         writes = {kind: n for kind, n in counted.items() if kind.split(" ", 1)[0] in WRITE_VERBS}
+        written += sum(writes.values())
         note(
             f"all requests by client ({layout}, {phase}): "
             + ", ".join(f"{k}={v}" for k, v in everyone.get(phase, Counter()).most_common(16))
@@ -368,63 +391,134 @@ def _coral_run(
                 "<=",
                 TARGET_WRITES_PER_ROBOT,
             )
-    return result, apiserver
+    return result, apiserver, written / count
 
 
-def _metrics_cost(
-    api: k8s.ApiClient,
-    state: controlplane.State,
-    log: audit.AuditLog,
-    count: int,
-    timeout: float,
-    folder: Path,
-    pairs: int,
-    *,
-    judge: bool,
-) -> None:
-    """The operator's CPU over one `PodPerComponent` run (start, deployment, update, deletion), its
-    metrics served and scraped every SCRAPE_INTERVAL_S, against the same run with metrics off; each
-    run on a fresh operator process, pairs in ABBA order, judged on the median pair's ratio. Also
-    prints how many series one scrape holds, which does not grow with the robots. Judged (`judge`)
-    at the largest size only: a smaller fleet's run costs the operator a few CPU seconds, within
-    which one pair's noise is more than the metrics' cost."""
-    ratios: list[float] = []
-    for index in range(pairs):
-        sides = ("off", "on") if index % 2 == 0 else ("on", "off")
-        cpu: dict[str, float] = {}
-        for side in sides:
-            address = f"127.0.0.1:{_free_port()}" if side == "on" else None
-            log_path = folder / f"operator-metrics-{side}-{count}-{index}.log"
-            operator = coral.OperatorProcess(
-                coral.kube_env(state.kubeconfig), "bench-coral", log_path, address
+@dataclass(frozen=True)
+class Variant:
+    """One side of an A/B comparison of operators: what its operator process is started with."""
+
+    metrics: bool = False
+    """Serve the operator's metrics and scrape them every SCRAPE_INTERVAL_S."""
+    checkout: Path | None = None
+    """Run the operator (and apply the CRDs) of this checkout, with its own .venv."""
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    ready: float
+    update: float
+    cpu: float
+    """The operator's CPU seconds from its start to the run's deletion."""
+    writes: float
+    """The operator's writes per robot, deployment and update."""
+
+
+@dataclass(frozen=True)
+class OperatorRuns:
+    """What a size's A/B comparisons of operators run on."""
+
+    api: k8s.ApiClient
+    state: backends.BenchCluster
+    log: audit.AuditLog
+    count: int
+    timeout: float
+    folder: Path
+    pairs: int
+
+    def compare(self, label: str, variants: dict[str, Variant]) -> list[dict[str, RunFigures]]:
+        """`Coral PodPerComponent` runs (start, deployment, update, deletion), each on a fresh operator
+        process, one per variant in each pair, pairs in ABBA order (a trend favours neither side)."""
+        figures: list[dict[str, RunFigures]] = []
+        for index in range(self.pairs):
+            sides = list(variants) if index % 2 == 0 else list(reversed(variants))
+            figures.append({side: self._run(label, side, variants[side], index) for side in sides})
+        return figures
+
+    def _run(self, label: str, side: str, variant: Variant, index: int) -> RunFigures:
+        env = coral.kube_env(self.state.kubeconfig)
+        crds = (variant.checkout or ROOT) / "crds"
+        # Each operator with its own CRDs, as it is released: an older one may refuse newer fields.
+        if not coral.apply_crds(env, crds):
+            raise RuntimeError(f"kubectl apply -f {crds} failed")
+        address = f"127.0.0.1:{_free_port()}" if variant.metrics else None
+        log_path = self.folder / f"operator-{label}-{side}-{self.count}-{index}.log"
+        operator = coral.OperatorProcess(env, "bench-coral", log_path, address, variant.checkout)
+        scraper = None
+        try:
+            coral.wait_operator_serving(self.api, "bench-coral", operator, timeout=180)
+            if address is not None:
+                scraper = scraping.Scraper(f"http://{address}/metrics", SCRAPE_INTERVAL_S)
+            origin = f" from {variant.checkout}" if variant.checkout else ""
+            note(
+                f"{label} {side} n={self.count}: the next run's operator{origin} "
+                f"serves {address or 'no metrics'}"
             )
-            scraper = None
-            try:
-                coral.wait_operator_serving(api, "bench-coral", operator, timeout=180)
-                if address is not None:
-                    scraper = scraping.Scraper(f"http://{address}/metrics", SCRAPE_INTERVAL_S)
-                note(f"metrics {side} n={count}: the next run's operator serves {address or 'no metrics'}")
-                _coral_run(api, state, log, operator, count, timeout, "PodPerComponent", judge_writes=False)
-                coral.delete_system(api, "bench-coral", timeout)
-                cpu[side] = coral.cpu_seconds(operator.process.pid)
-            finally:
-                if scraper is not None:
-                    scraper.stop()
-                    note(
-                        f"metrics on n={count}: {scraper.series} series in one scrape, "
-                        f"{scraper.scrapes} scrapes, {scraper.failures} failed"
-                    )
-                operator.stop()
-        ratios.append(cpu["on"] / cpu["off"])
+            result, _, writes = _coral_run(
+                self.api,
+                self.state,
+                self.log,
+                operator,
+                self.count,
+                self.timeout,
+                "PodPerComponent",
+                judge_writes=False,
+            )
+            coral.delete_system(self.api, "bench-coral", self.timeout)
+            cpu = coral.cpu_seconds(operator.process.pid)
+        finally:
+            if scraper is not None:
+                scraper.stop()
+                note(
+                    f"metrics on n={self.count}: {scraper.series} series in one scrape, "
+                    f"{scraper.scrapes} scrapes, {scraper.failures} failed"
+                )
+            operator.stop()
+        return RunFigures(result.ready_seconds, result.update_seconds, cpu, writes)
+
+
+def _metrics_cost(runs: OperatorRuns, *, judge: bool) -> None:
+    """The operator's CPU over one `PodPerComponent` run, its metrics served and scraped every
+    SCRAPE_INTERVAL_S, against the same run with metrics off, judged on the median pair's ratio.
+    Also prints how many series one scrape holds, which does not grow with the robots. Judged
+    (`judge`) at the largest size only: a smaller fleet's run costs the operator a few CPU seconds,
+    within which one pair's noise is more than the metrics' cost."""
+    count = runs.count
+    ratios: list[float] = []
+    for index, pair in enumerate(runs.compare("metrics", {"off": Variant(), "on": Variant(metrics=True)})):
+        ratios.append(pair["on"].cpu / pair["off"].cpu)
         note(
-            f"metrics n={count} pair {index + 1}: operator CPU {cpu['on']:.1f} s with metrics, "
-            f"{cpu['off']:.1f} s without ({ratios[-1]:.3f}x)"
+            f"metrics n={count} pair {index + 1}: operator CPU {pair['on'].cpu:.1f} s with metrics, "
+            f"{pair['off'].cpu:.1f} s without ({ratios[-1]:.3f}x)"
         )
     ratio = statistics.median(ratios)
     if judge:
         bench(f"operator_metrics_cpu_ratio_{count}", ratio, "x", "<=", TARGET_METRICS_CPU)
     else:
         note(f"operator_metrics_cpu_ratio_{count} (not judged below the largest size): {ratio:.3g}x")
+
+
+def _baseline_cost(runs: OperatorRuns, baseline: Path) -> None:
+    """This checkout's operator against `baseline`'s (an earlier commit with its own .venv) on the
+    same runs, every optional feature at its default: the times, the operator's CPU and its writes,
+    as ratios of the median pair (above 1: this checkout is slower or busier)."""
+    count = runs.count
+    pairs = runs.compare("baseline", {"baseline": Variant(checkout=baseline), "current": Variant()})
+    for index, pair in enumerate(pairs):
+        now, before = pair["current"], pair["baseline"]
+        note(
+            f"baseline n={count} pair {index + 1}: ready {now.ready:.1f} s against {before.ready:.1f} s, "
+            f"update {now.update:.1f} s against {before.update:.1f} s, operator CPU {now.cpu:.1f} s "
+            f"against {before.cpu:.1f} s, writes per robot {now.writes:.2f} against {before.writes:.2f}"
+        )
+    for name, field_name, target in (
+        ("ready", "ready", TARGET_BASELINE_TIME),
+        ("update", "update", TARGET_BASELINE_TIME),
+        ("operator_cpu", "cpu", TARGET_BASELINE_CPU),
+        ("operator_writes", "writes", TARGET_BASELINE_WRITES),
+    ):
+        ratios = [getattr(p["current"], field_name) / getattr(p["baseline"], field_name) for p in pairs]
+        bench(f"baseline_{name}_ratio_{count}", statistics.median(ratios), "x", "<=", target)
 
 
 def _free_port() -> int:
@@ -450,7 +544,7 @@ def report_growth(figures: list[SizeFigures]) -> None:
                 note(f"{name} (reference): {growth:.3g}x")
 
 
-def _wait_quiet(state: controlplane.State, run: str, count: int) -> None:
+def _wait_quiet(state: backends.BenchCluster, run: str, count: int) -> None:
     """Wait until the control plane is as quiet as it gets with this many robots (its processes
     below QUIET_CORES over a QUIET_WINDOW_S window), at most QUIET_TIMEOUT_S. A thousand new
     robots keep it busy on both cores for 10 to 15 s after they are Ready, and a deleted run's
@@ -466,21 +560,21 @@ def _wait_quiet(state: controlplane.State, run: str, count: int) -> None:
             return
 
 
-def _apiserver_cpu(state: controlplane.State, mark: dict[str, float]) -> float:
+def _apiserver_cpu(state: backends.BenchCluster, mark: dict[str, float]) -> float:
     return sum(seconds for name, seconds in _cpu_delta(state, mark).items() if "apiserver" in name)
 
 
-def _cpu(state: controlplane.State) -> dict[str, float]:
-    return {p.name: coral.cpu_seconds(p.pid) for p in state.processes}
+def _cpu(state: backends.BenchCluster) -> dict[str, float]:
+    return {name: coral.cpu_seconds(pid) for name, pid in state.pids().items()}
 
 
-def _cpu_delta(state: controlplane.State, mark: dict[str, float]) -> dict[str, float]:
+def _cpu_delta(state: backends.BenchCluster, mark: dict[str, float]) -> dict[str, float]:
     """CPU seconds each control-plane process spent since `mark` (a `_cpu` reading)."""
     now = _cpu(state)
     return {name: now[name] - mark.get(name, 0.0) for name in now}
 
 
-def _cpu_since(state: controlplane.State, mark: dict[str, float]) -> str:
+def _cpu_since(state: backends.BenchCluster, mark: dict[str, float]) -> str:
     """CPU each control-plane process spent since `mark`: where a 2-core machine's time went."""
     return ", ".join(f"{name}={seconds:.1f}" for name, seconds in sorted(_cpu_delta(state, mark).items()))
 
@@ -502,22 +596,33 @@ def main(argv: list[str]) -> int:
         choices=CORAL_LAYOUTS,
         help="measure only this layout against its reference (repeatable; default: every layout)",
     )
+    parser.add_argument(
+        "--cluster",
+        choices=backends.BACKENDS,
+        default=backends.BACKENDS[0],
+        help="local (default): the testbed's own control plane; kind: a kind cluster with kwok robots",
+    )
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="CHECKOUT",
+        help="also measure the operator of CHECKOUT (an earlier commit with its own .venv) against this one",
+    )
     args = parser.parse_args(argv)
     sizes = args.sizes or SIZES
-    layouts = tuple(args.layout or CORAL_LAYOUTS)
+    if args.baseline is not None and not (args.baseline / ".venv" / "bin" / "python").exists():
+        parser.error(f"{args.baseline} has no .venv/bin/python (run `make venv` there)")
+    options = Options(args.cluster, args.logs, tuple(args.layout or CORAL_LAYOUTS), args.baseline)
     figures = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
         for count in sizes:
             if args.logs is not None:
                 args.logs.mkdir(parents=True, exist_ok=True)
             pairs = max(1, args.pairs) if count == max(sizes) else 1
-            figures.append(
-                run_size(
-                    count, Path(folder) / f"n{count}", args.logs, pairs, layouts, largest=count == max(sizes)
-                )
-            )
+            work = Path(folder) / f"n{count}"
+            figures.append(run_size(count, work, options, pairs, largest=count == max(sizes)))
     report_growth(figures)
-    if args.plot is not None and "PodPerComponent" in layouts:
+    if args.plot is not None and "PodPerComponent" in options.layouts:
         points = [
             plots.FleetPoint(
                 robots=f.robots,

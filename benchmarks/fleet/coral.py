@@ -35,13 +35,23 @@ NAME = "mission"
 class OperatorProcess:
     """The operator serving one namespace, with its peak RSS sampled from /proc."""
 
-    def __init__(self, env: dict[str, str], namespace: str, log: Path, metrics: str | None = None) -> None:
-        """`metrics`: ADDRESS:PORT to serve the operator's metrics on; off when None."""
+    def __init__(
+        self,
+        env: dict[str, str],
+        namespace: str,
+        log: Path,
+        metrics: str | None = None,
+        checkout: Path | None = None,
+    ) -> None:
+        """`metrics`: ADDRESS:PORT to serve the operator's metrics on; off when None. `checkout`:
+        run the operator of that checkout, from its own .venv (default: this one's)."""
         self.log = log
         self.peak_kib = 0
         self._stop = threading.Event()
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "coral_operator", "-n", namespace],
+            [str(checkout / ".venv" / "bin" / "python") if checkout else sys.executable]
+            + ["-m", "coral_operator", "-n", namespace],
+            cwd=checkout,
             # The benchmark's systems use the host network, as robots running DDS do.
             env={
                 **env,
@@ -253,13 +263,17 @@ def kube_env(kubeconfig: Path) -> dict[str, str]:
     return {**os.environ, "KUBECONFIG": str(kubeconfig)}
 
 
-def apply_crds(env: dict[str, str]) -> bool:
-    """`kubectl apply` of crds/ and a wait until they are established; False (stderr printed) on failure."""
+def apply_crds(env: dict[str, str], folder: Path = ROOT / "crds") -> bool:
+    """`kubectl apply` of `folder` and a wait until the CRDs are established; False (stderr printed)
+    on failure. Applying another checkout's CRDs over these replaces their schemas."""
     from coral_testbed.cluster import binaries
 
     kubectl = binaries.find_kubectl(None)
     result = subprocess.run(
-        [kubectl, "apply", "--server-side", "-f", str(ROOT / "crds")], env=env, capture_output=True, text=True
+        [kubectl, "apply", "--server-side", "--force-conflicts", "-f", str(folder)],
+        env=env,
+        capture_output=True,
+        text=True,
     )
     if result.returncode != 0:
         print(result.stderr, file=sys.stderr)

@@ -7,6 +7,7 @@ control planes (a developer's and a test session's) can run side by side.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -186,8 +187,9 @@ def build_scheduler(layout: Layout) -> list[str]:
     ]
 
 
-def build_kwok(layout: Layout, kubeconfig: Path | None = None) -> list[str]:
-    """kwok as the controller of robot Nodes; `kubeconfig` points it at another cluster if given."""
+def build_kwok(layout: Layout, kubeconfig: Path | None = None, extra: Sequence[str] = ()) -> list[str]:
+    """kwok as the controller of robot Nodes; `kubeconfig` points it at another cluster if given,
+    `extra` flags follow (a benchmark's `--config` of more workers, say)."""
     return [
         str(layout.bin_dir / "kwok"),
         f"--config={layout.kwok_config}",
@@ -199,4 +201,5 @@ def build_kwok(layout: Layout, kubeconfig: Path | None = None) -> list[str]:
         "--node-ip=127.0.0.1",
         f"--node-port={layout.ports.kwok}",
         f"--cidr={POD_CIDR}",
+        *extra,
     ]

@@ -256,8 +256,10 @@ def start_kwok(
     bin_dir: Path | None = None,
     die_with_parent: bool = False,
     timeout: float = 120.0,
+    extra_args: Sequence[str] = (),
 ) -> State:
     """Runs only kwok, against an existing cluster (e.g. kind), so it can host simulated robots too.
+    `extra_args`: more kwok flags, as `start`'s for its kwok.
 
     `stop(state_dir)` stops it again, like a full control plane.
     """
@@ -272,7 +274,7 @@ def start_kwok(
     layout.kwok_config.write_text(robots.kwok_stages())
     state = State(layout=layout, started_at=time.time())
     try:
-        kwok = _launch(state, "kwok", components.build_kwok(layout, kubeconfig=kubeconfig), die_with_parent)
+        kwok = _launch(state, "kwok", components.build_kwok(layout, kubeconfig, extra_args), die_with_parent)
         _await(state, kwok, lambda: health.kwok_healthy(port), timeout)
     except BaseException:
         stop(state_dir)

@@ -107,11 +107,10 @@ def down(name: str, keep_engine: bool) -> None:
     node_engine = engine.start(clilines.say)
     clusters.delete(name, node_engine, clilines.say)
     if node_engine.owned and not keep_engine:
-        if node_engine.containers(clusters.KIND_CLUSTER_LABEL):
-            clilines.say("Other kind clusters still run on the project's dockerd; leaving it running")
-        else:
-            engine.stop()
+        if clusters.stop_engine_unless_used(node_engine):
             clilines.say("Stopped the project's dockerd")
+        else:
+            clilines.say("Other kind clusters still run on the project's dockerd; leaving it running")
 
 
 FAULTS: dict[str, Callable[[clusters.Running, str], object]] = {

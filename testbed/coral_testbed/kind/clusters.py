@@ -22,7 +22,7 @@ import ipaddress
 import json
 import shutil
 import subprocess
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +38,15 @@ DEFAULT_NAME = "coral"
 KIND_CLUSTER_LABEL = "io.x-k8s.kind.cluster"
 """The label kind puts on every node container of a cluster."""
 _SUBNETS = ipaddress.ip_network("10.89.0.0/16")
+_KUBEADM_FIELDS = {
+    "kube-apiserver": "apiServer",
+    "kube-controller-manager": "controllerManager",
+    "kube-scheduler": "scheduler",
+}
+"""Control-plane component -> its section of kubeadm's ClusterConfiguration."""
+_ARGS_UNSET = frozenset({"scheduler"})
+"""Sections whose extraArgs kind v0.33's template leaves empty (null, without feature gates): set
+whole. The others hold kind's own flags, which the benchmark's are appended to."""
 """Where clusters' networks are carved from: clear of kind's pod (10.244/16) and Service (10.96/12) ranges."""
 
 
@@ -57,6 +66,41 @@ class ClusterSpec:
     """Non-robot workers (the operator's node, say): name -> labels."""
     robot_mounts: dict[str, str] = field(default_factory=dict)
     """Path in every robot's node -> the host folder bound there: a site share all robots see."""
+    control_plane_args: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    """More flags per control-plane component (`kube-apiserver`: ["--audit-log-path=..."], ...)."""
+    apiserver_folders: tuple[str, ...] = ()
+    """Host folders the API server sees at the same path (its audit policy and log, say)."""
+
+
+def _kubeadm_patches(spec: ClusterSpec) -> list[dict[str, str]]:
+    """JSON 6902 patches of kubeadm's ClusterConfiguration adding `spec`'s flags and folders. Pure."""
+    ops: list[dict[str, object]] = []
+    for component, flags in sorted(spec.control_plane_args.items()):
+        section = _KUBEADM_FIELDS[component]
+        args = [
+            dict(zip(("name", "value"), flag.removeprefix("--").split("=", 1), strict=True)) for flag in flags
+        ]
+        if section in _ARGS_UNSET:
+            ops.append({"op": "add", "path": f"/{section}/extraArgs", "value": args})
+        else:
+            ops += [{"op": "add", "path": f"/{section}/extraArgs/-", "value": arg} for arg in args]
+    if spec.apiserver_folders:
+        volumes = [
+            {"name": f"coral-{i}", "hostPath": folder, "mountPath": folder, "pathType": "DirectoryOrCreate"}
+            for i, folder in enumerate(spec.apiserver_folders)
+        ]
+        ops.append({"op": "add", "path": "/apiServer/extraVolumes", "value": volumes})
+    if not ops:
+        return []
+    # kubeadm 1.34 reads v1beta4, where extraArgs is a list of name/value pairs.
+    return [
+        {
+            "group": "kubeadm.k8s.io",
+            "version": "v1beta4",
+            "kind": "ClusterConfiguration",
+            "patch": json.dumps(ops),
+        }
+    ]
 
 
 def build_config(spec: ClusterSpec) -> str:
@@ -66,7 +110,10 @@ def build_config(spec: ClusterSpec) -> str:
         f'[plugins."io.containerd.grpc.v1.cri".registry.mirrors."{host}"]\n  endpoint = ["{mirror}"]'
         for host in ("docker.io", "coral.local", spec.registry_address)
     )
-    nodes: list[dict[str, object]] = [{"role": "control-plane"}]
+    control_plane: dict[str, object] = {"role": "control-plane"}
+    if spec.apiserver_folders:
+        control_plane["extraMounts"] = [{"hostPath": f, "containerPath": f} for f in spec.apiserver_folders]
+    nodes: list[dict[str, object]] = [control_plane]
     mounts = [{"hostPath": host, "containerPath": path} for path, host in sorted(spec.robot_mounts.items())]
     for robot, labels in spec.robots.items():
         node: dict[str, object] = {"role": "worker", "labels": {**labels, ROBOT_LABEL: robot}}
@@ -75,13 +122,16 @@ def build_config(spec: ClusterSpec) -> str:
         nodes.append(node)
     for labels in spec.extra_workers.values():
         nodes.append({"role": "worker", "labels": dict(labels)})
-    config = {
+    config: dict[str, object] = {
         "kind": "Cluster",
         "apiVersion": "kind.x-k8s.io/v1alpha4",
         "name": spec.name,
         "nodes": nodes,
         "containerdConfigPatches": [patch],
     }
+    patches = _kubeadm_patches(spec)
+    if patches:
+        config["kubeadmConfigPatchesJSON6902"] = patches
     return json.dumps(config, indent=2)
 
 
@@ -190,9 +240,12 @@ def create(
     progress: Callable[[str], None],
     extra_workers: dict[str, dict[str, str]] | None = None,
     robot_mounts: dict[str, str] | None = None,
+    control_plane_args: Mapping[str, Sequence[str]] | None = None,
+    apiserver_folders: Sequence[str] = (),
 ) -> Running:
     """Creates the kind cluster `name` with one worker per robot and waits until every node is Ready.
-    `robot_mounts` (path in the node -> host folder) are bound into every robot's node.
+    `robot_mounts` (path in the node -> host folder) are bound into every robot's node;
+    `control_plane_args` and `apiserver_folders` as `ClusterSpec`'s (a benchmark's tuning).
 
     Raises:
         ClusterError, engine.EngineError: naming the step and the log to read.
@@ -203,7 +256,16 @@ def create(
     subnet = create_network(node_engine, name)
     address = start_registry(name, subnet)
     progress(f"registry for the cluster's nodes on {address} (the network {network_name(name)}'s gateway)")
-    spec = ClusterSpec(name, robots, node_image, address, extra_workers or {}, robot_mounts or {})
+    spec = ClusterSpec(
+        name,
+        robots,
+        node_image,
+        address,
+        extra_workers or {},
+        robot_mounts or {},
+        control_plane_args or {},
+        tuple(apiserver_folders),
+    )
     config = folder / "kind-config.json"
     config.write_text(build_config(spec))
     kubeconfig = folder / "kubeconfig"
@@ -248,15 +310,19 @@ def create(
     return Running(name, kubeconfig, node_engine, address)
 
 
-def start_kwok(running: Running) -> None:
+def kwok_dir(name: str) -> Path:
+    return state_dir(name) / "kwok"
+
+
+def start_kwok(running: Running, extra_args: Sequence[str] = ()) -> controlplane.State:
     """kwok against the cluster's API server, so simulated robots (kwok Nodes) join it."""
-    controlplane.start_kwok(state_dir(running.name) / "kwok", running.kubeconfig)
+    return controlplane.start_kwok(kwok_dir(running.name), running.kubeconfig, extra_args=extra_args)
 
 
 def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None]) -> None:
     """Deletes the cluster, its kwok, its registry process and its network; a no-op for what is gone."""
     folder = state_dir(name)
-    controlplane.stop(folder / "kwok")
+    controlplane.stop(kwok_dir(name))
     if node_engine.containers(f"{KIND_CLUSTER_LABEL}={name}"):
         progress(f"kind delete cluster --name {name}")
         done = subprocess.run(
@@ -273,3 +339,11 @@ def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None
     _record(name).unlink(missing_ok=True)
     # A kubeconfig of a deleted cluster would only point the next `export KUBECONFIG` nowhere.
     (folder / "kubeconfig").unlink(missing_ok=True)
+
+
+def stop_engine_unless_used(node_engine: engine.Engine) -> bool:
+    """Stops the project's dockerd unless another kind cluster still runs on it (another user's or
+    test's); True when it was stopped. A user's Docker (`$CORAL_DOCKER_HOST`) is never stopped."""
+    if not node_engine.owned or node_engine.containers(KIND_CLUSTER_LABEL):
+        return False
+    return engine.stop()

@@ -11,6 +11,7 @@ import runpy
 import tarfile
 from pathlib import Path
 
+import jsonpatch
 import pytest
 import yaml
 from coral_testbed.kind import clusters, imagearchives, kindnet
@@ -49,6 +50,56 @@ def test_a_site_share_is_bound_into_every_robot_and_no_other_node() -> None:
     nodes = yaml.safe_load(clusters.build_config(spec))["nodes"]
     share = [{"hostPath": "/tmp/share", "containerPath": "/srv/maps"}]
     assert [node.get("extraMounts") for node in nodes] == [None, share, share, None]
+
+
+# What kind v0.33 generates for kubeadm 1.34 without feature gates, as its template
+# (ConfigTemplateBetaV4) renders it: the sections the patches reach.
+_KIND_CLUSTER_CONFIGURATION = {
+    "apiVersion": "kubeadm.k8s.io/v1beta4",
+    "kind": "ClusterConfiguration",
+    "apiServer": {"certSANs": ["localhost"], "extraArgs": [{"name": "runtime-config", "value": ""}]},
+    "controllerManager": {"extraArgs": [{"name": "enable-hostpath-provisioner", "value": "true"}]},
+    "scheduler": {"extraArgs": None},
+}
+
+
+def test_control_plane_flags_and_folders_reach_kubeadm_beside_kinds_own() -> None:
+    spec = _spec(
+        control_plane_args={
+            "kube-apiserver": ["--audit-log-path=/tmp/audit/audit.log"],
+            "kube-controller-manager": ["--kube-api-qps=500", "--node-monitor-grace-period=300s"],
+            "kube-scheduler": ["--kube-api-burst=1000"],
+        },
+        apiserver_folders=("/tmp/audit",),
+    )
+    config = yaml.safe_load(clusters.build_config(spec))
+    (patch,) = config["kubeadmConfigPatchesJSON6902"]
+    assert (patch["group"], patch["version"], patch["kind"]) == (
+        "kubeadm.k8s.io",
+        "v1beta4",
+        "ClusterConfiguration",
+    )
+    patched = jsonpatch.apply_patch(_KIND_CLUSTER_CONFIGURATION, yaml.safe_load(patch["patch"]))
+    assert patched["apiServer"]["extraArgs"] == [
+        {"name": "runtime-config", "value": ""},
+        {"name": "audit-log-path", "value": "/tmp/audit/audit.log"},
+    ]
+    assert patched["controllerManager"]["extraArgs"] == [
+        {"name": "enable-hostpath-provisioner", "value": "true"},
+        {"name": "kube-api-qps", "value": "500"},
+        {"name": "node-monitor-grace-period", "value": "300s"},
+    ]
+    assert patched["scheduler"]["extraArgs"] == [{"name": "kube-api-burst", "value": "1000"}]
+    (volume,) = patched["apiServer"]["extraVolumes"]
+    assert (volume["hostPath"], volume["mountPath"]) == ("/tmp/audit", "/tmp/audit")
+    assert config["nodes"][0]["extraMounts"] == [{"hostPath": "/tmp/audit", "containerPath": "/tmp/audit"}]
+    assert all("extraMounts" not in node for node in config["nodes"][1:])
+
+
+def test_without_control_plane_settings_kubeadm_is_left_as_kind_makes_it() -> None:
+    config = yaml.safe_load(clusters.build_config(_spec()))
+    assert "kubeadmConfigPatchesJSON6902" not in config
+    assert config["nodes"][0] == {"role": "control-plane"}
 
 
 def test_docker_hub_names_and_coral_local_pull_from_the_clusters_registry() -> None:
