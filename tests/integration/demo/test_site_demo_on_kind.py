@@ -37,7 +37,7 @@ def test_the_site_demo_ends_in_success_on_four_robots_of_their_own_models(tmp_pa
     assert lines[-1].startswith("==> Demo finished in ") and lines[-1].endswith(": SUCCESS"), output
     # The survey's map reached the share, and no robot got there through a Fallback.
     share = next(line for line in lines if line.startswith("Site share"))
-    assert "site_map.ply" in share.split(":", 1)[1].split(", "), output
+    assert "site_map.ply" in share.split(":", 1)[1].strip().split(", "), output
     for fallback in ("KeepMapOnRobot", "ReportSiteIncomplete", "InspectWithoutMap", "ArmStaysParked"):
         assert fallback not in output, output
     # Each model ran its own components, on its own robot (the demo's `kubectl get pods -o wide`).
