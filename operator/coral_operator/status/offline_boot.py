@@ -14,8 +14,8 @@ from datetime import datetime
 from typing import Any
 
 from coral_core import offline
-from coral_core.instance_status import OfflineBoot
 
+from coral_operator.api import OfflineBoot
 from coral_operator.status.transitions import parse_rfc3339
 
 
