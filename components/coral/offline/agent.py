@@ -84,6 +84,15 @@ def report_message(entry: dict[str, Any]) -> tuple[str, str, str]:
     return "Warning", "NoRevisionOffline", message
 
 
+def node_report(report: dict[str, Any]) -> str:
+    """The Node annotation's value: the boot report, each system cut to what the operator tells."""
+    summary = {
+        name: {k: v for k, v in entry.items() if k in REPORTED}
+        for name, entry in report.get("systems", {}).items()
+    }
+    return json.dumps({"bootedAt": report.get("bootedAt"), "systems": summary}, sort_keys=True)
+
+
 @dataclass
 class Agent:
     robot: str
@@ -231,11 +240,7 @@ class Agent:
         from kubernetes import client
 
         core = client.CoreV1Api(self._client())
-        summary = {
-            name: {k: v for k, v in entry.items() if k in REPORTED}
-            for name, entry in report.get("systems", {}).items()
-        }
-        body = json.dumps({"bootedAt": report.get("bootedAt"), "systems": summary}, sort_keys=True)
+        body = node_report(report)
         try:
             core.patch_node(self.robot, {"metadata": {"annotations": {offline.ANNOTATION_NODE_REPORT: body}}})
         except Exception as error:  # noqa: BLE001 - the Events below still tell
