@@ -131,26 +131,6 @@ class PluginState(CamelModel):
     """Components whose process died under a loaded behavior."""
 
 
-class OfflineBoot(CamelModel):
-    """The robot's last boot without the API server, as its offline agent reported it once back
-    (docs/offline.md)."""
-
-    outcome: Literal["RanOffline", "Refused", "NoRevision"]
-    """`RanOffline`: the robot ran its stored revision of this system. `Refused`: the stored
-    revision failed its integrity check and nothing of it ran. `NoRevision`: the robot had no
-    revision of this system stored, so nothing of it ran."""
-    booted_at: str
-    """When the robot booted without the API server (RFC 3339)."""
-    revision: str | None = None
-    """The stored revision the robot ran or refused."""
-    handed_over_at: str | None = None
-    """`RanOffline`: when the offline copy gave way to the API server's pods (RFC 3339)."""
-    reason: str | None = None
-    """`Refused`: why the stored revision failed its check."""
-    message: str = ""
-    """What happened, in one sentence."""
-
-
 class CoralInstanceStatus(CamelModel):
     """Observed state of one robot."""
 
@@ -169,6 +149,3 @@ class CoralInstanceStatus(CamelModel):
     """Exported behaviors, written by the executor."""
     tree: TreeState | None = None
     """Tree status, written by the executor."""
-    offline_boot: OfflineBoot | None = None
-    """The robot's last boot without the API server, once it is back; set only for a system that
-    lets its robots run offline (`spec.offline`) and an instance that existed when the robot booted."""

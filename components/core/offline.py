@@ -225,32 +225,3 @@ def hand_over(*, api_reachable: bool, tree_running: bool, interrupt_running_tree
     if tree_running and not interrupt_running_trees:
         return HandOver.KEEP
     return HandOver.HAND_OVER
-
-
-OUTCOMES = {BootAction.RUN: "RanOffline", BootAction.REFUSE: "Refused", BootAction.NOTHING: "NoRevision"}
-"""A boot's action as the CoralInstance's `offlineBoot.outcome` names it."""
-
-
-def outcome_message(entry: dict[str, Any]) -> str:
-    """One sentence on what a robot did with one system when it booted without the API server.
-
-    `entry` is one system of the agent's report: `action`, `bootedAt`, and for a run `revision`,
-    `handedOverAt` and `run` (the offline tree's summary), for a refusal `reason`.
-    """
-    booted = f"Booted without the API server at {entry.get('bootedAt')}"
-    action = entry.get("action")
-    if action == BootAction.RUN:
-        run = entry.get("run") or {}
-        tree = (
-            f"its tree was {run.get('rootStatus')} at tick {run.get('tickCount')}"
-            if run.get("ticked")
-            else "its tree never ticked"
-        )
-        handed = entry.get("handedOverAt") or "not yet"
-        return (
-            f"{booted} and ran revision {entry.get('revision')} offline; {tree}; "
-            f"handed over to the API server's pods at {handed}."
-        )
-    if action == BootAction.REFUSE:
-        return f"{booted} and refused to run the stored revision offline: {entry.get('reason')}."
-    return f"{booted} with no stored revision: ran nothing offline."

@@ -36,8 +36,6 @@ API_TIMEOUT_S = 2.0
 AGENT = "coral-offline-agent"
 RECORD_EVERY = 5
 FORGET_AFTER_S = 30.0
-REPORTED = ("action", "revision", "reason", "handedOverAt", "run")
-"""What the Node's report keeps of each system: the operator tells it on the CoralInstance."""
 FILE_SEPARATOR = "+"
 """Between a cache's name and a pod's index in a static pod file's name: in no Kubernetes name."""
 
@@ -76,21 +74,32 @@ def summarize_run(lines: list[str]) -> dict[str, Any]:
 def report_message(entry: dict[str, Any]) -> tuple[str, str, str]:
     """(event type, reason, message) of one system's boot outcome."""
     action = entry["action"]
-    message = offline.outcome_message(entry)
     if action == offline.BootAction.RUN:
-        return "Normal", "RanOffline", message
+        run = entry.get("run") or {}
+        tree = (
+            f"its tree was {run['rootStatus']} at tick {run['tickCount']}"
+            if run.get("ticked")
+            else "its tree never ticked"
+        )
+        handed = entry.get("handedOverAt", "not yet")
+        return (
+            "Normal",
+            "RanOffline",
+            f"Booted without the API server at {entry['bootedAt']} and ran revision {entry['revision']} "
+            f"offline; {tree}; handed over to the API server's pods at {handed}.",
+        )
     if action == offline.BootAction.REFUSE:
-        return "Warning", "OfflineCacheRefused", message
-    return "Warning", "NoRevisionOffline", message
-
-
-def node_report(report: dict[str, Any]) -> str:
-    """The Node annotation's value: the boot report, each system cut to what the operator tells."""
-    summary = {
-        name: {k: v for k, v in entry.items() if k in REPORTED}
-        for name, entry in report.get("systems", {}).items()
-    }
-    return json.dumps({"bootedAt": report.get("bootedAt"), "systems": summary}, sort_keys=True)
+        return (
+            "Warning",
+            "OfflineCacheRefused",
+            f"Booted without the API server at {entry['bootedAt']} and refused to run the stored revision "
+            f"offline: {entry['reason']}.",
+        )
+    return (
+        "Warning",
+        "NoRevisionOffline",
+        f"Booted without the API server at {entry['bootedAt']} with no stored revision: ran nothing offline.",
+    )
 
 
 @dataclass
@@ -240,7 +249,11 @@ class Agent:
         from kubernetes import client
 
         core = client.CoreV1Api(self._client())
-        body = node_report(report)
+        summary = {
+            name: {k: v for k, v in entry.items() if k in ("action", "revision", "reason", "handedOverAt")}
+            for name, entry in report.get("systems", {}).items()
+        }
+        body = json.dumps({"bootedAt": report.get("bootedAt"), "systems": summary}, sort_keys=True)
         try:
             core.patch_node(self.robot, {"metadata": {"annotations": {offline.ANNOTATION_NODE_REPORT: body}}})
         except Exception as error:  # noqa: BLE001 - the Events below still tell

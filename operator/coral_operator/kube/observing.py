@@ -411,7 +411,6 @@ def instance_record(body: Mapping[str, Any], spec: dict[str, Any] | None = None)
         status=dict(_mapping(body.get("status"))),
         resource_version=metadata.get("resourceVersion"),
         owners=tuple(dict(o) for o in metadata.get("ownerReferences") or [] if isinstance(o, Mapping)),
-        created=str(metadata.get("creationTimestamp") or ""),
     )
 
 

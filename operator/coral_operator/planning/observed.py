@@ -160,8 +160,6 @@ class InstanceRecord(_OwnRecord):
     resource_version: str | None = None
     owners: tuple[dict[str, Any], ...] = ()
     """`metadata.ownerReferences`: whether the instance is its system's (`planning.provenance`)."""
-    created: str = ""
-    """The creation timestamp (RFC 3339): a robot's offline boot before it concerns it not."""
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from coral_operator.planning.revisions import StoredRevision
 from coral_operator.reconcile import events
 from coral_operator.reconcile.indexes import instance_named, instances_of_system
 from coral_operator.reconcile.reconciler import Key, Reconciler
-from coral_operator.status import executor_report, instance_status, offline_boot, ownership, transitions
+from coral_operator.status import executor_report, instance_status, ownership, transitions
 from coral_operator.status.conditions import ConditionType, Reason
 
 # A pod refused for good (admission, Pod Security, quota) is tried again this often: the fix may be
@@ -117,13 +117,6 @@ class InstanceReconciler(Reconciler):
             ignored_tree=report.ignored_tree,
             ignored_plugins=report.ignored_plugins,
             pre_pull=pre_pull,
-            offline_boot=offline_boot.offline_boot(
-                node.annotations if node else {},
-                namespace=record.namespace,
-                system=spec.system,
-                offline_on=spec.offline is not None,
-                created=transitions.parse_rfc3339(record.created),
-            ),
         )
         new = instance_status.build_instance_status(
             view, old_conditions=transitions.written_conditions(status), generation=record.generation, now=now

@@ -44,9 +44,6 @@ class InstanceView:
     """The same for `plugins`."""
     pre_pull: tuple[str, str | None] | None = None
     """(revision, why its images cannot be pulled, or None) while the robot pre-pulls a revision."""
-    offline_boot: dict[str, Any] | None = None
-    """The robot's last boot without the API server (`status.offline_boot`), if it concerns this
-    instance."""
 
 
 def _robot_verdict(view: InstanceView) -> Verdict:
@@ -432,7 +429,6 @@ def build_instance_status(
             ),
         },
         keys.INSTANCE_STATUS.components: build_components(view),
-        keys.INSTANCE_STATUS.offline_boot: view.offline_boot,
     }
 
 

@@ -155,20 +155,6 @@ def _events(core: k8s.CoreV1Api, namespace: str, reason: str) -> list[Any]:
     return [e for e in core.list_namespaced_event(namespace).items if e.reason == reason]
 
 
-def _told_on_the_instance(custom: k8s.CustomObjectsApi, namespace: str, outcome: str) -> dict[str, Any]:
-    """The instance's `status.offlineBoot` once it tells `outcome` (the robot is back by then)."""
-    return wait_for(
-        lambda: (
-            (told := (rs.instance(custom, namespace, SYSTEM).get("status") or {}).get("offlineBoot"))
-            and told.get("outcome") == outcome
-            and told
-        ),
-        timeout=60,
-        interval=1,
-        message=lambda: f"offlineBoot {outcome} on the instance: {rs.instance(custom, namespace, SYSTEM)}",
-    )
-
-
 @dataclass(frozen=True)
 class Bench:
     """One robot of the session, the test's namespace and operator, the API as a user reads it."""
@@ -295,10 +281,6 @@ def test_a_power_cycle_while_cut_off_runs_the_last_revision_and_hands_over_with_
     (entry,) = report["systems"].values()
     assert entry["action"] == "RunOffline" and entry["revision"] == before["spec"]["revision"], report
     assert rs.tree(item)["tickCount"] > 0, rs.tree(item)
-    told = _told_on_the_instance(custom, namespace, "RanOffline")
-    assert told["revision"] == before["spec"]["revision"], told
-    assert told["bootedAt"] <= told["handedOverAt"], told
-    assert "at tick" in told["message"], told
     rs.delete(custom, namespace, SYSTEM)
 
 
@@ -336,8 +318,6 @@ def test_a_robot_never_given_a_revision_runs_nothing_offline_and_says_so(bench: 
         if e.reason == "NoRevisionOffline" and e.involved_object.name == robot
     ]
     assert events and "ran nothing offline" in events[-1].message, events
-    told = _told_on_the_instance(custom, namespace, "NoRevision")
-    assert "ran nothing offline" in told["message"] and "revision" not in told, told
     # Back online, the robot runs the system the API server gives it.
     wait_for(
         lambda: "WaitForCount" in rs.tree(rs.instance(custom, namespace, SYSTEM)).get("activePath", ""),
@@ -368,6 +348,4 @@ def test_a_tampered_cache_is_refused_with_the_reason(bench: Bench) -> None:
     )
     assert "tree.xml was altered" in event.message, event.message
     assert event.type == "Warning" and event.involved_object.kind == "CoralInstance"
-    told = _told_on_the_instance(custom, namespace, "Refused")
-    assert "tree.xml was altered" in told["reason"] and told["reason"] in told["message"], told
     rs.delete(custom, namespace, SYSTEM)

@@ -5,16 +5,14 @@ from __future__ import annotations
 import fcntl
 import json
 import socket
-from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
 import yaml
 from coral.offline import store
-from coral.offline.agent import Agent, node_report, report_message, summarize_run
+from coral.offline.agent import Agent, report_message, summarize_run
 from coral.offline.staticpods import part_of, static_copy
 from coral_core import names, offline
-from coral_operator.status.offline_boot import offline_boot
 from offline_pods import CONFIG_MAPS, robot_pods, system
 
 
@@ -86,23 +84,6 @@ def test_an_altered_copy_is_refused_and_nothing_runs(agent: Agent) -> None:
     kind, reason, message = report_message(entry)
     assert (kind, reason) == ("Warning", "OfflineCacheRefused")
     assert "tree.xml was altered" in message
-
-
-@pytest.mark.parametrize("tampered", [True, False], ids=["an altered copy", "nothing stored"])
-def test_the_operator_reads_the_agents_node_report_onto_the_instance(agent: Agent, tampered: bool) -> None:
-    if tampered:
-        _record(agent)
-        tree = agent.root / "systems/ns_sys/files/executor/config/tree.xml"
-        tree.write_text(tree.read_text() + " ")
-    annotations = {offline.ANNOTATION_NODE_REPORT: node_report(agent.boot())}
-    told = offline_boot(
-        annotations, namespace="ns", system="sys", offline_on=True, created=datetime(2026, 1, 1, tzinfo=UTC)
-    )
-    assert told is not None
-    if tampered:
-        assert told["outcome"] == "Refused" and "tree.xml was altered" in told["reason"], told
-    else:
-        assert told["outcome"] == "NoRevision", told
 
 
 def test_a_robot_never_given_a_revision_runs_nothing_and_says_so(agent: Agent) -> None:
