@@ -138,7 +138,7 @@ def note(text: str) -> None:
 class Options:
     """What every size's run shares, from the command line."""
 
-    backend: str = "kind"
+    backend: str = backends.BACKENDS[0]
     logs: Path | None = None
     """Where the operators' logs are kept (default: the run's temporary folder)."""
     layouts: tuple[str, ...] = CORAL_LAYOUTS

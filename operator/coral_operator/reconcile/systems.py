@@ -65,9 +65,9 @@ class SystemReconciler(Reconciler):
     wake_instance: Callable[[Key], None] = lambda _key: None
     """Pass the instance of this key at once (a move's answer is in memory)."""
     trim: Callable[[], None] = lambda: None
+    """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
     declarations: ImageDeclarations = field(default_factory=ImageDeclarations)
     """What component images declare, read from their registries for preflight."""
-    """Asks for freed memory to be handed back (`reconcile.trimming`) after a pass that held files."""
     file_slots: FileSlots = field(default_factory=lambda: FileSlots(FILES_AT_ONCE), repr=False)
     """Taken by each pass that holds a system's large files."""
 

@@ -38,6 +38,7 @@ DEFAULT_NAME = "coral"
 KIND_CLUSTER_LABEL = "io.x-k8s.kind.cluster"
 """The label kind puts on every node container of a cluster."""
 _SUBNETS = ipaddress.ip_network("10.89.0.0/16")
+"""Where clusters' networks are carved from: clear of kind's pod (10.244/16) and Service (10.96/12) ranges."""
 _KUBEADM_FIELDS = {
     "kube-apiserver": "apiServer",
     "kube-controller-manager": "controllerManager",
@@ -47,7 +48,6 @@ _KUBEADM_FIELDS = {
 _ARGS_UNSET = frozenset({"scheduler"})
 """Sections whose extraArgs kind v0.33's template leaves empty (null, without feature gates): set
 whole. The others hold kind's own flags, which the benchmark's are appended to."""
-"""Where clusters' networks are carved from: clear of kind's pod (10.244/16) and Service (10.96/12) ranges."""
 
 
 class ClusterError(RuntimeError):

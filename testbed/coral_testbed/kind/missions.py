@@ -49,8 +49,7 @@ def demo_cluster(
     finally:
         echo(f"==> Deleting kind cluster {name}")
         clusters.delete(name, ready.engine, lambda line: echo(f"    {line}"))
-        if ready.engine.owned and not engine_was_running:
-            engine.stop()
+        if not engine_was_running and clusters.stop_engine_unless_used(ready.engine):
             echo("==> Stopped the project's dockerd")
 
 

@@ -23,7 +23,7 @@ from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import generating
 from coral.local.console import outline_of
-from coral_core import keys, terminal
+from coral_core import keys, names, terminal
 from coral_core.component_image import COMPONENT_UID
 from rich.live import Live
 
@@ -214,7 +214,7 @@ def _site(
             "label",
             "node",
             "-l",
-            f"coral.dev/robot={robot}",
+            f"{names.LABEL_ROBOT}={robot}",
             f"coral.dev/model={model}",
             manifests.SITE_LABEL,
         )
