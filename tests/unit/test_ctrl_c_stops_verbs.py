@@ -11,8 +11,9 @@ WAITS_FOR_CTRL_C = """
 import sys, threading
 from coral_core.command import stop_on_ctrl_c
 stop_on_ctrl_c()
-print("waiting", flush=True)
+# Inside the try: the Ctrl-C may arrive as soon as the line is out.
 try:
+    print("waiting", flush=True)
     threading.Event().wait()
 except KeyboardInterrupt:
     print("stopped", flush=True)
