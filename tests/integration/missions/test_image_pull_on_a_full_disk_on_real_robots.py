@@ -35,7 +35,8 @@ from . import pullfailures
 from . import realsystems as rs
 from .conftest import first_real_robot
 
-pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(540)]
+# The back-off alone may take 5 minutes; the first test of a session also starts the robots.
+pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(780)]
 
 CONTENT = "/var/lib/containerd/io.containerd.content.v1.content"
 """containerd's content store on the robot: every blob a pull fetches is written here first."""
