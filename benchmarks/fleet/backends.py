@@ -11,8 +11,8 @@ same flags for the controller manager and the scheduler.
   the node's address on the cluster's network, not through Docker's port forward, whose proxy
   process would carry every request and whose CPU no figure would show.
 - `local` (default): the testbed's own control plane (etcd and the control-plane binaries as
-  processes). It stays the default until a kind run of the whole benchmark has been measured
-  against it on the reference host (docs/performance.md).
+  processes). It stays the default until kind has been measured beside it at 1000 robots on the
+  reference host (docs/performance.md has both at 100).
 """
 
 from __future__ import annotations
