@@ -1,14 +1,12 @@
 """A skillset lost on a kind robot mid-mission: `LibraryDegraded` on the robot's CoralInstance, the
 tree's Fallback instead of a wait on the dead skillset, and the way back.
 
-Its container killed:
-
-The container is killed through the CRI (`crictl stop --timeout 0` inside the robot's node), as an
+Its container killed: through the CRI (`crictl stop --timeout 0` inside the robot's node), as an
 operator of the machine would do it. The kubelet restarts it (restartPolicy Always), the skillset
 exports its plugin again, and the executor, still running, calls it again: the library recovers
 and `LibraryDegraded` turns False.
 
-The mission's inspection waits on the example skillset's count topic (a long wait, so the kill
+The mission's inspection waits on the example skillset's count topic (a long wait, so the fault
 lands while the behavior is RUNNING); the Fallback reports instead, then the mission counts again
 until the restarted skillset answers.
 
