@@ -144,6 +144,7 @@ class Options:
     layouts: tuple[str, ...] = CORAL_LAYOUTS
     baseline: Path | None = None
     """A checkout of an earlier commit with its own .venv, measured against this one."""
+    kind_name: str = backends.KIND_NAME
 
 
 @dataclass
@@ -171,6 +172,7 @@ def run_size(count: int, work: Path, options: Options, pairs: int = 1, largest: 
             "kwok": [f"--config={kwok_config}"],
         },
         audit_path.parent,
+        options.kind_name,
     )
     log = audit.AuditLog(audit_path)
     operator = None
@@ -579,7 +581,8 @@ def _cpu_since(state: backends.BenchCluster, mark: dict[str, float]) -> str:
     return ", ".join(f"{name}={seconds:.1f}" for name, seconds in sorted(_cpu_delta(state, mark).items()))
 
 
-def main(argv: list[str]) -> int:
+def parse_arguments(argv: list[str]) -> tuple[argparse.Namespace, Options]:
+    """The command line, and the options every size's run shares. Pure but for the `--baseline` check."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sizes", nargs="*", type=int, help=f"robot counts (default: {SIZES})")
     parser.add_argument("--plot", type=Path, metavar="DIR", help="also write fleet.png into DIR")
@@ -603,16 +606,28 @@ def main(argv: list[str]) -> int:
         help="local (default): the testbed's own control plane; kind: a kind cluster with kwok robots",
     )
     parser.add_argument(
+        "--kind-name",
+        default=backends.KIND_NAME,
+        help=f"the kind cluster's name with --cluster kind (default {backends.KIND_NAME})",
+    )
+    parser.add_argument(
         "--baseline",
         type=Path,
         metavar="CHECKOUT",
         help="also measure the operator of CHECKOUT (an earlier commit with its own .venv) against this one",
     )
     args = parser.parse_args(argv)
-    sizes = args.sizes or SIZES
     if args.baseline is not None and not (args.baseline / ".venv" / "bin" / "python").exists():
         parser.error(f"{args.baseline} has no .venv/bin/python (run `make venv` there)")
-    options = Options(args.cluster, args.logs, tuple(args.layout or CORAL_LAYOUTS), args.baseline)
+    options = Options(
+        args.cluster, args.logs, tuple(args.layout or CORAL_LAYOUTS), args.baseline, args.kind_name
+    )
+    return args, options
+
+
+def main(argv: list[str]) -> int:
+    args, options = parse_arguments(argv)
+    sizes = args.sizes or SIZES
     figures = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
         for count in sizes:

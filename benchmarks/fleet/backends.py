@@ -11,8 +11,8 @@ same flags for the controller manager and the scheduler.
   the node's address on the cluster's network, not through Docker's port forward, whose proxy
   process would carry every request and whose CPU no figure would show.
 - `local` (default): the testbed's own control plane (etcd and the control-plane binaries as
-  processes). It stays the default until a kind run of the whole benchmark has been measured
-  against it on the reference host (docs/performance.md).
+  processes). It stays the default until kind has been measured beside it at 1000 robots on the
+  reference host (docs/performance.md has both at 100).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from coral_testbed.cluster import controlplane
 from coral_testbed.kind import clusters, engine, provisioning
 
 KIND_NAME = "fleet-bench"
+"""The kind cluster's default name (`--kind-name`: another, for runs side by side on one engine)."""
 CONTROL_PLANE = ("etcd", "kube-apiserver", "kube-controller-manager", "kube-scheduler")
 BACKENDS = ("local", "kind")
 """The first is the default."""
@@ -42,13 +43,17 @@ class BenchCluster:
 
 
 def start(
-    backend: str, work: Path, extra_args: Mapping[str, Sequence[str]], audit_folder: Path
+    backend: str,
+    work: Path,
+    extra_args: Mapping[str, Sequence[str]],
+    audit_folder: Path,
+    kind_name: str = KIND_NAME,
 ) -> BenchCluster:
     """A fresh cluster of `backend` with `extra_args` per component (`kwok` included) and the API
-    server's audit files under `audit_folder`."""
+    server's audit files under `audit_folder`; `kind_name` names a kind cluster."""
     if backend == "local":
         return _start_local(work, extra_args)
-    return _start_kind(work, extra_args, audit_folder)
+    return _start_kind(kind_name, work, extra_args, audit_folder)
 
 
 def _start_local(work: Path, extra_args: Mapping[str, Sequence[str]]) -> BenchCluster:
@@ -65,24 +70,26 @@ def _say(line: str) -> None:
     print(f"# {line}", flush=True)
 
 
-def _start_kind(work: Path, extra_args: Mapping[str, Sequence[str]], audit_folder: Path) -> BenchCluster:
+def _start_kind(
+    name: str, work: Path, extra_args: Mapping[str, Sequence[str]], audit_folder: Path
+) -> BenchCluster:
     reason = provisioning.unsupported_reason()
     if reason is not None:
         raise RuntimeError(f"{reason}; `--cluster local` runs on the testbed's own control plane")
     engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(_say)
-    if clusters.load(KIND_NAME, ready.engine) is not None:
-        _say(f"kind cluster {KIND_NAME} is left from an earlier run; deleting it first")
-    clusters.delete(KIND_NAME, ready.engine, _say)
+    if clusters.load(name, ready.engine) is not None:
+        _say(f"kind cluster {name} is left from an earlier run; deleting it first")
+    clusters.delete(name, ready.engine, _say)
 
     def stop() -> None:
-        clusters.delete(KIND_NAME, ready.engine, _say)
+        clusters.delete(name, ready.engine, _say)
         if not engine_was_running and clusters.stop_engine_unless_used(ready.engine):
             _say("stopped the project's dockerd")
 
     try:
         running = clusters.create(
-            KIND_NAME,
+            name,
             {},
             ready.engine,
             ready.node_image,
@@ -90,13 +97,13 @@ def _start_kind(work: Path, extra_args: Mapping[str, Sequence[str]], audit_folde
             control_plane_args={k: v for k, v in extra_args.items() if k in CONTROL_PLANE},
             apiserver_folders=(str(audit_folder.resolve()),),
         )
-        node = f"{KIND_NAME}-control-plane"
+        node = f"{name}-control-plane"
         direct = _direct_kubeconfig(running, node, work / "kubeconfig")
         clusters.start_kwok(dataclasses.replace(running, kubeconfig=direct), extra_args.get("kwok", ()))
     except BaseException:
         stop()
         raise
-    kwok = controlplane.load_state(clusters.kwok_dir(KIND_NAME))
+    kwok = controlplane.load_state(clusters.kwok_dir(name))
 
     def pids() -> dict[str, int]:
         found = _node_pids(ready.engine, node)
@@ -121,11 +128,16 @@ def _direct_kubeconfig(running: clusters.Running, node: str, path: Path) -> Path
 
 def _node_pids(node_engine: engine.Engine, node: str) -> dict[str, int]:
     """The control-plane components running in the node container `node`, by name, as host pids."""
-    listed = node_engine.docker("top", node, "-eo", "pid,args").stdout.splitlines()[1:]
+    return control_plane_pids(node_engine.docker("top", node, "-eo", "pid,args").stdout)
+
+
+def control_plane_pids(top: str) -> dict[str, int]:
+    """The control-plane components in `docker top NODE -eo pid,args` output, by name. Pure."""
     found: dict[str, int] = {}
-    for line in listed:
-        pid, _, args = line.strip().partition(" ")
-        name = Path(args.split(" ", 1)[0]).name
+    for line in top.splitlines()[1:]:
+        # docker pads the PID column with spaces.
+        pid, command = line.split(maxsplit=2)[:2]
+        name = Path(command).name
         if name in CONTROL_PLANE:
             found[name] = int(pid)
     return found

@@ -9,6 +9,7 @@ with the ServiceAccount and RBAC the chart creates. The image itself is built by
 from __future__ import annotations
 
 import subprocess
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -66,6 +67,7 @@ class Release:
         selector = "nodeSelector." + OPERATOR_NODE_LABEL.replace(".", "\\.") + "=true"
         return [*(arg for value in values for arg in ("--set", value)), "--set-string", selector]
 
+
 def _helm(helm: Path, env: dict[str, str], *args: str, timeout: float) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [str(helm), *args], env=env, capture_output=True, text=True, timeout=timeout, check=False
@@ -95,10 +97,47 @@ def install(
     )
     if result.returncode != 0:
         raise ChartInstallError(f"helm install {release.name}: {result.stderr.strip() or result.stdout}")
+    return _ready_pod(api, release, timeout)
+
+
+def upgrade(
+    api: k8s.ApiClient, helm: Path, env: dict[str, str], release: Release, timeout: float = 240
+) -> k8s.V1Pod:
+    """`helm upgrade` of the installed release to `release`'s values (a changed policy, say): the
+    operator's pod is replaced, as the policy is read at start-up. Returns the new pod once it is
+    the only one and Ready.
+
+    Raises:
+        ChartInstallError: as `install`.
+    """
+    before = {pod.metadata.uid for pod in operator_pods(api, release)}
+    result = _helm(
+        helm,
+        env,
+        "upgrade",
+        release.name,
+        str(chart_dir()),
+        "-n",
+        release.namespace,
+        *release.helm_values(),
+        timeout=120,
+    )
+    if result.returncode != 0:
+        raise ChartInstallError(f"helm upgrade {release.name}: {result.stderr.strip() or result.stdout}")
+    return _ready_pod(api, release, timeout, replacing=before)
+
+
+def _ready_pod(
+    api: k8s.ApiClient, release: Release, timeout: float, replacing: Collection[str] = ()
+) -> k8s.V1Pod:
+    """The release's one Ready operator pod (not one of the pods `replacing`, nor beside them)."""
     core = k8s.CoreV1Api(api)
 
     def ready_pod() -> k8s.V1Pod | None:
-        for pod in operator_pods(api, release):
+        pods = operator_pods(api, release)
+        if replacing and any(pod.metadata.uid in replacing for pod in pods):
+            return None
+        for pod in pods:
             conditions = {c.type: c.status for c in (pod.status.conditions or [])}
             if conditions.get("Ready") == "True" and pod.metadata.deletion_timestamp is None:
                 return pod
@@ -119,9 +158,7 @@ def describe(core: k8s.CoreV1Api, release: Release) -> str:
     """The release's pods and the namespace's Events, for error messages."""
     lines = []
     for pod in core.list_namespaced_pod(release.namespace).items:
-        states = [
-            f"{s.name}: {s.state.to_dict()}" for s in (pod.status.container_statuses or [])
-        ]
+        states = [f"{s.name}: {s.state.to_dict()}" for s in (pod.status.container_statuses or [])]
         lines.append(f"pod {pod.metadata.name} on {pod.spec.node_name}: {pod.status.phase} {states}")
     for event in core.list_namespaced_event(release.namespace).items:
         lines.append(f"event {event.involved_object.name}: {event.reason}: {event.message}")
@@ -133,4 +170,3 @@ def uninstall(helm: Path, env: dict[str, str], release: Release) -> None:
     result = _helm(helm, env, "uninstall", release.name, "-n", release.namespace, "--wait", timeout=120)
     if result.returncode != 0 and "not found" not in result.stderr:
         raise ChartInstallError(f"helm uninstall {release.name}: {result.stderr.strip()}")
-

@@ -10,6 +10,7 @@ registry up`). Also a small client for what the build needs: a tag's manifest an
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -112,6 +113,56 @@ def image_config(address: str, repository: str, config_digest: str) -> dict[str,
     if found is None:
         raise RegistryError(f"registry at {address} lacks config {config_digest} of {repository}")
     return found[0]
+
+
+def manifest_document(address: str, repository: str, tag: str) -> dict[str, Any] | None:
+    """The manifest `repository:tag` points at, as the registry serves it; None if it has no such tag."""
+    found = _get(address, f"/v2/{repository}/manifests/{tag}", accept=_MANIFEST_TYPES)
+    return None if found is None else found[0]
+
+
+def _send(request: urllib.request.Request) -> str:
+    """Sends a write to the registry; its Docker-Content-Digest."""
+    try:
+        with urllib.request.urlopen(request, timeout=60) as answer:
+            return str(answer.headers.get("Docker-Content-Digest", ""))
+    except (urllib.error.URLError, OSError) as error:
+        raise RegistryError(f"registry: {request.method} {request.full_url} failed: {error}") from error
+
+
+def put_blob(address: str, repository: str, body: bytes) -> str:
+    """Uploads `body` as a blob of `repository` (one monolithic upload); its digest."""
+    digest = "sha256:" + hashlib.sha256(body).hexdigest()
+    start = urllib.request.Request(f"http://{address}/v2/{repository}/blobs/uploads/", method="POST")
+    try:
+        with urllib.request.urlopen(start, timeout=10) as answer:
+            location = answer.headers["Location"]
+    except (urllib.error.URLError, OSError) as error:
+        raise RegistryError(f"registry at {address}: an upload to {repository} failed: {error}") from error
+    if location.startswith("/"):
+        location = f"http://{address}{location}"
+    joiner = "&" if "?" in location else "?"
+    _send(
+        urllib.request.Request(
+            f"{location}{joiner}digest={digest}",
+            data=body,
+            method="PUT",
+            headers={"Content-Type": "application/octet-stream"},
+        )
+    )
+    return digest
+
+
+def put_manifest(address: str, repository: str, tag: str, document: dict[str, Any], media_type: str) -> str:
+    """Tags `document` (its blobs uploaded before) as `repository:tag`; the manifest's digest."""
+    return _send(
+        urllib.request.Request(
+            f"http://{address}/v2/{repository}/manifests/{tag}",
+            data=json.dumps(document).encode(),
+            method="PUT",
+            headers={"Content-Type": media_type},
+        )
+    )
 
 
 def repositories(address: str) -> list[str]:

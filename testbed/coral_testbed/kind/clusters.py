@@ -47,7 +47,10 @@ _KUBEADM_FIELDS = {
 """Control-plane component -> its section of kubeadm's ClusterConfiguration."""
 _ARGS_UNSET = frozenset({"scheduler"})
 """Sections whose extraArgs kind v0.33's template leaves empty (null, without feature gates): set
-whole. The others hold kind's own flags, which the benchmark's are appended to."""
+whole. The others hold kind's own flags, beside which the benchmark's are added."""
+KUBEADM_API = "v1beta3"
+"""The kubeadm configuration kind v0.33 writes for the node image's Kubernetes 1.34: it renders
+v1beta4 only from 1.36 on. A patch naming another version matches nothing and kind drops it silently."""
 
 
 class ClusterError(RuntimeError):
@@ -77,13 +80,12 @@ def _kubeadm_patches(spec: ClusterSpec) -> list[dict[str, str]]:
     ops: list[dict[str, object]] = []
     for component, flags in sorted(spec.control_plane_args.items()):
         section = _KUBEADM_FIELDS[component]
-        args = [
-            dict(zip(("name", "value"), flag.removeprefix("--").split("=", 1), strict=True)) for flag in flags
-        ]
+        # v1beta3's extraArgs is a map of flag name to value.
+        args = {name: value for name, _, value in (f.removeprefix("--").partition("=") for f in flags)}
         if section in _ARGS_UNSET:
             ops.append({"op": "add", "path": f"/{section}/extraArgs", "value": args})
         else:
-            ops += [{"op": "add", "path": f"/{section}/extraArgs/-", "value": arg} for arg in args]
+            ops += [{"op": "add", "path": f"/{section}/extraArgs/{k}", "value": v} for k, v in args.items()]
     if spec.apiserver_folders:
         volumes = [
             {"name": f"coral-{i}", "hostPath": folder, "mountPath": folder, "pathType": "DirectoryOrCreate"}
@@ -92,11 +94,10 @@ def _kubeadm_patches(spec: ClusterSpec) -> list[dict[str, str]]:
         ops.append({"op": "add", "path": "/apiServer/extraVolumes", "value": volumes})
     if not ops:
         return []
-    # kubeadm 1.34 reads v1beta4, where extraArgs is a list of name/value pairs.
     return [
         {
             "group": "kubeadm.k8s.io",
-            "version": "v1beta4",
+            "version": KUBEADM_API,
             "kind": "ClusterConfiguration",
             "patch": json.dumps(ops),
         }

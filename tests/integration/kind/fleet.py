@@ -7,16 +7,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from coral_testbed.cluster import operatorchart
 from coral_testbed.cluster.client import Cluster
+from coral_testbed.images import catalog
 from coral_testbed.kind import clusters, faults
 from coral_testbed.kind.missions import KindMissionStack
-from coral_testbed.missions import manifests
+from coral_testbed.missions import manifests, prepull
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
 NAME = "coral-test"
-ROBOTS = {name: {"coral.dev/model": "kind"} for name in manifests.RELAY_ROBOTS}
+FLEET_LABEL = {"coral.dev/model": "kind"}
+"""What every robot of the cluster carries: a CoralSystem selecting it runs on the whole fleet."""
+ROBOTS = {name: dict(FLEET_LABEL) for name in manifests.RELAY_ROBOTS}
 """The relay example's three robots; the other tests use them too."""
 MISSIONS_NAMESPACE = "kind-missions"
 """Where `kind_missions`' operator serves the tests' CoralSystems."""
@@ -83,3 +87,56 @@ class Mission:
 def crictl(running: clusters.Running, robot: str, *args: str) -> str:
     """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
     return running.engine.docker("exec", faults.node_of(running, robot), "crictl", *args).stdout
+
+
+def fleet_system(name: str, domain: int, tree: str, **spec: Any) -> dict[str, Any]:
+    """A CoralSystem over every robot of the cluster: one executor ticking `tree` at 10 Hz, and
+    `spec`'s other fields (drivers, skillsets)."""
+    return {
+        "apiVersion": f"{rs.GROUP}/{rs.VERSION}",
+        "kind": "CoralSystem",
+        "metadata": {"name": name},
+        "spec": {
+            "robots": {"matchLabels": dict(FLEET_LABEL)},
+            "ros": {"domainId": domain},
+            "parameters": {"inline": f"{rs.SKILLSET}:\n  ros__parameters: {{}}\n"},
+            "tree": {"tickRateHz": 10.0, "inline": tree},
+            "executors": [{"name": "executor", "image": catalog.by_name()["executor"].reference}],
+            **spec,
+        },
+    }
+
+
+def pull_for(missions: KindMissionStack, robots: list[str], system: dict[str, Any]) -> None:
+    """Has `robots` pull the images of `system` and the operator's helper before a test that times
+    what follows (a cold pull would count against a startup's health timeout)."""
+    # The chart's helper image is the operator's own.
+    helper = ":".join(operatorchart.operator_image())
+    nodes = [faults.node_of(missions.running, robot) for robot in robots]
+    prepull.pull_system_images(missions.cluster.api_client, missions.namespace, nodes, system, helper)
+
+
+def scale_operator(missions: KindMissionStack, replicas: int) -> None:
+    """`kubectl scale` of the chart's operator Deployment; waits until exactly `replicas` of its pods
+    exist, each Ready (none at all for zero: the operator is gone)."""
+    release = missions.release
+    missions.cluster.kubectl(
+        "scale", "-n", release.namespace, f"deployment/{release.name}", f"--replicas={replicas}"
+    )
+
+    def settled() -> bool:
+        pods = operatorchart.operator_pods(missions.cluster.api_client, release)
+        ready = [
+            p
+            for p in pods
+            if p.metadata.deletion_timestamp is None
+            and any(c.type == "Ready" and c.status == "True" for c in p.status.conditions or [])
+        ]
+        return len(pods) == len(ready) == replicas
+
+    wait_for(
+        settled,
+        timeout=180,
+        interval=0.5,
+        message=lambda: f"{replicas} operator pods, Ready: {missions.operator_log_tail(800)}",
+    )

@@ -6,37 +6,26 @@ is named at a port of the robot's loopback where nothing listens (containerd's o
 connection is refused), so every component pod's first container cannot be pulled. The instance
 must say `ImagePullFailed` with the kubelet's message within 30 s, without being Stalled; then the
 registry is offered at that port inside the robot, the kubelet's back-off pulls the image, the
-mission runs, and the instance tells the recovery in a Normal Event.
+mission runs, and the instance tells the recovery in a Normal Event (`pullfailures`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import shutil
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from coral_operator.planning.pods import FOLDERS_OWNER
 from coral_testbed.cluster import Cluster, operatorchart, realrobots, uplink
-from coral_testbed.waiting import wait_for
 from fixtures.operator import OperatorProcess
 from fixtures.robots import REAL_ROBOT_MARKS
 from kubernetes import client as k8s
 
-from . import realsystems as rs
+from . import pullfailures
 from .conftest import first_real_robot
 
 pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
-
-SYSTEM = "unpulled"
-TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Count count="{count}"/>
-  </BehaviorTree>
-</root>
-"""
 
 
 @pytest.fixture
@@ -77,16 +66,6 @@ def offer_registry(
         yield lambda: stack.enter_context(uplink.offered_inside(netns, silent_port, host_port))
 
 
-def _events(core: k8s.CoreV1Api, namespace: str, instance: str) -> list[Any]:
-    selector = f"involvedObject.name={instance},involvedObject.kind=CoralInstance"
-    return core.list_namespaced_event(namespace, field_selector=selector).items
-
-
-def _pull_failed(custom: k8s.CustomObjectsApi, namespace: str) -> dict[str, Any]:
-    item = rs.instance(custom, namespace, SYSTEM)
-    return item if rs.condition(item, "ComponentsReady").get("reason") == "ImagePullFailed" else {}
-
-
 def test_an_unreachable_registry_for_the_plugin_folder_step_is_named_and_its_recovery_told(
     cluster: Cluster,
     namespace: str,
@@ -97,53 +76,13 @@ def test_an_unreachable_registry_for_the_plugin_folder_step_is_named_and_its_rec
     offer_registry: Callable[[], None],
     ros_env: dict[str, str],
 ) -> None:
-    robot = first_real_robot(real_robots)
-    core, custom = k8s.CoreV1Api(cluster.api_client), k8s.CustomObjectsApi(cluster.api_client)
-    rs.create(custom, namespace, rs.system(SYSTEM, robot, int(ros_env["ROS_DOMAIN_ID"]), TREE))
-    wait_for(lambda: rs.pods(core, namespace, SYSTEM), timeout=60, message="the first component pod")
-    created = time.monotonic()
-    item = wait_for(
-        lambda: _pull_failed(custom, namespace),
-        timeout=30,
-        interval=0.5,
-        message=lambda: f"ImagePullFailed within 30 s: {rs.instance(custom, namespace, SYSTEM)}",
+    pullfailures.named_then_recovered(
+        core=k8s.CoreV1Api(cluster.api_client),
+        custom=k8s.CustomObjectsApi(cluster.api_client),
+        namespace=namespace,
+        robot=first_real_robot(real_robots),
+        domain=int(ros_env["ROS_DOMAIN_ID"]),
+        image=helper_image,
+        cause="connection refused",
+        cure=offer_registry,
     )
-    components = rs.condition(item, "ComponentsReady")
-    assert f"container {FOLDERS_OWNER}:" in components["message"], components
-    assert helper_image in components["message"], "the kubelet's message names the image"
-    assert rs.condition(item, "Stalled")["status"] == "False", "the kubelet keeps trying"
-    instance = item["metadata"]["name"]
-    warned = wait_for(
-        lambda: [e for e in _events(core, namespace, instance) if e.reason == "ImagePullFailed"],
-        timeout=30,
-        message="a Warning Event on the instance",
-    )
-    assert warned[0].type == "Warning" and helper_image in warned[0].message
-    print(f"ImagePullFailed on the instance {time.monotonic() - created:.1f} s after its first pod")
-
-    offer_registry()
-    restored = time.monotonic()
-    wait_for(
-        lambda: rs.with_root(custom, namespace, SYSTEM, "SUCCESS"),
-        timeout=360,
-        interval=1,
-        message=lambda: (
-            f"the mission to run once the image can be pulled: {rs.instance(custom, namespace, SYSTEM)}"
-        ),
-    )
-    print(f"the mission succeeded {time.monotonic() - restored:.1f} s after the registry came back")
-    # The executor writes the root's SUCCESS itself; the operator's next pass tells ComponentsReady.
-    wait_for(
-        lambda: rs.condition(rs.instance(custom, namespace, SYSTEM), "ComponentsReady").get("status")
-        == "True",
-        timeout=30,
-        interval=0.5,
-        message=lambda: f"ComponentsReady=True after the pull: {rs.instance(custom, namespace, SYSTEM)}",
-    )
-    told = wait_for(
-        lambda: [e for e in _events(core, namespace, instance) if e.reason == "Recovered"],
-        timeout=30,
-        message="a Normal Event telling the recovery",
-    )
-    assert told[0].type == "Normal" and told[0].message.startswith("No longer ImagePullFailed"), told[0]
-    rs.delete(custom, namespace, SYSTEM)

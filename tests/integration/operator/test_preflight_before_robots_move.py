@@ -10,12 +10,10 @@ project's own skillset and driver (`coral verify` of the installed components).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import subprocess
 import sys
 import time
-import urllib.request
 from collections.abc import Iterator
 from dataclasses import replace
 from datetime import UTC, datetime
@@ -40,24 +38,6 @@ pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 _MANIFEST = "application/vnd.oci.image.manifest.v1+json"
 
 
-def _put_blob(address: str, repository: str, body: bytes) -> str:
-    digest = "sha256:" + hashlib.sha256(body).hexdigest()
-    start = urllib.request.Request(f"http://{address}/v2/{repository}/blobs/uploads/", method="POST")
-    with urllib.request.urlopen(start, timeout=10) as answer:
-        location = answer.headers["Location"]
-    if location.startswith("/"):
-        location = f"http://{address}{location}"
-    joiner = "&" if "?" in location else "?"
-    upload = urllib.request.Request(
-        f"{location}{joiner}digest={digest}",
-        data=body,
-        method="PUT",
-        headers={"Content-Type": "application/octet-stream"},
-    )
-    with urllib.request.urlopen(upload, timeout=10):
-        return digest
-
-
 def push_labelled(address: str, reference: str, labels: dict[str, str]) -> str:
     """Push an image of no layers whose config carries `labels`; its manifest digest."""
     repository, _, tag = reference.partition(":")
@@ -69,27 +49,18 @@ def push_labelled(address: str, reference: str, labels: dict[str, str]) -> str:
             "rootfs": {"type": "layers", "diff_ids": []},
         }
     ).encode()
-    config_digest = _put_blob(address, repository, config)
-    manifest = json.dumps(
-        {
-            "schemaVersion": 2,
-            "mediaType": _MANIFEST,
-            "config": {
-                "mediaType": "application/vnd.oci.image.config.v1+json",
-                "digest": config_digest,
-                "size": len(config),
-            },
-            "layers": [],
-        }
-    ).encode()
-    request = urllib.request.Request(
-        f"http://{address}/v2/{repository}/manifests/{tag}",
-        data=manifest,
-        method="PUT",
-        headers={"Content-Type": _MANIFEST},
-    )
-    with urllib.request.urlopen(request, timeout=10) as answer:
-        return str(answer.headers["Docker-Content-Digest"])
+    config_digest = registry.put_blob(address, repository, config)
+    manifest = {
+        "schemaVersion": 2,
+        "mediaType": _MANIFEST,
+        "config": {
+            "mediaType": "application/vnd.oci.image.config.v1+json",
+            "digest": config_digest,
+            "size": len(config),
+        },
+        "layers": [],
+    }
+    return registry.put_manifest(address, repository, tag, manifest, _MANIFEST)
 
 
 def _declared(component: str) -> ImageExports:

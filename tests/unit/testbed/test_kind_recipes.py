@@ -53,12 +53,12 @@ def test_a_site_share_is_bound_into_every_robot_and_no_other_node() -> None:
 
 
 # What kind v0.33 generates for kubeadm 1.34 without feature gates, as its template
-# (ConfigTemplateBetaV4) renders it: the sections the patches reach.
+# (ConfigTemplateBetaV3, which it renders below Kubernetes 1.36) reads: the sections the patches reach.
 _KIND_CLUSTER_CONFIGURATION = {
-    "apiVersion": "kubeadm.k8s.io/v1beta4",
+    "apiVersion": "kubeadm.k8s.io/v1beta3",
     "kind": "ClusterConfiguration",
-    "apiServer": {"certSANs": ["localhost"], "extraArgs": [{"name": "runtime-config", "value": ""}]},
-    "controllerManager": {"extraArgs": [{"name": "enable-hostpath-provisioner", "value": "true"}]},
+    "apiServer": {"certSANs": ["localhost"], "extraArgs": {"runtime-config": ""}},
+    "controllerManager": {"extraArgs": {"enable-hostpath-provisioner": "true"}},
     "scheduler": {"extraArgs": None},
 }
 
@@ -74,22 +74,22 @@ def test_control_plane_flags_and_folders_reach_kubeadm_beside_kinds_own() -> Non
     )
     config = yaml.safe_load(clusters.build_config(spec))
     (patch,) = config["kubeadmConfigPatchesJSON6902"]
-    assert (patch["group"], patch["version"], patch["kind"]) == (
-        "kubeadm.k8s.io",
-        "v1beta4",
-        "ClusterConfiguration",
+    # kind applies a patch only to the document of exactly this apiVersion and kind, else drops it.
+    assert (f"{patch['group']}/{patch['version']}", patch["kind"]) == (
+        _KIND_CLUSTER_CONFIGURATION["apiVersion"],
+        _KIND_CLUSTER_CONFIGURATION["kind"],
     )
     patched = jsonpatch.apply_patch(_KIND_CLUSTER_CONFIGURATION, yaml.safe_load(patch["patch"]))
-    assert patched["apiServer"]["extraArgs"] == [
-        {"name": "runtime-config", "value": ""},
-        {"name": "audit-log-path", "value": "/tmp/audit/audit.log"},
-    ]
-    assert patched["controllerManager"]["extraArgs"] == [
-        {"name": "enable-hostpath-provisioner", "value": "true"},
-        {"name": "kube-api-qps", "value": "500"},
-        {"name": "node-monitor-grace-period", "value": "300s"},
-    ]
-    assert patched["scheduler"]["extraArgs"] == [{"name": "kube-api-burst", "value": "1000"}]
+    assert patched["apiServer"]["extraArgs"] == {
+        "runtime-config": "",
+        "audit-log-path": "/tmp/audit/audit.log",
+    }
+    assert patched["controllerManager"]["extraArgs"] == {
+        "enable-hostpath-provisioner": "true",
+        "kube-api-qps": "500",
+        "node-monitor-grace-period": "300s",
+    }
+    assert patched["scheduler"]["extraArgs"] == {"kube-api-burst": "1000"}
     (volume,) = patched["apiServer"]["extraVolumes"]
     assert (volume["hostPath"], volume["mountPath"]) == ("/tmp/audit", "/tmp/audit")
     assert config["nodes"][0]["extraMounts"] == [{"hostPath": "/tmp/audit", "containerPath": "/tmp/audit"}]

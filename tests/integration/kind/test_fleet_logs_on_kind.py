@@ -1,6 +1,6 @@
-"""`coral logs SYSTEM -f` on three real robots: every robot's components followed live through the
-API server, each line prefixed robot/component, plain text in a pipe, every container's lines in
-the order it printed them, and Ctrl-C (SIGINT) ends it cleanly.
+"""`coral logs SYSTEM -f` on the three kind robots: every robot's components followed live through
+the API server, each line prefixed robot/component, plain text in a pipe, every container's lines
+in the order it printed them, and Ctrl-C (SIGINT) ends it cleanly.
 
 Issue 53, acceptance 4.
 """
@@ -14,19 +14,18 @@ import subprocess
 import sys
 import threading
 import time
-from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster
 from coral_testbed.images import catalog
+from coral_testbed.kind import faults
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
-from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_MARKS, pull_system_images, real_fleet_system
-from kubernetes import client as k8s
+from missions import realsystems as rs
 
-pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
+from .fleet import ROBOTS, fleet_system, pull_for
 
-GROUP, VERSION = "coral.dev", "v1alpha1"
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
+
 SYSTEM = "chatty"
 # A driver that counts, five lines a second, so order and gaps are visible in what `coral logs` prints.
 COUNTER = 'i=0; while true; do i=$((i+1)); echo "count $i"; sleep 0.2; done'
@@ -79,36 +78,32 @@ class Followed:
 
 
 def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl_c(
-    cluster: Cluster,
-    namespace: str,
-    built_images: dict[str, Any],
-    three_real_robots: list[str],
-    coral_operator: OperatorProcess,
-    ros_env: dict[str, str],
+    kind_operator: KindMissionStack, ros_env: dict[str, str]
 ) -> None:
-    robots = three_real_robots
-    custom, core = k8s.CustomObjectsApi(cluster.api_client), k8s.CoreV1Api(cluster.api_client)
+    robots = sorted(ROBOTS)
+    namespace = kind_operator.namespace
+    nodes = sorted(faults.node_of(kind_operator.running, robot) for robot in robots)
     counter = {
         "name": "counter",
         "image": catalog.by_name()["examples-skillset"].reference,
         "command": ["sh", "-c", COUNTER],
     }
-    manifest = real_fleet_system(SYSTEM, int(ros_env["ROS_DOMAIN_ID"]), TREE, drivers=[counter])
-    pull_system_images(cluster, namespace, robots, manifest, coral_operator.extra_env["CORAL_HELPER_IMAGE"])
-    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+    manifest = fleet_system(SYSTEM, int(ros_env["ROS_DOMAIN_ID"]), TREE, drivers=[counter])
+    pull_for(kind_operator, robots, manifest)
+    rs.create(kind_operator.custom, namespace, manifest)
 
     def running_pods() -> list[str]:
-        listed = core.list_namespaced_pod(namespace, label_selector=f"coral.dev/system={SYSTEM}").items
+        listed = rs.pods(kind_operator.core, namespace, SYSTEM)
         return sorted(p.spec.node_name for p in listed if p.status.phase == "Running")
 
     wait_for(
-        lambda: running_pods() == sorted(robots * 2),
+        lambda: running_pods() == sorted(nodes * 2),
         timeout=300,
         interval=1,
         message=lambda: f"a counter and an executor running on every robot: {running_pods()}",
     )
 
-    env = {**os.environ, "KUBECONFIG": str(cluster.kubeconfig)}
+    env = {**os.environ, "KUBECONFIG": str(kind_operator.cluster.kubeconfig)}
     env.pop("CORAL_STATE_DIR", None)
     followed = Followed([SYSTEM, "-n", namespace, "-f"], env)
 
@@ -168,4 +163,3 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
     assert one.returncode == 0, one.stderr
     prefixes = {m["robot"] + "/" + m["component"] for m in map(PREFIX.match, one.stdout.splitlines()) if m}
     assert prefixes == {f"{robots[0]}/counter"}, one.stdout[-500:]
-    custom.delete_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", SYSTEM)

@@ -1,20 +1,22 @@
 """A robot's live tree from outside the cluster (issue 49, acceptance 3): `coral tree watch SYSTEM
 ROBOT --once --json` and `coral groot2 SYSTEM ROBOT` reach the executor's Groot2 publisher on a
-real robot through the API server's port-forward, as a user on a laptop would.
+kind robot through the API server's port-forward, as a user on a laptop would.
 
 Where the operator's policy opens Groot2 hooks for the namespace, a breakpoint set before the
 mission starts (the executor holds its first tick for the debugger) is reached and forces a
 failing safety check to SUCCESS: the robot's CoralInstance records no failure. Where it does not,
 a system asking for hooks is refused whole (`Stalled`/`PolicyDenied`, naming the field); without
 them the hook request gets the error reply and the tree runs on untouched, its check's failure
-recorded. The operator is installed by Helm with the chart's `policy.groot2HooksNamespaces`; the
-executor runs on the robot's host network (the default), so its publisher binds the robot's own
-loopback and the kubelet's port-forward reaches it there.
+recorded. The operator is the chart's (`kind_operator`), upgraded by Helm with the chart's
+`policy.groot2HooksNamespaces` for the test that opens hooks and back after it; the executor runs
+on the robot's host network (the default, the node container's), so its publisher binds the
+robot's own loopback and the kubelet's port-forward reaches it there.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import random
 import signal
@@ -29,21 +31,21 @@ from coral_core.bt.groot2 import protocol
 from coral_core.bt.groot2.client import Groot2Client, Groot2Error
 from coral_core.bt.groot2.watching import Watcher
 from coral_operator import groot2_target
-from coral_testbed.cluster import Cluster, realrobots
+from coral_testbed.cluster import Cluster, operatorchart
 from coral_testbed.images import catalog
-from coral_testbed.missions.stack import operator_policy
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
-from fixtures.operator import HelmOperator
 from fixtures.ports import free_port_pair
 from kubernetes import client as k8s
+from missions import realsystems as rs
 
-from . import realsystems as rs
-from .conftest import first_real_robot
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
-pytestmark = [*rs.REAL_ROBOT_MARKS, pytest.mark.timeout(420)]
-
+ROBOT = "relay-worker"
 SYSTEM = "inspection"
 PORT = 1667
+# The drive outlasts a few `coral tree watch` runs (each a process and a port-forward, seconds on a
+# busy machine): the warmed-up tree is looked at while it still runs, before its executor ends.
 TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
     <Sequence>
@@ -51,18 +53,35 @@ TREE = """<root BTCPP_format="4" main_tree_to_execute="Main">
       <ForceSuccess name="Tolerate">
         <AlwaysFailure name="SafetyCheck"/>
       </ForceSuccess>
-      <Sleep name="Drive" msec="8000"/>
+      <Sleep name="Drive" msec="20000"/>
     </Sequence>
   </BehaviorTree>
 </root>
 """
 
 
+def _upgrade(missions: KindMissionStack, release: operatorchart.Release) -> None:
+    assert missions.cluster.bin_dir is not None
+    helm = missions.cluster.bin_dir / "helm"
+    operatorchart.upgrade(missions.cluster.api_client, helm, missions.cluster.env(), release)
+
+
 @pytest.fixture
-def helm_policy(namespace: str, request: pytest.FixtureRequest) -> dict[str, tuple[str, ...]]:
-    """The missions' policy, with Groot2 hooks opened for the namespace when the test asks."""
-    hooks = getattr(request, "param", False)
-    return {**operator_policy(namespace), **({"groot2HooksNamespaces": (namespace,)} if hooks else {})}
+def hooks_policy(kind_operator: KindMissionStack, request: pytest.FixtureRequest) -> Iterator[bool]:
+    """Whether the operator's policy opens Groot2 hooks for the namespace (the test's parameter);
+    opened by `helm upgrade` and closed again after the test."""
+    hooks: bool = request.param
+    if not hooks:
+        yield hooks
+        return
+    release = kind_operator.release
+    policy = {**release.policy, "groot2HooksNamespaces": (kind_operator.namespace,)}
+    _upgrade(kind_operator, dataclasses.replace(release, policy=policy))
+    try:
+        yield hooks
+    finally:
+        kind_operator.delete_systems()
+        _upgrade(kind_operator, release)
 
 
 def _executor(groot2: dict[str, Any]) -> dict[str, Any]:
@@ -178,8 +197,18 @@ class Forwarder:
 
 
 @pytest.fixture
-def robot(helm_operator: HelmOperator, real_robots: realrobots.RealRobots) -> str:
-    return first_real_robot(real_robots)
+def cluster(kind_operator: KindMissionStack) -> Cluster:
+    return kind_operator.cluster
+
+
+@pytest.fixture
+def namespace(kind_operator: KindMissionStack) -> str:
+    return kind_operator.namespace
+
+
+@pytest.fixture
+def robot(kind_operator: KindMissionStack) -> str:
+    return ROBOT
 
 
 @pytest.fixture
@@ -187,9 +216,9 @@ def domain(ros_env: dict[str, str]) -> int:
     return int(ros_env["ROS_DOMAIN_ID"])
 
 
-@pytest.mark.parametrize("helm_policy", [True], indirect=True, ids=["hooks-allowed"])
+@pytest.mark.parametrize("hooks_policy", [True], indirect=True, ids=["hooks-allowed"])
 def test_a_breakpoint_set_from_outside_forces_a_robots_safety_check(
-    cluster: Cluster, namespace: str, robot: str, domain: int
+    hooks_policy: bool, cluster: Cluster, namespace: str, robot: str, domain: int
 ) -> None:
     custom = k8s.CustomObjectsApi(cluster.api_client)
     groot2 = {"port": PORT, "allowHooks": True, "waitForClientSeconds": 300}
@@ -242,9 +271,9 @@ def test_a_breakpoint_set_from_outside_forces_a_robots_safety_check(
     assert code == 0 and "Stopped forwarding." in said, said
 
 
-@pytest.mark.parametrize("helm_policy", [False], indirect=True, ids=["hooks-closed"])
+@pytest.mark.parametrize("hooks_policy", [False], indirect=True, ids=["hooks-closed"])
 def test_where_hooks_are_closed_they_are_refused_and_the_tree_runs_untouched(
-    cluster: Cluster, namespace: str, robot: str, domain: int
+    hooks_policy: bool, cluster: Cluster, namespace: str, robot: str, domain: int
 ) -> None:
     custom = k8s.CustomObjectsApi(cluster.api_client)
     rs.create(custom, namespace, _system(robot, domain, {"port": PORT, "allowHooks": True}))
