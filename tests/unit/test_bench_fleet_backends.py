@@ -17,11 +17,20 @@ BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 @pytest.fixture(scope="module")
 def bench_fleet() -> Iterator[ModuleType]:
     # The benchmark imports its `fleet` package and `plots` from its own folder, as `python FILE` does.
+    # A test folder elsewhere in the suite has a `fleet.py` of its own on the path; whichever came
+    # first would shadow the other, so the benchmark's names are imported afresh and put back after.
+    names = ("bench_fleet", "fleet", "plots")
+    saved = {name: module for name, module in sys.modules.items() if name.split(".")[0] in names}
+    for name in saved:
+        del sys.modules[name]
     sys.path.insert(0, str(BENCHMARKS))
     try:
         yield importlib.import_module("bench_fleet")
     finally:
         sys.path.remove(str(BENCHMARKS))
+        for name in [name for name in sys.modules if name.split(".")[0] in names]:
+            del sys.modules[name]
+        sys.modules.update(saved)
 
 
 def test_a_kind_run_uses_the_cluster_name_it_is_given(bench_fleet: ModuleType) -> None:

@@ -150,8 +150,12 @@ def all_running(pods: list[dict[str, Any]]) -> bool:
 
 
 def fingerprint(pods: list[dict[str, Any]]) -> str:
+    """What a recording depends on. The owning instance's uid is part of it: a system deleted and
+    made again under its name gives pods of the same names and hashes, and its cache must name the
+    new instance, not the one that is gone."""
     parts = sorted(
         f"{p['metadata']['name']}={p['metadata'].get('annotations', {}).get(names.ANNOTATION_POD_HASH, '')}"
+        f"@{','.join(o.get('uid', '') for o in p['metadata'].get('ownerReferences') or [])}"
         for p in pods
     )
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()

@@ -132,11 +132,14 @@ def _run_until_recorded(
     manifest = _cache(robots, robot, namespace) / offline.MANIFEST_FILE
     wait_for(
         lambda: (
-            manifest.exists() and json.loads(manifest.read_text())["revision"] == item["spec"]["revision"]
+            manifest.exists()
+            and (recorded := json.loads(manifest.read_text()))["revision"] == item["spec"]["revision"]
+            # An earlier test's system of the same name may have left its cache: this one's is new.
+            and recorded["instanceUid"] == item["metadata"]["uid"]
         ),
         timeout=60,
         interval=1,
-        message=f"the robot to record revision {item['spec']['revision']} in {manifest}",
+        message=f"the robot to record revision {item['spec']['revision']} of this instance in {manifest}",
     )
     return item
 

@@ -157,3 +157,20 @@ def test_a_system_is_recorded_only_once_all_its_pods_run_at_one_revision() -> No
     assert not store.all_running(moved)
     relabelled = [{**p, "metadata": {**p["metadata"], "annotations": {}}} for p in pods]
     assert store.fingerprint(relabelled) != store.fingerprint(pods)
+
+
+def test_a_system_made_again_under_its_name_is_recorded_anew() -> None:
+    pods = robot_pods(system(offline={"mode": "LastRevision"}))
+    assert all(p["metadata"].get("ownerReferences") for p in pods), "the pods name their instance"
+    again = [
+        {
+            **p,
+            "metadata": {
+                **p["metadata"],
+                "ownerReferences": [{**o, "uid": "uid-2"} for o in p["metadata"]["ownerReferences"]],
+            },
+        }
+        for p in pods
+    ]
+    assert store.fingerprint(again) != store.fingerprint(pods)
+    assert store.fingerprint([dict(p) for p in pods]) == store.fingerprint(pods)
