@@ -32,7 +32,7 @@ node-runtime:
 # Debian, kind and the node binaries from Go modules, and the node image (built locally where
 # kindest/node cannot be pulled; first build about 8 min). Needs root.
 kind: venv node-runtime control-plane
-	@$(VENV)/bin/coral dev-cluster kind setup
+	@$(VENV)/bin/coral dev-cluster setup
 
 # Every image from the repository's Dockerfiles, pushed to the local registry (docs/images.md).
 images: venv node-runtime
@@ -62,14 +62,14 @@ demo-local: venv
 
 # The control-plane tour: robots as kwok Nodes, a pod pinned to one of them.
 demo-cluster: venv control-plane
-	@$(VENV)/bin/coral dev-cluster demo
+	@$(VENV)/bin/coral dev-cluster local demo
 
 # What the kind test (tests/integration/kind) needs, made before pytest so that the node image's
 # first build (about 8 min) counts against no test's timeout; where it cannot be made, that test
 # says why. Leaves nothing running.
 test-kind-setup: venv node-runtime control-plane
 	@if [ "$$(id -u)" -eq 0 ]; then \
-		$(VENV)/bin/coral dev-cluster kind setup || echo "==> kind setup failed; the kind test will say why"; fi
+		$(VENV)/bin/coral dev-cluster setup || echo "==> kind setup failed; the kind test will say why"; fi
 
 test: venv control-plane node-runtime verdict-tools test-images test-kind-setup
 	@echo "==> ruff"

@@ -71,7 +71,7 @@ ENTRY_POINTS: dict[str, dict[str, list[str]]] = {
     },
     "coral_testbed": {
         "coral.verbs": [
-            "dev-cluster = coral_testbed.cluster.cli:dev_cluster",
+            "dev-cluster = coral_testbed.devcluster:dev_cluster",
             "images = coral_testbed.images.cli:images",
             "demo = coral_testbed.missions.cli:demo_command",
         ],

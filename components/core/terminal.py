@@ -2,7 +2,7 @@
 
 On a terminal output is coloured and may redraw (live views); anywhere else (pipes, files, CI logs)
 the same calls write plain text with no ANSI codes and no wrapping, so logs stay readable and
-greppable. Used by `coral run` (`coral.local.console`), `coral ps`, `coral dev-cluster status` and
+greppable. Used by `coral run` (`coral.local.console`), `coral ps`, `coral dev-cluster local status` and
 the mission follower of `coral demo`.
 """
 

@@ -1,6 +1,6 @@
 """What the testbed's click verbs share besides errors: their progress line and KEY=VALUE options.
 
-Used by `coral dev-cluster` and `coral dev-cluster kind`.
+Used by `coral dev-cluster` and `coral dev-cluster`.
 """
 
 from __future__ import annotations

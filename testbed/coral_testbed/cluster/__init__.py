@@ -1,7 +1,7 @@
 """A local Kubernetes control plane with kwok robots, for tests, demos and development.
 
 Entry points: `Cluster` (a handle used by tests and tooling), `controlplane.start/stop/status`
-(processes in a state folder, behind `coral dev-cluster up|down|status`), and `wait_for`
+(processes in a state folder, behind `coral dev-cluster local up|down|status`), and `wait_for`
 re-exported from `coral_testbed.waiting`.
 """
 

@@ -1,8 +1,8 @@
-"""`coral dev-cluster`: run the local control plane by hand (up, down, status, robots, demo).
+"""`coral dev-cluster local`: run the local control plane by hand (up, down, status, robots, demo).
 
-Thin verbs over `controlplane` and `client.Cluster`; registered as a `coral.verbs` entry point
-(setup.py). Progress goes to stderr and the kubeconfig path to stdout, so
-`export KUBECONFIG=$(coral dev-cluster up)` works.
+Thin verbs over `controlplane` and `client.Cluster`; `coral_testbed.devcluster` lists the group.
+Progress goes to stderr and the kubeconfig path to stdout, so
+`export KUBECONFIG=$(coral dev-cluster local up)` works.
 """
 
 from __future__ import annotations
@@ -64,12 +64,13 @@ def on_running_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-@click.group("dev-cluster")
-def dev_cluster() -> None:
-    """A local Kubernetes control plane (etcd, kube-apiserver, controllers) with real and kwok robots."""
+@click.group("local")
+def local() -> None:
+    """The suite's own control plane: etcd, kube-apiserver and controllers as processes of this host,
+    with kwok robots and network-namespace robots (testbed/coral_testbed/cluster/README.md)."""
 
 
-@dev_cluster.command()
+@local.command()
 @dir_option
 @click.option(
     "--robots",
@@ -148,7 +149,7 @@ def install_operator(cluster: Cluster, release: operatorchart.Release | None = N
     clilines.say(f"The operator runs in pod {release.namespace}/{pod.metadata.name} on {pod.spec.node_name}")
 
 
-@dev_cluster.command()
+@local.command()
 @dir_option
 @_fail_on_errors
 def down(state_dir: Path) -> None:
@@ -157,7 +158,7 @@ def down(state_dir: Path) -> None:
     clilines.say(f"Stopped {len(stopped)} processes" if stopped else f"Nothing was running from {state_dir}")
 
 
-@dev_cluster.command()
+@local.command()
 @dir_option
 @_fail_on_errors
 def status(state_dir: Path) -> None:
@@ -177,7 +178,7 @@ def status(state_dir: Path) -> None:
         raise SystemExit(1)
 
 
-@dev_cluster.group()
+@local.group()
 def robots() -> None:
     """Create, remove and fail robots: kwok Nodes, and real robots (kubelet + containerd)."""
 
@@ -259,18 +260,8 @@ for _verb in ONE_ROBOT_ACTIONS:
     robots.add_command(_one_robot_command(_verb))
 
 
-@dev_cluster.command("demo")
+@local.command("demo")
 @_fail_on_errors
 def demo_command() -> None:
     """Start a throwaway control plane, schedule a pod onto a robot, show it Running, stop everything."""
     demo.run(echo=click.echo)
-
-
-def _register_kind() -> None:
-    # Imported here: the kind verbs are a group of their own module, listed under dev-cluster.
-    from coral_testbed.kind import cli as kind_cli
-
-    dev_cluster.add_command(kind_cli.kind)
-
-
-_register_kind()

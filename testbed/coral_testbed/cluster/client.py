@@ -70,7 +70,8 @@ class Cluster:
 
     @classmethod
     def from_dev_cluster(cls, state_dir: Path | None = None) -> Cluster:
-        """The control plane that `coral dev-cluster up` (or `controlplane.start`) runs from `state_dir`.
+        """The control plane that `coral dev-cluster local up` (or `controlplane.start`) runs from
+        `state_dir`.
 
         Raises:
             ControlPlaneError: nothing runs from that folder.
@@ -81,7 +82,7 @@ class Cluster:
         state = controlplane.load_state(folder)
         if state is None or not state.alive():
             raise controlplane.ControlPlaneError(
-                f"no control plane is running from {folder}; start one with `coral dev-cluster up`"
+                f"no control plane is running from {folder}; start one with `coral dev-cluster local up`"
             )
         return cls(state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=folder)
 
@@ -104,7 +105,7 @@ class Cluster:
         state = controlplane.load_state(self.state_dir) if self.state_dir is not None else None
         if state is None or self.bin_dir is None:
             raise realrobots.RobotError(
-                f"{self!r}: real robots run only on a local control plane (`coral dev-cluster up`)"
+                f"{self!r}: real robots run only on a local control plane (`coral dev-cluster local up`)"
             )
         return realrobots.RealRobots(
             self.state_dir,

@@ -1,6 +1,6 @@
 """Starting, inspecting and stopping a local control plane whose state lives in one folder.
 
-Called by `coral dev-cluster up|down|status`, the demo and the pytest `cluster` fixture. `start`
+Called by `coral dev-cluster local up|down|status`, the demo and the pytest `cluster` fixture. `start`
 launches etcd, kube-apiserver, kube-controller-manager, kube-scheduler and kwok as background
 processes in their own process groups, records them in `<dir>/state.json` after every launch (so
 `stop` can clean up even after a crash mid-start) and returns once the API serves and the
@@ -319,7 +319,7 @@ def stop(state_dir: Path | None = None, progress: Progress = lambda _: None) -> 
 
 
 def status(state_dir: Path | None = None) -> dict[str, Any]:
-    """Liveness and health of each recorded component, for `coral dev-cluster status`."""
+    """Liveness and health of each recorded component, for `coral dev-cluster local status`."""
     state_dir = (state_dir or default_state_dir()).resolve()
     state = load_state(state_dir)
     if state is None:

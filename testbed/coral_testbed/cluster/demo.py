@@ -1,7 +1,7 @@
 """What `make demo` shows for now: a control plane with robots, and a pod running on one of them.
 
-Called by `coral dev-cluster demo`. It uses a throwaway state folder, so it never disturbs a dev
-cluster started with `coral dev-cluster up`, and it stops every process it started, also on error.
+Called by `coral dev-cluster local demo`. It uses a throwaway state folder, so it never disturbs a dev
+cluster started with `coral dev-cluster local up`, and it stops every process it started, also on error.
 """
 
 from __future__ import annotations

@@ -338,7 +338,7 @@ class RealRobots:
         self.layout(name)
         kubelet = self._recorded(name, "kubelet")
         if kubelet is not None:
-            # The record stays, so `coral dev-cluster status` shows the kubelet as stopped.
+            # The record stays, so `coral dev-cluster local status` shows the kubelet as stopped.
             processes.stop(kubelet)
 
     def start(self, name: str, wait: bool = True) -> None:
@@ -500,7 +500,8 @@ def kubelet_healthy(layout: nodeconfig.RobotLayout) -> bool:
 
 
 def kubelet_probes(state_dir: Path) -> dict[str, Callable[[], bool]]:
-    """A health probe per real robot's kubelet, keyed by its process name, for `coral dev-cluster status`."""
+    """A health probe per real robot's kubelet, keyed by its process name, for
+    `coral dev-cluster local status`."""
     probes: dict[str, Callable[[], bool]] = {}
     for name, entry in _load(state_dir.resolve())["robots"].items():
         layout = nodeconfig.RobotLayout.from_json(entry["layout"])

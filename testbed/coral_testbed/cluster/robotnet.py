@@ -112,7 +112,7 @@ def claim_slot() -> int:
                 create_bridge(slot)
                 return slot
     raise NetworkError(
-        f"every real-robot network slot ({len(SLOTS)}) is in use; run `coral dev-cluster down`"
+        f"every real-robot network slot ({len(SLOTS)}) is in use; run `coral dev-cluster local down`"
     )
 
 

@@ -1,7 +1,7 @@
 """Simulated robots: kwok-managed Nodes labelled `coral.dev/robot=<name>`.
 
 Node manifests and readiness parsing are pure; the `apply_*`/`read_*` functions talk to the API
-and are used by `client.Cluster` (tests, the demo, `coral dev-cluster robots`). Not ready is an
+and are used by `client.Cluster` (tests, the demo, `coral dev-cluster local robots`). Not ready is an
 annotation that kwok's stages (kwok-stages.yaml) turn into Ready=False; offline is the kwok label
 switched off, so the robot's lease lapses and the node-lifecycle controller reports it Unknown.
 """

@@ -1,8 +1,8 @@
-"""`coral dev-cluster kind`: a kind cluster of robots (setup, up, down, robot faults).
+"""`coral dev-cluster setup|up|down|robots`: a kind cluster of robots (docs/kind.md).
 
-Thin verbs over `provisioning`, `clusters` and `faults`; registered under `coral dev-cluster`.
+Thin verbs over `provisioning`, `clusters` and `faults`; `coral_testbed.devcluster` lists them.
 Progress goes to stderr and the kubeconfig path to stdout, so
-`export KUBECONFIG=$(coral dev-cluster kind up --robots 2)` works.
+`export KUBECONFIG=$(coral dev-cluster up --robots 2)` works.
 """
 
 from __future__ import annotations
@@ -36,12 +36,7 @@ def _name_option(command: Callable[..., Any]) -> Callable[..., Any]:
     )(command)
 
 
-@click.group("kind")
-def kind() -> None:
-    """kind clusters of robots: one worker per robot, on the project's own Docker engine (docs/kind.md)."""
-
-
-@kind.command()
+@click.command()
 @_fail_on_errors
 def setup() -> None:
     """Install what kind needs where missing: Docker engine, kind, node binaries, node image."""
@@ -53,7 +48,7 @@ def setup() -> None:
         engine.stop()
 
 
-@kind.command()
+@click.command()
 @_name_option
 @click.option(
     "--robots",
@@ -94,7 +89,7 @@ def up(name: str, count: int, robot_prefix: str, kwok_count: int, labels: dict[s
     click.echo(str(running.kubeconfig))
 
 
-@kind.command()
+@click.command()
 @_name_option
 @click.option(
     "--keep-engine",
@@ -136,13 +131,13 @@ def _on_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
         node_engine = engine.start(clilines.say)
         running = clusters.load(name, node_engine)
         if running is None:
-            raise clusters.ClusterError(f"no kind cluster {name}; create it with `coral dev-cluster kind up`")
+            raise clusters.ClusterError(f"no kind cluster {name}; create it with `coral dev-cluster up`")
         return command(running, robot, **kwargs)
 
     return wrapper
 
 
-@kind.group()
+@click.group()
 def robots() -> None:
     """Faults of a robot through its node container: kubelet, containerd, link, power."""
 
@@ -159,3 +154,6 @@ def _fault_command(verb: str) -> click.Command:
 
 for _verb in FAULTS:
     robots.add_command(_fault_command(_verb))
+
+
+COMMANDS = (setup, up, down, robots)

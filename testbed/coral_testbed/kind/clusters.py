@@ -154,14 +154,14 @@ def network_name(name: str) -> str:
 
 
 def kind_binary() -> Path:
-    """kind, built by hack/build-kind-tools.sh (`coral dev-cluster kind setup`)."""
+    """kind, built by hack/build-kind-tools.sh (`coral dev-cluster setup`)."""
     # The tools' folder is keyed by every version hack/build-kind-tools.sh pins, kind's first.
     found = sorted((binaries.cache_root() / "kind" / "tools").glob(f"kind-{KIND_VERSION}_*/bin/kind"))
     if found:
         return found[-1]
     on_path = shutil.which("kind")
     if on_path is None:
-        raise ClusterError("kind is not built yet; run `coral dev-cluster kind setup` (or `make kind`)")
+        raise ClusterError("kind is not built yet; run `coral dev-cluster setup` (or `make kind`)")
     return Path(on_path)
 
 

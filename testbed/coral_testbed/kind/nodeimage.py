@@ -14,7 +14,7 @@ Dockerfile does, from what is at hand:
   containerd store by a throwaway containerd, so creating a cluster pulls nothing.
 
 The tag carries a hash of every input, so an unchanged recipe is never rebuilt. Called by
-`setup` (`coral dev-cluster kind setup`, `make kind`).
+`setup` (`coral dev-cluster setup`, `make kind`).
 """
 
 from __future__ import annotations

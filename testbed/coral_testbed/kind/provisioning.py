@@ -6,7 +6,7 @@
 3. the control-plane binaries (`hack/build-control-plane.sh`, cached by version);
 4. the node image (`nodeimage`: pulled where possible, else built here, cached by content).
 
-Installers' output goes to one log whose path is printed. Called by `coral dev-cluster kind setup`
+Installers' output goes to one log whose path is printed. Called by `coral dev-cluster setup`
 (`make kind`) and before every cluster is created.
 """
 
@@ -78,7 +78,7 @@ def _script(name: str, log: Path, step: str) -> str:
 def ensure(progress: Callable[[str], None]) -> Ready:
     """Runs every step (each a no-op when done before) and returns the engine and node image to use.
 
-    The engine is left running: `engine.stop()` (or `coral dev-cluster kind down`) stops it.
+    The engine is left running: `engine.stop()` (or `coral dev-cluster down`) stops it.
 
     Raises:
         SetupError, engine.EngineError, noderootfs.NodeImageError: naming the step and the log.

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from coral_testbed.cluster import external, robots
-from coral_testbed.cluster.cli import dev_cluster
+from coral_testbed.devcluster import dev_cluster
 
 
 def _kubeconfig(path: Path, context: str) -> Path:
@@ -67,13 +67,15 @@ def test_robot_labels_cannot_override_the_robot_label() -> None:
     assert node["metadata"]["labels"]["coral.dev/model"] == "spot"
 
 
-def test_up_refuses_a_label_without_a_value_separator(tmp_path: Path) -> None:
-    result = CliRunner().invoke(dev_cluster, ["up", "--dir", str(tmp_path), "--label", "coral.dev/model"])
+@pytest.mark.parametrize("up", [["up"], ["local", "up", "--dir", "{tmp}"]], ids=["kind", "local"])
+def test_up_refuses_a_label_without_a_value_separator(tmp_path: Path, up: list[str]) -> None:
+    command = [part.format(tmp=tmp_path) for part in up]
+    result = CliRunner().invoke(dev_cluster, [*command, "--label", "coral.dev/model"])
     assert result.exit_code == 2
     assert "'coral.dev/model' is not KEY=VALUE" in result.output
 
 
 def test_robot_commands_without_a_running_control_plane_say_how_to_start_one(tmp_path: Path) -> None:
-    result = CliRunner().invoke(dev_cluster, ["robots", "add", "r1", "--dir", str(tmp_path)])
+    result = CliRunner().invoke(dev_cluster, ["local", "robots", "add", "r1", "--dir", str(tmp_path)])
     assert result.exit_code == 1
-    assert "coral dev-cluster up" in result.output
+    assert "coral dev-cluster local up" in result.output

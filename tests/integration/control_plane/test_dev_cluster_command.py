@@ -17,7 +17,7 @@ from coral_testbed.cluster.client import parse_table
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
-CORAL = [sys.executable, "-m", "coral", "dev-cluster"]
+CORAL = [sys.executable, "-m", "coral", "dev-cluster", "local"]
 
 
 @pytest.fixture(autouse=True)
@@ -52,7 +52,7 @@ def _processes_mentioning(text: str) -> list[int]:
 
 
 def _status_rows(stdout: str) -> list[list[str]]:
-    """The rows of `coral dev-cluster status`'s table (COMPONENT, PID, HEALTH, LOG), split on blanks."""
+    """The rows of `coral dev-cluster local status`'s table (COMPONENT, PID, HEALTH, LOG), split on blanks."""
     lines = stdout.splitlines()
     header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["COMPONENT", "PID"])
     footer = ([], ["server"], ["kubeconfig"])

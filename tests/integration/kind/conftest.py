@@ -1,6 +1,6 @@
 """One kind cluster for every test of this folder: three robot workers and the operator's node.
 
-`kind_cluster` creates it once, the way `coral dev-cluster kind up` does, and deletes it after the
+`kind_cluster` creates it once, the way `coral dev-cluster up` does, and deletes it after the
 folder's last test; then nothing may be left (no container, network, registry, the project's
 dockerd, mount or cgroup; the host's ip_forward and iptables as before). `kind_missions` is the
 operator installed on it by its Helm chart, serving one namespace, with the mission images in the
