@@ -311,6 +311,24 @@ def create(
     return Running(name, kubeconfig, node_engine, address)
 
 
+def load_image_archive(running: Running, archive: Path) -> None:
+    """`kind load image-archive` of `archive` (a docker or OCI archive) into every node's containerd,
+    under the names the archive gives its images: what a user does with an image no registry holds.
+
+    Raises:
+        ClusterError: naming the archive and kind's error.
+    """
+    done = subprocess.run(
+        [str(kind_binary()), "load", "image-archive", str(archive), "--name", running.name],
+        env={**running.engine.env(), "KIND_EXPERIMENTAL_PROVIDER": "docker"},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    if done.returncode != 0:
+        raise ClusterError(f"kind load image-archive {archive} failed: {done.stderr.strip()}")
+
+
 def kwok_dir(name: str) -> Path:
     return state_dir(name) / "kwok"
 

@@ -18,12 +18,14 @@ from pathlib import Path
 import pytest
 from coral_core.component_image import COMPONENT_UID
 from coral_testbed import images
-from coral_testbed.cluster import binaries, operatorchart
+from coral_testbed.cluster import binaries, nodeimages, operatorchart
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.images import registry
 from coral_testbed.kind import clusters, engine, provisioning
 from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import manifests, stack
+from fixtures.cluster import create_test_namespace
+from kubernetes import client as k8s
 
 from .fleet import MISSIONS_NAMESPACE, NAME, ROBOTS, KindCluster
 
@@ -112,3 +114,21 @@ def kind_operator(kind_missions: KindMissionStack) -> Iterator[KindMissionStack]
     pods gone, so the robots are free for the next test (also when this one failed)."""
     yield kind_missions
     kind_missions.delete_systems()
+
+
+@pytest.fixture(scope="package")
+def robot_test_image(kind_cluster: KindCluster, tmp_path_factory: pytest.TempPathFactory) -> str:
+    """The busybox test image of `coral_testbed.cluster.nodeimages` in every node's containerd, by
+    `kind load image-archive` (no registry holds it); its name."""
+    archive = nodeimages.local_archive(tmp_path_factory.mktemp("test-image"))
+    clusters.load_image_archive(kind_cluster.running, archive)
+    return nodeimages.TEST_IMAGE
+
+
+@pytest.fixture
+def kind_namespace(kind_cluster: KindCluster, request: pytest.FixtureRequest) -> Iterator[str]:
+    """A fresh namespace named after the test, deleted with what it holds afterwards."""
+    core = k8s.CoreV1Api(kind_cluster.cluster.api_client)
+    name = create_test_namespace(core, request.node.name)
+    yield name
+    core.delete_namespace(name)

@@ -3,6 +3,7 @@ mission on one robot read as a user would."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,8 @@ from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
-NAME = "coral-test"
+NAME = os.environ.get("CORAL_KIND_TEST_NAME", "coral-test")
+"""The kind cluster's name: `CORAL_KIND_TEST_NAME` gives each checkout on one machine its own."""
 FLEET_LABEL = {"coral.dev/model": "kind"}
 """What every robot of the cluster carries: a CoralSystem selecting it runs on the whole fleet."""
 ROBOTS = {name: dict(FLEET_LABEL) for name in manifests.RELAY_ROBOTS}
@@ -84,9 +86,15 @@ class Mission:
         )
 
 
+def on_robot(running: clusters.Running, robot: str, *argv: str, check: bool = True) -> str:
+    """`argv` run on the robot (inside its node container, as someone logged into the robot would);
+    its output."""
+    return running.engine.docker("exec", faults.node_of(running, robot), *argv, check=check).stdout
+
+
 def crictl(running: clusters.Running, robot: str, *args: str) -> str:
     """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
-    return running.engine.docker("exec", faults.node_of(running, robot), "crictl", *args).stdout
+    return on_robot(running, robot, "crictl", *args)
 
 
 def fleet_system(name: str, domain: int, tree: str, **spec: Any) -> dict[str, Any]:
@@ -140,3 +148,12 @@ def scale_operator(missions: KindMissionStack, replicas: int) -> None:
         interval=0.5,
         message=lambda: f"{replicas} operator pods, Ready: {missions.operator_log_tail(800)}",
     )
+
+
+def robot_address(running: clusters.Running, robot: str) -> str:
+    """The robot's address on the cluster's network, as Docker gave it to the robot's node."""
+    network = clusters.network_name(running.name)
+    template = f'{{{{(index .NetworkSettings.Networks "{network}").IPAddress}}}}'
+    return running.engine.docker(
+        "inspect", "--format", template, faults.node_of(running, robot)
+    ).stdout.strip()

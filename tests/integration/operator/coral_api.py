@@ -1,6 +1,7 @@
 """Small readers and writers of coral.dev objects and pods for the operator's integration tests.
 
-`client_with_token` and `denied` live in fixtures.apiclients (the kind tests use them too).
+`client_with_token` and `denied` live in fixtures.apiclients, `condition` and `is_current_and_true` in
+fixtures.conditions (the kind tests use them too).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from coral_core.names import GROUP, VERSION
 from coral_operator.planning.naming import EXECUTOR_ACCOUNT_PREFIX
 from fixtures.apiclients import client_with_token
 from fixtures.apiclients import denied as denied  # re-exported: the operator tests read it from here
+from fixtures.conditions import condition as condition  # re-exported, as `denied`
+from fixtures.conditions import is_current_and_true as is_current_and_true
 from kubernetes import client as k8s
 from kubernetes.client.exceptions import ApiException
 
@@ -107,21 +110,6 @@ class Coral:
     def config_maps(self) -> list[str]:
         items = self.core.list_namespaced_config_map(self.namespace, label_selector="coral.dev/system").items
         return [c.metadata.name for c in items]
-
-
-def condition(obj: dict[str, Any] | None, ctype: str) -> dict[str, Any]:
-    """The condition of that type, or an empty dict."""
-    for entry in ((obj or {}).get("status") or {}).get("conditions") or []:
-        if entry["type"] == ctype:
-            return entry
-    return {}
-
-
-def is_current_and_true(obj: dict[str, Any] | None, ctype: str) -> bool:
-    found = condition(obj, ctype)
-    return found.get("status") == "True" and found.get("observedGeneration") == (obj or {}).get(
-        "metadata", {}
-    ).get("generation")
 
 
 def pod_ready_since(pod: Any) -> Any:

@@ -1,11 +1,17 @@
-"""Pod manifests and waits shared by the real-robot tests."""
+"""Plain pods on kind robots and their waits, for the tests of the kubelet and containerd a robot runs.
+
+`robot_pod` is a pod of the busybox test image (sh, sleep, wget, httpd, ip...: the image
+`coral_testbed.cluster.nodeimages` packs, loaded into the nodes by conftest's `robot_test_image`)
+pinned to a robot by its label, with the robots' tolerations.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
 import yaml
-from coral_testbed.cluster import Cluster, nodeimages
+from coral_testbed.cluster import nodeimages
+from coral_testbed.cluster.client import Cluster
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 

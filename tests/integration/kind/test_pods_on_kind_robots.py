@@ -1,7 +1,8 @@
-"""Pods on real robots run as containers: probes, logs, exec, Events, host network and host paths.
+"""Pods on kind robots run as containers: probes, logs, exec, Events, host network and host paths.
 
-Each test applies pods with kubectl, as a user would, and checks what the kubelet and containerd
-really did: the pod's address, the files on the robot, what `kubectl logs` and `exec` return.
+Each test applies pods with kubectl, as a user would, and checks what the robot's kubelet and
+containerd really did: the pod's address, the files on the robot (read inside its node), what
+`kubectl logs` and `exec` return.
 """
 
 from __future__ import annotations
@@ -11,20 +12,23 @@ import json
 from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster, nodeimages, realrobots, robotnet
+from coral_testbed.kind import faults
 from coral_testbed.waiting import wait_for
-from fixtures.robots import REAL_ROBOTS
 from kubernetes import client as k8s
 
+from .fleet import KindCluster, crictl, on_robot, robot_address
 from .pods import apply_robot_pod, condition, events_for, robot_pod, wait_pod
 
-pytestmark = [pytest.mark.cluster, pytest.mark.real_robots]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
+
+ROBOTS = ("relay-worker", "relay-survey")
 
 
-def test_exec_readiness_probe_gates_a_pod_on_the_robot_bridge(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+def test_exec_readiness_probe_gates_a_pod_on_the_robots_pod_network(
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str
 ) -> None:
-    robot = REAL_ROBOTS[0]
+    robot = ROBOTS[0]
+    cluster, namespace = kind_cluster.cluster, kind_namespace
     core = k8s.CoreV1Api(cluster.api_client)
     manifest = robot_pod(
         "gated", robot, "echo started on $(hostname); exec sleep 3600", readiness=["test", "-f", "/tmp/ready"]
@@ -32,10 +36,9 @@ def test_exec_readiness_probe_gates_a_pod_on_the_robot_bridge(
     cluster.kubectl("apply", "-n", namespace, "-f", "-", input=manifest)
 
     pod = wait_pod(core, namespace, "gated", ready=False)
-    layout = real_robots.layout(robot)
-    assert ipaddress.ip_address(pod.status.pod_ip) in ipaddress.ip_network(
-        robotnet.pod_subnet(layout.slot, layout.index)
-    )
+    # The pod's address is on the robot's own pod network.
+    node = core.read_node(faults.node_of(kind_cluster.running, robot))
+    assert ipaddress.ip_address(pod.status.pod_ip) in ipaddress.ip_network(node.spec.pod_cidr)
     # The kubelet reports the failing probe as an Event, as on any cluster.
     wait_for(
         lambda: any(
@@ -54,10 +57,12 @@ def test_exec_readiness_probe_gates_a_pod_on_the_robot_bridge(
 
 
 def test_host_network_pod_shares_a_host_path_with_a_bridged_pod(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str
 ) -> None:
-    robot, other = REAL_ROBOTS
+    running, cluster, namespace = kind_cluster.running, kind_cluster.cluster, kind_namespace
+    robot, other = ROBOTS
     core = k8s.CoreV1Api(cluster.api_client)
+    address = robot_address(running, robot)
     folder = f"/var/lib/coral/tests/{namespace}"
     writer = robot_pod(
         "writer",
@@ -76,35 +81,38 @@ def test_host_network_pod_shares_a_host_path_with_a_bridged_pod(
     cluster.kubectl("apply", "-n", namespace, "-f", "-", input=reader)
 
     pod = wait_pod(core, namespace, "writer")
-    assert pod.status.pod_ip == real_robots.address(robot)
+    assert pod.status.pod_ip == address
     wait_pod(core, namespace, "reader")
     wait_for(
-        lambda: real_robots.address(robot) in cluster.kubectl("logs", "-n", namespace, "reader").stdout,
+        lambda: address in cluster.kubectl("logs", "-n", namespace, "reader").stdout,
         timeout=30,
         message="the bridged pod to print the robot address the host-network pod wrote",
     )
-    # The host path lives in the robot's own view of the host: the other robot has no such file.
-    on_host = real_robots.host_path(robot, f"{folder}/address")
-    assert real_robots.address(robot) in on_host.read_text()
-    assert not real_robots.host_path(other, f"{folder}/address").exists()
+    # The host path lives on the robot itself: the other robot has no such file.
+    assert address in on_robot(running, robot, "cat", f"{folder}/address")
+    missing = running.engine.docker(
+        "exec", faults.node_of(running, other), "test", "-e", f"{folder}/address", check=False
+    )
+    assert missing.returncode == 1
 
     exec_result = cluster.kubectl("exec", "-n", namespace, "reader", "--", "cat", "/shared/address")
-    assert real_robots.address(robot) in exec_result.stdout
+    assert address in exec_result.stdout
 
 
 def test_containers_are_visible_through_the_cri(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str
 ) -> None:
-    robot = REAL_ROBOTS[1]
+    running, cluster, namespace = kind_cluster.running, kind_cluster.cluster, kind_namespace
+    robot = ROBOTS[1]
     core = k8s.CoreV1Api(cluster.api_client)
     apply_robot_pod(cluster, namespace, "seen", robot, "exec sleep 3600")
     pod = wait_pod(core, namespace, "seen")
     container_id = pod.status.container_statuses[0].container_id
     assert container_id.startswith("containerd://")
-    listed = real_robots.cri(robot, "ps", "-q", "--label", f"io.kubernetes.pod.namespace={namespace}").stdout
+    listed = crictl(running, robot, "ps", "-q", "--label", f"io.kubernetes.pod.namespace={namespace}")
     assert container_id.removeprefix("containerd://") in listed.split()
     # Killing the container through the CRI makes the kubelet restart it, as it would on a robot.
-    real_robots.cri(robot, "stop", "--timeout", "0", container_id.removeprefix("containerd://"))
+    crictl(running, robot, "stop", "--timeout", "0", container_id.removeprefix("containerd://"))
     wait_for(
         lambda: core.read_namespaced_pod("seen", namespace).status.container_statuses[0].restart_count >= 1,
         timeout=60,
@@ -115,10 +123,11 @@ def test_containers_are_visible_through_the_cri(
 
 @pytest.mark.parametrize("host_network", [False, True], ids=["bridge", "host-network"])
 def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots, host_network: bool
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str, host_network: bool
 ) -> None:
     """In-cluster clients use $KUBERNETES_SERVICE_HOST and the pod's projected ServiceAccount token."""
-    robot = REAL_ROBOTS[0]
+    cluster, namespace = kind_cluster.cluster, kind_namespace
+    robot = ROBOTS[0]
     core = k8s.CoreV1Api(cluster.api_client)
     review = '{"apiVersion":"authentication.k8s.io/v1","kind":"SelfSubjectReview"}'
     script = (
@@ -145,12 +154,13 @@ def test_pods_reach_the_api_at_the_kubernetes_service_with_their_own_token(
 
 
 def test_an_image_that_cannot_be_pulled_is_reported_on_the_pod(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str
 ) -> None:
-    robot = REAL_ROBOTS[1]
+    cluster, namespace = kind_cluster.cluster, kind_namespace
+    robot = ROBOTS[1]
     core = k8s.CoreV1Api(cluster.api_client)
     image = f"coral.local/no-such-image-{namespace}:1"
-    manifest = robot_pod("unpullable", robot, "exec sleep 3600").replace(nodeimages.TEST_IMAGE, image)
+    manifest = robot_pod("unpullable", robot, "exec sleep 3600").replace(robot_test_image, image)
     cluster.kubectl("apply", "-n", namespace, "-f", "-", input=manifest)
 
     def waiting_reason() -> Any:
@@ -172,20 +182,21 @@ def test_an_image_that_cannot_be_pulled_is_reported_on_the_pod(
 
 
 def test_host_network_pods_of_two_robots_are_isolated_and_reach_each_other(
-    cluster: Cluster, namespace: str, real_robots: realrobots.RealRobots
+    kind_cluster: KindCluster, kind_namespace: str, robot_test_image: str
 ) -> None:
     """Each robot has its own host network: the same port twice, each robot's own address."""
+    running, cluster, namespace = kind_cluster.running, kind_cluster.cluster, kind_namespace
     core = k8s.CoreV1Api(cluster.api_client)
     serve = "mkdir -p /www && hostname > /www/name && exec httpd -f -p 8766 -h /www"
-    for robot in REAL_ROBOTS:
+    for robot in ROBOTS:
         apply_robot_pod(cluster, namespace, f"web-{robot}", robot, serve, host_network=True)
-    for robot in REAL_ROBOTS:
-        assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == real_robots.address(robot)
-    first, second = REAL_ROBOTS
+    for robot in ROBOTS:
+        assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == robot_address(running, robot)
+    first, second = ROBOTS
     for source, target in ((first, second), (second, first)):
-        url = f"http://{real_robots.address(target)}:8766/name"
+        url = f"http://{robot_address(running, target)}:8766/name"
         answer = cluster.kubectl(
             "exec", "-n", namespace, f"web-{source}", "--", "timeout", "5", "wget", "-qO-", url
         )
-        # A host-network pod's hostname is its robot's name.
-        assert answer.stdout.strip() == target
+        # A host-network pod's hostname is its robot's: its node's name.
+        assert answer.stdout.strip() == faults.node_of(running, target)
