@@ -3,6 +3,7 @@ mission on one robot read as a user would."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,8 @@ from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
-NAME = "coral-test"
+NAME = os.environ.get("CORAL_KIND_TEST_NAME", "coral-test")
+"""The kind cluster's name; `CORAL_KIND_TEST_NAME` chooses another (one cluster per checkout)."""
 FLEET_LABEL = {"coral.dev/model": "kind"}
 """What every robot of the cluster carries: a CoralSystem selecting it runs on the whole fleet."""
 ROBOTS = {name: dict(FLEET_LABEL) for name in manifests.RELAY_ROBOTS}
