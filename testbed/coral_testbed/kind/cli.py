@@ -113,6 +113,7 @@ FAULTS: dict[str, Callable[[clusters.Running, str], object]] = {
     "start": faults.start_kubelet,
     "kill-containerd": faults.kill_containerd,
     "power-cycle": faults.power_cycle,
+    "reboot": faults.reboot_in_place,
     "power-off": faults.cut_power,
     "power-on": faults.restore_power,
     "cut": faults.cut_link,

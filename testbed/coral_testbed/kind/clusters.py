@@ -10,7 +10,8 @@ makes:
   `coral_testbed.images.registry`) listening on that network's gateway, which every node's
   containerd uses as the mirror of `docker.io` and `coral.local` (kind's local-registry pattern
   with a registry process instead of a container): `coral/executor:0.1.0` pulls from it;
-- optionally kwok, against kind's API server, for simulated robots at fleet scale.
+- optionally kwok, against kind's API server, for simulated robots at fleet scale;
+- the robot's offline agent on every robot, installed as a robot's owner installs it (`offlineagent`).
 
 State (kubeconfig, registry and kwok records, logs) lives in
 `~/.cache/coral-on-kubernetes/kind/clusters/<name>/`. Called by the CLI, the demo and the tests.
@@ -29,7 +30,7 @@ from pathlib import Path
 from coral_testbed import images
 from coral_testbed.cluster import binaries, controlplane
 from coral_testbed.images import registry
-from coral_testbed.kind import engine
+from coral_testbed.kind import engine, offlineagent
 
 ROBOT_LABEL = "coral.dev/robot"
 KIND_VERSION = "v0.33.0"
@@ -308,7 +309,25 @@ def create(
     )
     if waited.returncode != 0:
         raise ClusterError(f"the nodes of kind cluster {name} did not become Ready: {waited.stderr.strip()}")
-    return Running(name, kubeconfig, node_engine, address)
+    running = Running(name, kubeconfig, node_engine, address)
+    if robots:
+        progress("  the offline agent on every robot (deploy/robot/, docs/offline.md)")
+        offlineagent.install(node_engine, robot_nodes(running))
+    return running
+
+
+def robot_nodes(running: Running) -> list[str]:
+    """The node containers of the cluster's robots (the Nodes labelled `coral.dev/robot`)."""
+    done = subprocess.run(
+        [binaries.find_kubectl(None), "get", "nodes", "-l", ROBOT_LABEL, "-o", "name"],
+        env=running.env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    if done.returncode != 0:
+        raise ClusterError(f"the robots of kind cluster {running.name}: {done.stderr.strip()}")
+    return [line.removeprefix("node/") for line in done.stdout.split()]
 
 
 def load_image_archive(running: Running, archive: Path) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import subprocess
 
 from coral_testbed.cluster import binaries
-from coral_testbed.kind import clusters
+from coral_testbed.kind import clusters, offlineagent
 
 
 class FaultError(RuntimeError):
@@ -92,3 +92,28 @@ def restore_power(running: clusters.Running, robot: str) -> None:
     """Boots the robot's node container that `cut_power` stopped."""
     # The Node keeps its name and label while the container is down, so it is still found by them.
     running.engine.docker("start", node_of(running, robot), timeout=180)
+
+
+_RUNTIME = ("kubelet.slice", "containerd.service", offlineagent.UNITS[1])
+"""What runs the robot's pods: the kubelet and every pod's containers (kind's kubelet.slice),
+containerd with its shims, the offline agent."""
+_BOOT = ("containerd.service", *offlineagent.UNITS, "kubelet.service")
+"""What the node's init system starts at boot, in the order its units give."""
+
+
+def reboot_in_place(running: clusters.Running, robot: str) -> None:
+    """Power lost and back inside the robot's node container, its link left as it is: SIGKILL to
+    the kubelet, every container, containerd and its shims and the offline agent at once; then the
+    boot the node's systemd does (containerd, the agent's boot step, the kubelet, the agent).
+
+    The power cycle of a robot cut off: `power_cycle` restarts the container, and a node container
+    restarted without its network stops in kind's entrypoint (no address for its own name)."""
+    node = node_of(running, robot)
+    # Stopping the killed units at once cancels their restarts (1 s away): nothing starts before
+    # the boot below, as nothing runs on a robot without power.
+    script = (
+        f"systemctl kill --signal=SIGKILL {' '.join(_RUNTIME)}; "
+        f"systemctl stop {' '.join(_RUNTIME)} {offlineagent.UNITS[0]}; "
+        f"systemctl start {' '.join(_BOOT)}"
+    )
+    running.engine.docker("exec", node, "bash", "-c", script, timeout=180)

@@ -22,8 +22,10 @@ from coral_testbed.waiting import wait_for
 PAUSE_TAG = "3.10.1"
 NODE_PACKAGES = tuple(
     "systemd containerd runc containernetworking-plugins conntrack iptables nftables iproute2 ethtool "
-    "util-linux mount kmod libseccomp2 pigz bash ca-certificates curl jq procps socat".split()
+    "util-linux mount kmod libseccomp2 pigz bash ca-certificates curl jq procps socat python3".split()
 )
+"""What kind's base image installs, plus python3: a robot's OS ships Python, and the robot's offline
+agent (docs/offline.md) runs on it as a host service (`offlineagent`)."""
 PROXY_PACKAGES = ("iptables", "conntrack")
 """kube-proxy's image: it runs iptables-restore and conntrack inside its own container."""
 

@@ -28,9 +28,12 @@ def system(
     *,
     startup: dict[str, Any] | None = None,
     readiness: dict[str, Any] | None = None,
+    offline: dict[str, Any] | None = None,
+    rollout: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The CoralSystem `name`: the example skillset (its readiness replaced by `readiness` when
-    given) and an executor running `tree` on `robot`."""
+    given) and an executor running `tree` on `robot`; `startup`, `offline` and `rollout` are
+    the spec's fields of those names when given."""
     images = catalog.by_name()
     skillset: dict[str, Any] = {
         "name": SKILLSET,
@@ -47,8 +50,9 @@ def system(
         "skillsets": [skillset],
         "executors": [{"name": "executor", "image": images["executor"].reference}],
     }
-    if startup is not None:
-        spec["startup"] = startup
+    for field, value in (("startup", startup), ("offline", offline), ("rollout", rollout)):
+        if value is not None:
+            spec[field] = value
     return {
         "apiVersion": f"{GROUP}/{VERSION}",
         "kind": "CoralSystem",

@@ -14,7 +14,7 @@ from pathlib import Path
 import jsonpatch
 import pytest
 import yaml
-from coral_testbed.kind import clusters, imagearchives, kindnet
+from coral_testbed.kind import clusters, imagearchives, kindnet, offlineagent
 
 REPOSITORY = Path(__file__).resolve().parents[3]
 
@@ -218,3 +218,29 @@ def test_the_pod_network_stays_off_kwok_robots() -> None:
 def test_the_kind_the_tooling_looks_for_is_the_kind_the_build_script_pins() -> None:
     script = (REPOSITORY / "hack" / "build-kind-tools.sh").read_text()
     assert f'KIND_VERSION="${{KIND_VERSION:-{clusters.KIND_VERSION}}}"' in script
+
+
+def test_a_robots_offline_agent_gets_its_own_packages_and_what_they_import_and_nothing_else() -> None:
+    with tarfile.open(fileobj=io.BytesIO(offlineagent.site_packages())) as tar:
+        names = set(tar.getnames())
+    for needed in (
+        "coral/offline/agent.py",
+        "coral_core/offline.py",
+        "kubernetes/__init__.py",
+        "click/core.py",
+    ):
+        assert needed in names, needed
+    # The robot side beyond the agent stays out, and so do scripts and byte code.
+    assert not any(n.startswith(("coral/executor/", "coral_operator/", "coral_testbed/")) for n in names)
+    assert not any(n.startswith("..") or n.endswith(".pyc") for n in names)
+
+
+def test_the_robot_units_run_the_agent_from_its_environment_before_and_beside_the_kubelet() -> None:
+    boot, watch = (offlineagent.units_dir() / unit for unit in offlineagent.UNITS)
+    boot_text, watch_text = boot.read_text(), watch.read_text()
+    assert "Before=kubelet.service" in boot_text and "After=containerd.service" in boot_text
+    assert "Type=oneshot" in boot_text and "coral.offline boot" in boot_text
+    assert "After=kubelet.service" in watch_text and "Restart=always" in watch_text
+    for text in (boot_text, watch_text):
+        assert f"ExecStart={offlineagent.PREFIX}/bin/python -m coral.offline" in text
+        assert f"CORAL_STATIC_POD_DIR={offlineagent.STATIC_POD_DIR}" in text
