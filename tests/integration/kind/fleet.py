@@ -3,6 +3,7 @@ mission on one robot read as a user would."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 from missions import realsystems as rs
 
-NAME = "coral-test"
+NAME = os.environ.get("CORAL_KIND_TEST_NAME", "coral-test")
 FLEET_LABEL = {"coral.dev/model": "kind"}
 """What every robot of the cluster carries: a CoralSystem selecting it runs on the whole fleet."""
 ROBOTS = {name: dict(FLEET_LABEL) for name in manifests.RELAY_ROBOTS}
@@ -86,7 +87,10 @@ class Mission:
 
 def crictl(running: clusters.Running, robot: str, *args: str) -> str:
     """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
-    return running.engine.docker("exec", faults.node_of(running, robot), "crictl", *args).stdout
+    # crictl gives each call to the runtime 2 s by default; stopping a container on a busy robot
+    # (its process killed, its task reaped) can take longer, and the stop goes on regardless.
+    node = faults.node_of(running, robot)
+    return running.engine.docker("exec", node, "crictl", "--timeout", "60s", *args).stdout
 
 
 def fleet_system(name: str, domain: int, tree: str, **spec: Any) -> dict[str, Any]:
