@@ -1,8 +1,9 @@
 """One kind cluster for every test of this folder: three robot workers and the operator's node.
 
 `kind_cluster` creates it once, the way `coral dev-cluster kind up` does, and deletes it after the
-folder's last test; then nothing may be left (no container, network, registry, the project's
-dockerd, mount or cgroup; the host's ip_forward and iptables as before). `kind_missions` is the
+folder's last test; then nothing of it may be left (no container, network or registry; the
+project's dockerd, its mounts and cgroups too unless another kind cluster still runs on it; the
+host's ip_forward and iptables as before). `kind_missions` is the
 operator installed on it by its Helm chart, serving one namespace, with the mission images in the
 cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
 skip, with the reason, where kind cannot run.
@@ -39,9 +40,9 @@ def _mounts_under(folder: Path) -> list[str]:
     return [line for line in Path("/proc/mounts").read_text().splitlines() if str(folder) in line]
 
 
-def _assert_nothing_left(node_engine: engine.Engine, engine_started_here: bool) -> None:
+def _assert_nothing_left(node_engine: engine.Engine, engine_stopped: bool) -> None:
     assert not registry.recorded_addresses(clusters.state_dir(NAME)), "the cluster's registry still runs"
-    if engine_started_here:
+    if engine_stopped:
         assert not node_engine.is_serving(), "the project's dockerd still runs"
         assert not _mounts_under(engine.engine_dir()), "mounts of the project's dockerd are left"
         assert not engine.leftover_cgroups(), "cgroups of the project's dockerd are left"
@@ -83,9 +84,9 @@ def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindClust
             cluster.close()
     finally:
         clusters.delete(NAME, ready.engine, print)
-        if started_here:
-            engine.stop()
-    _assert_nothing_left(ready.engine, started_here)
+        # Another kind cluster on the project's dockerd (another checkout's tests) keeps it running.
+        stopped = started_here and clusters.stop_engine_unless_used(ready.engine)
+    _assert_nothing_left(ready.engine, stopped)
     assert _host_network_state() == host_before, "the host's ip_forward or iptables changed"
 
 
