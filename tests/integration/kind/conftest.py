@@ -6,7 +6,8 @@ project's dockerd, its mounts and cgroups too unless another kind cluster still 
 host's ip_forward and iptables as before). `kind_missions` is the
 operator installed on it by its Helm chart, serving one namespace, with the mission images in the
 cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
-skip, with the reason, where kind cannot run.
+skip, with the reason, where kind cannot run. `short_bag` is the missions' short synthetic bag and
+`slam_robot` the robot that has it where the SLAM example's bag player reads it.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from coral.lidar import generating
 from coral_core.component_image import COMPONENT_UID
 from coral_testbed import images
 from coral_testbed.cluster import binaries, operatorchart
@@ -25,6 +27,7 @@ from coral_testbed.images import registry
 from coral_testbed.kind import clusters, engine, provisioning
 from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import manifests, stack
+from missions.conftest import TEST_SCANS
 
 from .fleet import MISSIONS_NAMESPACE, NAME, ROBOTS, KindCluster
 
@@ -113,3 +116,17 @@ def kind_operator(kind_missions: KindMissionStack) -> Iterator[KindMissionStack]
     pods gone, so the robots are free for the next test (also when this one failed)."""
     yield kind_missions
     kind_missions.delete_systems()
+
+
+@pytest.fixture(scope="package")
+def short_bag() -> Path:
+    """The synthetic dataset (bag + ground truth) of TEST_SCANS scans, generated once and cached."""
+    return generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
+
+
+@pytest.fixture(scope="package")
+def slam_robot(kind_missions: KindMissionStack, short_bag: Path) -> str:
+    """The robot the SLAM example runs on, with the short bag where the example's bag player reads it."""
+    robot = manifests.RELAY_ROBOTS[0]
+    kind_missions.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
+    return robot
