@@ -1,11 +1,13 @@
 """One kind cluster for every test of this folder: three robot workers and the operator's node.
 
 `kind_cluster` creates it once, the way `coral dev-cluster up` does, and deletes it after the
-folder's last test; then nothing may be left (no container, network, registry, the project's
-dockerd, mount or cgroup; the host's ip_forward and iptables as before). `kind_missions` is the
+folder's last test; then nothing of it may be left (no container, network or registry; the
+project's dockerd, its mounts and cgroups too unless another kind cluster still runs on it; the
+host's ip_forward and iptables as before). `kind_missions` is the
 operator installed on it by its Helm chart, serving one namespace, with the mission images in the
 cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
-skip, with the reason, where kind cannot run.
+skip, with the reason, where kind cannot run. `short_bag` is the missions' short synthetic bag and
+`slam_robot` the robot that has it where the SLAM example's bag player reads it.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from coral.lidar import generating
 from coral_core.component_image import COMPONENT_UID
 from coral_testbed import images
 from coral_testbed.cluster import binaries, nodeimages, operatorchart
@@ -26,6 +29,7 @@ from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import manifests, stack
 from fixtures.cluster import create_test_namespace
 from kubernetes import client as k8s
+from missions.conftest import TEST_SCANS
 
 from .fleet import MISSIONS_NAMESPACE, NAME, ROBOTS, KindCluster
 
@@ -41,9 +45,9 @@ def _mounts_under(folder: Path) -> list[str]:
     return [line for line in Path("/proc/mounts").read_text().splitlines() if str(folder) in line]
 
 
-def _assert_nothing_left(node_engine: engine.Engine, engine_started_here: bool) -> None:
+def _assert_nothing_left(node_engine: engine.Engine, engine_stopped: bool) -> None:
     assert not registry.recorded_addresses(clusters.state_dir(NAME)), "the cluster's registry still runs"
-    if engine_started_here:
+    if engine_stopped:
         assert not node_engine.is_serving(), "the project's dockerd still runs"
         assert not _mounts_under(engine.engine_dir()), "mounts of the project's dockerd are left"
         assert not engine.leftover_cgroups(), "cgroups of the project's dockerd are left"
@@ -85,9 +89,9 @@ def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindClust
             cluster.close()
     finally:
         clusters.delete(NAME, ready.engine, print)
-        if started_here:
-            engine.stop()
-    _assert_nothing_left(ready.engine, started_here)
+        # Another kind cluster on the project's dockerd (another checkout's tests) keeps it running.
+        stopped = started_here and clusters.stop_engine_unless_used(ready.engine)
+    _assert_nothing_left(ready.engine, stopped)
     assert _host_network_state() == host_before, "the host's ip_forward or iptables changed"
 
 
@@ -132,3 +136,16 @@ def kind_namespace(kind_cluster: KindCluster, request: pytest.FixtureRequest) ->
     name = create_test_namespace(core, request.node.name)
     yield name
     core.delete_namespace(name)
+
+
+def short_bag() -> Path:
+    """The synthetic dataset (bag + ground truth) of TEST_SCANS scans, generated once and cached."""
+    return generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
+
+
+@pytest.fixture(scope="package")
+def slam_robot(kind_missions: KindMissionStack, short_bag: Path) -> str:
+    """The robot the SLAM example runs on, with the short bag where the example's bag player reads it."""
+    robot = manifests.RELAY_ROBOTS[0]
+    kind_missions.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
+    return robot

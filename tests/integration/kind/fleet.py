@@ -94,7 +94,9 @@ def on_robot(running: clusters.Running, robot: str, *argv: str, check: bool = Tr
 
 def crictl(running: clusters.Running, robot: str, *args: str) -> str:
     """`crictl` inside the robot's node, as an operator of the machine would run it; its output."""
-    return on_robot(running, robot, "crictl", *args)
+    # crictl gives each call to the runtime 2 s by default; stopping a container on a busy robot
+    # (its process killed, its task reaped) can take longer, and the stop goes on regardless.
+    return on_robot(running, robot, "crictl", "--timeout", "60s", *args)
 
 
 def fleet_system(name: str, domain: int, tree: str, **spec: Any) -> dict[str, Any]:

@@ -16,13 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from coral.lidar import generating
 from coral_testbed.kind import faults
 from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
-from missions.conftest import TEST_SCANS, wait_finished
+from missions.conftest import wait_finished
 
 from .fleet import KindCluster
 
@@ -32,10 +31,9 @@ SURVEY, SERVER, WORKER = manifests.RELAY_ROBOTS
 
 
 @pytest.fixture(scope="module")
-def survey_bag(kind_missions: KindMissionStack) -> None:
+def survey_bag(kind_missions: KindMissionStack, short_bag: Path) -> None:
     """The short bag on the survey robot, where the mission's bag player reads it."""
-    bag = generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
-    kind_missions.place_bag(SURVEY, bag / "bag", manifests.SURVEY_BAG)
+    kind_missions.place_bag(SURVEY, short_bag / "bag", manifests.SURVEY_BAG)
 
 
 @pytest.fixture

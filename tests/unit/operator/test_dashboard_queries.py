@@ -1,7 +1,7 @@
 """Every query of the shipped Grafana dashboard returns series from a real Prometheus that scrapes
 the operator's and an executor's metrics endpoints (served here in-process over a fleet as the
 operator's indexes hold it) and evaluates the shipped recording rules. The cluster test
-(tests/integration/missions/test_metrics_scraped_by_prometheus.py) asks the same of a real fleet."""
+(tests/integration/kind/test_metrics_scraped_by_prometheus_on_kind.py) asks the same of a real fleet."""
 
 from __future__ import annotations
 

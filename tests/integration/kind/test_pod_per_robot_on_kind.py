@@ -1,59 +1,38 @@
-"""`examples/lidar-slam` with `layout: PodPerRobot` on a real robot (a real kubelet and containerd).
+"""`examples/lidar-slam` with `layout: PodPerRobot` on a kind robot (a real kubelet and containerd).
 
 The kubelet's side of the layout, which kwok cannot show: the mission ends in SUCCESS with the same
 CoralInstance status as the default layout; the containers' start times show drivers before
 skillsets before the executor; killing the SLAM skillset's container through the robot's CRI
-reports `LibraryDegraded` and the tree takes its fallback instead of waiting on the dead skillset;
-the kubelet restarts only that container and the library recovers, but the new process lost the
-map, so the mission, once asked to stop, ends in FAILURE at `SaveMap` instead of saving nothing.
+(`crictl` in its node) reports `LibraryDegraded` and the tree takes its fallback instead of waiting
+on the dead skillset; the kubelet restarts only that container and the library recovers, but the
+new process lost the map, so the mission, once asked to stop, ends in FAILURE at `SaveMap` instead
+of saving nothing.
 
-The operator is installed by Helm (`helm_operator`); the components run from the images in the
-session's registry; the short test bag is copied into the robot. Skipped, with its reason, where
-real robots or images cannot run here.
+The operator is the chart's (`kind_operator`); the components run from the images in the
+cluster's registry; the short test bag is copied into the robot's node (`slam_robot`).
 """
 
 from __future__ import annotations
 
-import copy
 from datetime import datetime
-from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
-from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import MissionView, manifests
+from coral_testbed.kind.missions import KindMissionStack
+from coral_testbed.missions import manifests
 from coral_testbed.waiting import wait_for
-from fixtures.operator import HelmOperator
-from kubernetes import client as k8s
+from missions import realsystems as rs
 
-from .conftest import first_real_robot, real_robot_marks
+from .fleet import crictl
 
-pytestmark = real_robot_marks(timeout_s=600)
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1200)]
 
-EXAMPLE = "examples/lidar-slam/mission.yaml"
-GROUP, VERSION = "coral.dev", "v1alpha1"
 COMPARED = ("Ready", "Stalled", "RobotReachable", "ComponentsReady", "PluginsReady", "LibraryDegraded")
 
 
-@pytest.fixture
-def real_robot_name(
-    helm_operator: HelmOperator, real_robots: realrobots.RealRobots, mission: MissionView, short_bag: Path
-) -> str:
-    """The first real robot of the session, with the short bag where the example's driver reads it."""
-    robot = first_real_robot(real_robots)
-    mission.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
-    return robot
-
-
-@pytest.fixture
-def domain(ros_env: dict[str, str]) -> int:
-    """This test's ROS domain, so no other ROS process on the machine talks to its robot."""
-    return int(ros_env["ROS_DOMAIN_ID"])
-
-
-def _system(root: Any, name: str, robot: str, layout: str, domain: int) -> dict[str, Any]:
-    manifest = copy.deepcopy(yaml.safe_load(manifests.with_domain((root / EXAMPLE).read_text(), domain)))
+def _system(name: str, robot: str, layout: str, domain: int) -> dict[str, Any]:
+    manifest = yaml.safe_load(manifests.with_domain(manifests.SLAM_MISSION.read_text(), domain))
     manifest["metadata"]["name"] = name
     manifest["spec"]["robots"] = {"matchLabels": {"coral.dev/robot": robot}}
     manifest["spec"]["layout"] = layout
@@ -67,29 +46,18 @@ def _set_bag_rate(manifest: dict[str, Any], rate: float) -> None:
     manifest["spec"]["parameters"]["inline"] = yaml.safe_dump(parameters)
 
 
-def _instance(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
-    items = custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances")["items"]
-    return next((i for i in items if i["spec"]["system"] == system), None)
+def _finished(view: KindMissionStack, system: str) -> dict[str, Any]:
+    """The system's instance once its tree ended, else {}."""
+    return rs.with_root(view.custom, view.namespace, system, "SUCCESS", "FAILURE")
 
 
-def _condition(instance: dict[str, Any] | None, ctype: str) -> dict[str, Any]:
-    conditions = ((instance or {}).get("status") or {}).get("conditions") or []
-    return next((c for c in conditions if c["type"] == ctype), {})
-
-
-def _finished(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
-    instance = _instance(custom, namespace, system)
-    tree = ((instance or {}).get("status") or {}).get("tree") or {}
-    return instance if tree.get("rootStatus") in ("SUCCESS", "FAILURE") else None
-
-
-def _finished_and_settled(custom: k8s.CustomObjectsApi, namespace: str, system: str) -> dict[str, Any] | None:
+def _finished_and_settled(view: KindMissionStack, system: str) -> dict[str, Any]:
     """Finished, with the operator's conditions caught up. The executor writes the tree's end and
     the operator writes the conditions from the pods, so a mission can finish while its transient
     bag player is still between exiting and `Succeeded` (Ready False, `WaitingForDrivers`, for a
     moment): the layouts are compared once Ready says True."""
-    instance = _finished(custom, namespace, system)
-    return instance if _condition(instance, "Ready").get("status") == "True" else None
+    instance = _finished(view, system)
+    return instance if rs.condition(instance, "Ready").get("status") == "True" else {}
 
 
 def _summary(instance: dict[str, Any]) -> dict[str, Any]:
@@ -104,17 +72,15 @@ def _summary(instance: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _run(cluster: Cluster, namespace: str, manifest: dict[str, Any]) -> dict[str, Any]:
-    custom = k8s.CustomObjectsApi(cluster.api_client)
-    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+def _run_settled(view: KindMissionStack, manifest: dict[str, Any]) -> dict[str, Any]:
+    """Creates the system; its instance once its tree finished and the instance is Ready."""
+    rs.create(view.custom, view.namespace, manifest)
     name = manifest["metadata"]["name"]
-    instance = wait_for(
-        lambda: _finished_and_settled(custom, namespace, name),
+    return wait_for(
+        lambda: _finished_and_settled(view, name),
         timeout=420,
-        message=f"{name}'s tree to finish and its instance to be Ready",
+        message=lambda: f"{name}'s tree to finish, Ready: {rs.instance(view.custom, view.namespace, name)}",
     )
-    custom.delete_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", name)
-    return instance
 
 
 def _started(status: Any) -> datetime:
@@ -125,31 +91,23 @@ def _started(status: Any) -> datetime:
 
 
 def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
-    cluster: Cluster, namespace: str, real_robot_name: str, domain: int, pytestconfig: pytest.Config
+    kind_operator: KindMissionStack, slam_robot: str, ros_env: dict[str, str]
 ) -> None:
-    root = pytestconfig.rootpath
-    first = _system(root, "slam-default", real_robot_name, "PodPerComponent", domain)
-    default = _run(cluster, namespace, first)
-    core = k8s.CoreV1Api(cluster.api_client)
-    custom = k8s.CustomObjectsApi(cluster.api_client)
+    view, domain = kind_operator, int(ros_env["ROS_DOMAIN_ID"])
+    default = _run_settled(view, _system("slam-default", slam_robot, "PodPerComponent", domain))
+    rs.delete(view.custom, view.namespace, "slam-default")
     # The operator's own pod lives in this namespace too; only the mission's pods must go.
     wait_for(
-        lambda: not core.list_namespaced_pod(namespace, label_selector="coral.dev/system=slam-default").items,
+        lambda: not rs.pods(view.core, view.namespace, "slam-default"),
         timeout=120,
         message="the first system's pods to go",
     )
 
-    manifest = _system(root, "slam-one-pod", real_robot_name, "PodPerRobot", domain)
-    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
-    one_pod = wait_for(
-        lambda: _finished_and_settled(custom, namespace, "slam-one-pod"),
-        timeout=420,
-        message="the one-pod tree to finish and its instance to be Ready",
-    )
+    one_pod = _run_settled(view, _system("slam-one-pod", slam_robot, "PodPerRobot", domain))
     assert one_pod["status"]["tree"]["rootStatus"] == "SUCCESS"
     assert _summary(one_pod) == _summary(default)
 
-    (pod,) = core.list_namespaced_pod(namespace, label_selector="coral.dev/system=slam-one-pod").items
+    (pod,) = rs.pods(view.core, view.namespace, "slam-one-pod")
     sidecars = {s.name: _started(s) for s in pod.status.init_container_statuses}
     mains = {s.name: _started(s) for s in pod.status.container_statuses}
     # Sidecars start in compose order, each once the previous one's startup probe passed; the
@@ -180,47 +138,41 @@ publisher.wait_for_all_acked(Duration(seconds=10))
 
 
 def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
-    cluster: Cluster,
-    namespace: str,
-    real_robots: realrobots.RealRobots,
-    real_robot_name: str,
-    domain: int,
-    pytestconfig: pytest.Config,
+    kind_operator: KindMissionStack, slam_robot: str, ros_env: dict[str, str]
 ) -> None:
-    core = k8s.CoreV1Api(cluster.api_client)
-    custom = k8s.CustomObjectsApi(cluster.api_client)
-    manifest = _system(pytestconfig.rootpath, "slam-kill", real_robot_name, "PodPerRobot", domain)
+    view = kind_operator
+    manifest = _system("slam-kill", slam_robot, "PodPerRobot", int(ros_env["ROS_DOMAIN_ID"]))
     # The short bag lasts 4 s at its recorded rate: a loaded machine could report the loop and
     # reach the container after the data ran out, and the kill would land in EndSLAM instead.
     # At a tenth of the rate the loop lasts 40 s; the stop request below ends it sooner.
     _set_bag_rate(manifest, 0.1)
-    custom.create_namespaced_custom_object(GROUP, VERSION, namespace, "coralsystems", manifest)
+    rs.create(view.custom, view.namespace, manifest)
 
     def current() -> dict[str, Any]:
-        return _instance(custom, namespace, "slam-kill") or {}
+        return rs.instance(view.custom, view.namespace, "slam-kill")
 
     def iterating() -> bool:
-        tree = (current().get("status") or {}).get("tree") or {}
+        tree = rs.tree(current())
         return tree.get("rootStatus") == "RUNNING" and "IterateSLAM" in tree.get("activePath", "")
 
     wait_for(iterating, timeout=300, message=lambda: f"the mission to iterate: {current()}")
-    (pod,) = core.list_namespaced_pod(namespace, label_selector="coral.dev/system=slam-kill").items
+    (pod,) = rs.pods(view.core, view.namespace, "slam-kill")
     # Killed through the robot's CRI, as an operator of the node would: SIGKILL, no clean shutdown.
-    (killed,) = real_robots.cri(
-        real_robot_name, "ps", "-q",
+    (killed,) = crictl(
+        view.running, slam_robot, "ps", "-q",
         "--label", f"io.kubernetes.pod.name={pod.metadata.name}",
         "--label", "io.kubernetes.container.name=slam",
-    ).stdout.split()  # fmt: skip
-    real_robots.cri(real_robot_name, "stop", "--timeout", "0", killed)
+    ).split()  # fmt: skip
+    crictl(view.running, slam_robot, "stop", "--timeout", "0", killed)
 
     seen: dict[str, dict[str, Any]] = {}
 
     def fell_back() -> bool:
         # The two show up in separate status writes, and the degraded spell lasts seconds.
         item = current()
-        failure = ((item.get("status") or {}).get("tree") or {}).get("lastFailure") or {}
-        if _condition(item, "LibraryDegraded").get("status") == "True":
-            seen.setdefault("degraded", _condition(item, "LibraryDegraded"))
+        failure = rs.tree(item).get("lastFailure") or {}
+        if rs.condition(item, "LibraryDegraded").get("status") == "True":
+            seen.setdefault("degraded", rs.condition(item, "LibraryDegraded"))
         if "slam is unavailable" in failure.get("message", ""):
             seen.setdefault("failure", failure)
         return len(seen) == 2
@@ -233,22 +185,19 @@ def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
     # The kubelet restarts only the SLAM sidecar; the library recovers. The new process has lost
     # the map and its localization is off, so the loop now fails on the skillset's answer.
     recovered = wait_for(
-        lambda: (i := current()) and _condition(i, "LibraryDegraded").get("status") == "False" and i,
+        lambda: (i := current()) and rs.condition(i, "LibraryDegraded").get("status") == "False" and i,
         timeout=120,
         message=lambda: f"LibraryDegraded=False: {current()}",
     )
     assert recovered["status"]["tree"]["rootStatus"] == "RUNNING"
-    restarted = core.read_namespaced_pod(pod.metadata.name, namespace)
+    restarted = view.core.read_namespaced_pod(pod.metadata.name, view.namespace)
     slam = next(s for s in restarted.status.init_container_statuses if s.name == "slam")
-    assert slam.restart_count >= 1 and slam.container_id.rpartition("://")[2] != killed
+    assert slam.restart_count >= 1 and rs.container_id(slam) != killed
     others = [*restarted.status.init_container_statuses, *restarted.status.container_statuses]
     assert all(s.restart_count == 0 for s in others if s.name != "slam"), others
     wait_for(
         lambda: (
-            "localization is disabled"
-            in (((current().get("status") or {}).get("tree") or {}).get("lastFailure") or {}).get(
-                "message", ""
-            )
+            "localization is disabled" in (rs.tree(current()).get("lastFailure") or {}).get("message", "")
         ),
         timeout=60,
         message=lambda: f"the restarted skillset's refusal in the status: {current()}",
@@ -256,12 +205,12 @@ def test_a_killed_slam_container_degrades_the_library_and_the_tree_falls_back(
 
     # From the snapshot sidecar: the request ends the tree, the executor's container then exits
     # and the kubelet stops the sidecars, which may cut this process short once it has published.
-    request = cluster.kubectl(
-        "exec", "-n", namespace, pod.metadata.name, "-c", "snapshot", "--", "python", "-c", STOP_REQUEST,
+    request = view.cluster.kubectl(
+        "exec", "-n", view.namespace, pod.metadata.name, "-c", "snapshot", "--", "python", "-c", STOP_REQUEST,
         timeout=90, check=False,
     )  # fmt: skip
     finished = wait_for(
-        lambda: _finished(custom, namespace, "slam-kill"),
+        lambda: _finished(view, "slam-kill"),
         timeout=120,
         message=lambda: f"the tree to end after the stop request ({request.returncode}: {request.stderr})",
     )

@@ -1,13 +1,14 @@
-"""A real Prometheus scrapes the operator and an executor on a real robot (issue 53, acceptance 1
+"""A real Prometheus scrapes the operator and an executor on a kind robot (issue 53, acceptance 1
 and 2).
 
-The operator is installed by the chart, which serves its metrics on the pod's port `metrics`;
-Prometheus reaches it through `kubectl port-forward`, as an administrator's laptop would, and
-the executor (on the robot's host network, the default) at the robot's own address. As a mission
-runs, PromQL sees the operator's reconciles, the robot counted ready, the executor's tick rate
-rise and fall again as the tree ends in SUCCESS; every query of the shipped dashboard returns
-series. Then the robot's kubelet stops: the shipped CoralRobotsUnreachable alert, its `for`
-shortened to 15 s and its rules evaluated every second, fires.
+The operator is installed by the chart (`kind_operator`), which serves its metrics on the pod's
+port `metrics`; Prometheus reaches it through `kubectl port-forward`, as an administrator's laptop
+would, and the executor (on the robot's host network, the default: its node container's) at the
+robot's own address on the cluster's network. As a mission runs, PromQL sees the operator's
+reconciles, the robot counted ready, the executor's tick rate rise and fall again as the tree ends
+in SUCCESS; every query of the shipped dashboard returns series. Then the robot's kubelet stops
+(`systemctl stop kubelet` in its node): the shipped CoralRobotsUnreachable alert, its `for`
+shortened to 15 s and its rules evaluated every second, fires. The kubelet is started again after.
 """
 
 from __future__ import annotations
@@ -18,17 +19,19 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster, realrobots
+from coral_testbed.cluster import operatorchart
+from coral_testbed.kind import faults
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
-from fixtures.operator import HelmOperator
 from fixtures.processes import stop_process_group
 from fixtures.prometheus import Prometheus, dashboard_queries, free_port
-from kubernetes import client as k8s
+from missions import realsystems as rs
 
-from . import realsystems as rs
+from .fleet import KindCluster, ready
 
-pytestmark = [*rs.REAL_ROBOT_MARKS, pytest.mark.timeout(600)]
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(900)]
 
+ROBOT = "relay-server"
 SYSTEM = "metered"
 METRICS_PORT = 19464
 OPERATOR_METRICS_PORT = 8081
@@ -38,16 +41,19 @@ TREE = rs.mission_tree('<Repeat num_cycles="60"><Count count="{count}"/></Repeat
 
 
 @pytest.fixture
-def operator_metrics(cluster: Cluster, helm_operator: HelmOperator) -> Iterator[str]:
+def operator_metrics(kind_operator: KindMissionStack) -> Iterator[str]:
     """host:port on 127.0.0.1 forwarded to the operator pod's metrics port; closed at teardown."""
+    cluster, release = kind_operator.cluster, kind_operator.release
+    (pod,) = operatorchart.operator_pods(cluster.api_client, release)
+    assert cluster.bin_dir is not None
     port = free_port()
     forward = subprocess.Popen(
         [
-            "kubectl",
+            str(cluster.bin_dir / "kubectl"),
             "port-forward",
             "-n",
-            helm_operator.release.namespace,
-            f"pod/{helm_operator.pod.metadata.name}",
+            release.namespace,
+            f"pod/{pod.metadata.name}",
             f"{port}:{OPERATOR_METRICS_PORT}",
             "--address",
             "127.0.0.1",
@@ -67,25 +73,28 @@ def operator_metrics(cluster: Cluster, helm_operator: HelmOperator) -> Iterator[
         stop_process_group(forward)
 
 
-def _system(robot: str, domain: int) -> dict[str, Any]:
-    manifest = rs.system(SYSTEM, robot, domain, TREE)
+def _system(domain: int) -> dict[str, Any]:
+    manifest = rs.system(SYSTEM, ROBOT, domain, TREE)
     manifest["spec"]["executors"][0]["metrics"] = {"port": METRICS_PORT}
     return manifest
 
 
+def _address(kind_operator: KindMissionStack, robot: str) -> str:
+    """The robot's InternalIP: its node container's address on the cluster's network."""
+    node = kind_operator.core.read_node(faults.node_of(kind_operator.running, robot))
+    return next(a.address for a in node.status.addresses if a.type == "InternalIP")
+
+
 def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachable_alert(
-    cluster: Cluster,
-    namespace: str,
-    helm_operator: HelmOperator,
+    kind_cluster: KindCluster,
+    kind_operator: KindMissionStack,
     operator_metrics: str,
-    real_robots: realrobots.RealRobots,
-    real_robot: str,
     ros_env: dict[str, str],
     prometheus: Prometheus,
 ) -> None:
-    custom = k8s.CustomObjectsApi(cluster.api_client)
+    custom, namespace = kind_operator.custom, kind_operator.namespace
     began = time.time()
-    executor = f"{real_robots.address(real_robot)}:{METRICS_PORT}"
+    executor = f"{_address(kind_operator, ROBOT)}:{METRICS_PORT}"
     prometheus.start(
         {"coral-operator": [operator_metrics], "coral-executor": [executor]},
         alert_for={"CoralRobotsUnreachable": "15s"},
@@ -94,7 +103,7 @@ def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachab
     def diagnosis() -> str:
         return (
             f"targets: {prometheus.targets()}\ninstance: {rs.instance(custom, namespace, SYSTEM)}\n"
-            f"operator:\n{helm_operator.logs()[-2000:]}"
+            f"operator:\n{kind_operator.operator_log_tail(2000)}"
         )
 
     wait_for(
@@ -102,7 +111,7 @@ def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachab
         timeout=60,
         message=lambda: f"the operator's robots in Prometheus: {prometheus.targets()}",
     )
-    rs.create(custom, namespace, _system(real_robot, int(ros_env["ROS_DOMAIN_ID"])))
+    rs.create(custom, namespace, _system(int(ros_env["ROS_DOMAIN_ID"])))
 
     # The executor's tick rate rises as the mission runs...
     wait_for(
@@ -147,23 +156,34 @@ def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachab
     ]
     assert not empty, "dashboard queries without series:\n" + "\n".join(empty)
 
-    real_robots.stop(real_robot)
-    wait_for(
-        lambda: (prometheus.value('sum(coral_robots{state="unreachable"})') or 0) >= 1,
-        timeout=180,
-        message=lambda: f"the robot counted unreachable:\n{diagnosis()}",
-    )
-    unreachable_since = time.monotonic()
-    firing = wait_for(
-        lambda: [
-            a
-            for a in prometheus.alerts()
-            if a["labels"]["alertname"] == "CoralRobotsUnreachable" and a["state"] == "firing"
-        ],
-        timeout=60,
-        message=lambda: f"CoralRobotsUnreachable to fire: {prometheus.alerts()}",
-    )
-    # Not before its (shortened) threshold: pending first, firing once it held for 15 s.
-    assert time.monotonic() - unreachable_since >= 10, firing
-    assert firing[0]["labels"]["severity"] == "warning"
-    rs.delete(custom, namespace, SYSTEM)
+    running = kind_cluster.running
+    node = faults.node_of(running, ROBOT)
+    faults.stop_kubelet(running, ROBOT)
+    try:
+        wait_for(
+            lambda: (prometheus.value('sum(coral_robots{state="unreachable"})') or 0) >= 1,
+            timeout=180,
+            message=lambda: f"the robot counted unreachable:\n{diagnosis()}",
+        )
+        unreachable_since = time.monotonic()
+        firing = wait_for(
+            lambda: [
+                a
+                for a in prometheus.alerts()
+                if a["labels"]["alertname"] == "CoralRobotsUnreachable" and a["state"] == "firing"
+            ],
+            timeout=60,
+            message=lambda: f"CoralRobotsUnreachable to fire: {prometheus.alerts()}",
+        )
+        # Not before its (shortened) threshold: pending first, firing once it held for 15 s.
+        assert time.monotonic() - unreachable_since >= 10, firing
+        assert firing[0]["labels"]["severity"] == "warning"
+    finally:
+        faults.start_kubelet(running, ROBOT)
+        # The robot is back for the folder's next test.
+        wait_for(
+            lambda: ready(kind_operator.core, node) == "True",
+            timeout=120,
+            interval=1,
+            message=f"{node} Ready again",
+        )

@@ -1,37 +1,34 @@
-"""The committed SLAM mission on a real robot: the operator installed by Helm, the bag player, both
-skillsets and the executor as containers pulled from the registry, plugins exported through the
-shared host-path folder (owned by the components' non-root user), readiness gating the start, the
-executor writing its tree status with its own token, and `kubectl logs` for every pod. What
-`coral demo` shows of it holds too: `kubectl get coralinstances`, the map and its picture scored
-against the bag's ground truth and kept after the robot is gone, the tree drawn in its result's
-colour, and the finished executor staying Succeeded (no re-run) on an instance still Ready."""
+"""The committed SLAM mission on a kind robot: the operator installed by its Helm chart, the bag
+player, both skillsets and the executor as containers the robot's containerd pulled from the
+cluster's registry, plugins exported through the shared host-path folder (owned by the components'
+non-root user), readiness gating the start, the executor writing its tree status with its own
+token, and `kubectl logs` for every pod. What `coral demo` shows of it holds too: `kubectl get
+coralinstances`, the map and its picture scored against the bag's ground truth and kept after the
+robot is gone, the tree drawn in its result's colour, and the finished executor staying Succeeded
+(no re-run) on an instance still Ready."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+import pytest
 from coral import tree_picture
 from coral.lidar import demo as slam_demo
 from coral.lidar import picture
 from coral.local.console import outline_of
-from coral_testbed.cluster import Cluster, realrobots
-from coral_testbed.missions import MissionView, following, manifests
+from coral_testbed.kind import faults
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import demo as mission_demo
+from coral_testbed.missions import following, manifests
 from coral_testbed.waiting import wait_for
 from fixtures import pictures
-from fixtures.operator import HelmOperator
-from kubernetes import client as k8s
+from missions import realsystems as rs
+from missions.conftest import TEST_SCANS, wait_finished
 
-from .conftest import TEST_SCANS, first_real_robot, real_robot_marks
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(900)]
 
-pytestmark = real_robot_marks(timeout_s=600)
-
-GROUP, VERSION = "coral.dev", "v1alpha1"
-
-
-def _instances(custom: k8s.CustomObjectsApi, namespace: str) -> list[dict[str, Any]]:
-    return custom.list_namespaced_custom_object(GROUP, VERSION, namespace, "coralinstances")["items"]
+SYSTEM = "lidar-slam"
 
 
 def _started(status: Any) -> Any:
@@ -41,63 +38,33 @@ def _started(status: Any) -> Any:
     return ran.started_at
 
 
-def test_slam_mission_runs_from_images_on_a_real_robot(
-    cluster: Cluster,
-    namespace: str,
-    helm_operator: HelmOperator,
-    real_robots: realrobots.RealRobots,
-    mission: MissionView,
+def test_slam_mission_runs_from_images_on_a_kind_robot(
+    kind_operator: KindMissionStack,
+    slam_robot: str,
     short_bag: Path,
     ros_env: dict[str, str],
     tmp_path: Path,
 ) -> None:
-    robot = first_real_robot(real_robots)
-    mission.place_bag(robot, short_bag / "bag", manifests.SLAM_BAG)
+    view, robot = kind_operator, slam_robot
     text = manifests.rename_robots(manifests.SLAM_MISSION.read_text(), {manifests.SLAM_ROBOT: robot})
-    text = manifests.with_domain(text, int(ros_env["ROS_DOMAIN_ID"]))
-    cluster.kubectl("apply", "-n", namespace, "-f", "-", input=text)
+    view.apply(manifests.with_domain(text, int(ros_env["ROS_DOMAIN_ID"])))
 
-    core = k8s.CoreV1Api(cluster.api_client)
-    custom = k8s.CustomObjectsApi(cluster.api_client)
-
-    def pod_states() -> str:
-        lines = []
-        for pod in core.list_namespaced_pod(namespace).items:
-            states = [
-                f"{s.name}={next(k for k, v in s.state.to_dict().items() if v)}"
-                for s in (pod.status.init_container_statuses or []) + (pod.status.container_statuses or [])
-            ]
-            lines.append(f"{pod.metadata.name}: {pod.status.phase} {states}")
-        return "\n".join(lines)
-
-    try:
-        instances = following.follow(
-            lambda: _instances(custom, namespace),
-            lambda items: following.finished(items, [robot]),
-            timeout=420,
-        )
-    except TimeoutError as error:
-        raise AssertionError(
-            f"{error}\n{pod_states()}\n--- operator:\n{helm_operator.logs()[-3000:]}"
-        ) from error
-    (instance,) = [i for i in instances if following.robot(i) == robot]
+    instance = wait_finished(view, [robot], timeout=420, operator_log=view.operator_log_tail)[robot]
     assert following.tree(instance)["rootStatus"] == "SUCCESS", following.describe(instance)
-    table = cluster.kubectl("get", "coralinstances", "-n", namespace).stdout
+    table = view.cluster.kubectl("get", "coralinstances", "-n", view.namespace).stdout
     row = next(line for line in table.splitlines() if robot in line)
     assert "SUCCESS" in row.split(), table
 
-    pods = {
-        p.metadata.labels["coral.dev/component"]: p
-        for p in core.list_namespaced_pod(namespace, label_selector="coral.dev/system=lidar-slam").items
-    }
+    pods = {p.metadata.labels["coral.dev/component"]: p for p in rs.pods(view.core, view.namespace, SYSTEM)}
     assert set(pods) == {"bag-player", "slam", "snapshot", "executor"}
+    node = faults.node_of(view.running, robot)
     for name, pod in pods.items():
-        assert pod.spec.node_name == robot
+        assert pod.spec.node_name == node
         main = pod.status.container_statuses[0]
         # Pulled from the registry through the robot's containerd, by the example's own name.
         assert main.image_id.startswith(("docker.io/coral/", "coral.local/", "127.0.0.1:")), main
         # `kubectl logs` through the robot's kubelet, for every pod.
-        cluster.kubectl("logs", "-n", namespace, pod.metadata.name, "-c", name)
+        view.cluster.kubectl("logs", "-n", view.namespace, pod.metadata.name, "-c", name)
     # Skillsets wrote their plugins as uid 10001 into the root-created host path: the readiness
     # probe (the plugin marker) passed, and only then did the executor start.
     for skillset in ("slam", "snapshot"):
@@ -112,7 +79,8 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
     assert following.tree(instance).get("tickCount", 0) > 0, following.tree(instance)
     finished = wait_for(
         lambda: (
-            (p := core.read_namespaced_pod(executor.metadata.name, namespace)).status.phase == "Succeeded"
+            (p := view.core.read_namespaced_pod(executor.metadata.name, view.namespace)).status.phase
+            == "Succeeded"
             and p
         ),
         timeout=60,
@@ -124,22 +92,19 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
     assert finished.spec.restart_policy == "OnFailure"
 
     def mission_finished() -> bool:
-        current = mission.instance_of(robot) or {}
+        current = view.instance_of(robot) or {}
         components = {c["name"]: c for c in (current.get("status") or {}).get("components", [])}
         return (
             following.condition(current, "Ready").get("status") == "True"
             and components.get("executor", {}).get("phase") == "Succeeded"
         )
 
-    wait_for(mission_finished, timeout=90, message=lambda: f"mission finished: {mission.instance_of(robot)}")
+    wait_for(mission_finished, timeout=90, message=lambda: f"mission finished: {view.instance_of(robot)}")
 
     # The map and trajectory are in the SLAM container's output folder; `kubectl cp` brings them
     # here, and they match the bag's ground truth as they do with `coral run`.
-    output = tmp_path / "output"
-    cluster.kubectl(
-        "cp", "-n", namespace, "-c", "slam",
-        f"{pods['slam'].metadata.name}:{manifests.CONTAINER_OUTPUT_DIR}", str(output),
-    )  # fmt: skip
+    output = view.component_output(robot, "slam", tmp_path / "output")
+    assert output is not None, view.log_tail(robot, "slam")
     evaluation = slam_demo.evaluate(output, short_bag)
     assert evaluation.ground_truth_scans == TEST_SCANS and evaluation.scans >= TEST_SCANS - 2, evaluation
     assert evaluation.map_points > 1000, evaluation
@@ -159,7 +124,7 @@ def test_slam_mission_runs_from_images_on_a_real_robot(
 
     # `coral demo --tree-png`: the deployed tree, its root in the colour of the mission's result.
     said: list[str] = []
-    mission_demo.draw_trees(mission, [robot], tmp_path / "tree.png", said.append)
+    mission_demo.draw_trees(view, [robot], tmp_path / "tree.png", said.append)
     assert said == [f"Tree picture      : {tmp_path / 'tree.png'}"]
     outline = outline_of(manifests.ROOT / "examples" / "lidar-slam" / "tree.xml")
     rgb = pictures.pixels(tmp_path / "tree.png", tree_picture.size_px(outline), min_ink=0.01)
