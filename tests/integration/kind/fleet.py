@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -159,3 +160,11 @@ def robot_address(running: clusters.Running, robot: str) -> str:
     return running.engine.docker(
         "inspect", "--format", template, faults.node_of(running, robot)
     ).stdout.strip()
+
+
+def started_at(status: k8s.V1ContainerStatus) -> datetime:
+    """When a container started (running now, or since ended)."""
+    state = status.state
+    ran = state.running or state.terminated
+    assert ran is not None and ran.started_at is not None, f"{status.name} never started"
+    return ran.started_at

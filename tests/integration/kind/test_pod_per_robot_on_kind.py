@@ -14,7 +14,6 @@ cluster's registry; the short test bag is copied into the robot's node (`slam_ro
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Any
 
 import pytest
@@ -24,7 +23,7 @@ from coral_testbed.missions import manifests
 from coral_testbed.waiting import wait_for
 from missions import realsystems as rs
 
-from .fleet import crictl
+from .fleet import crictl, started_at
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1200)]
 
@@ -83,13 +82,6 @@ def _run_settled(view: KindMissionStack, manifest: dict[str, Any]) -> dict[str, 
     )
 
 
-def _started(status: Any) -> datetime:
-    state = status.state
-    running = state.running or state.terminated
-    assert running is not None and running.started_at is not None, f"{status.name} never started"
-    return running.started_at
-
-
 def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
     kind_operator: KindMissionStack, slam_robot: str, ros_env: dict[str, str]
 ) -> None:
@@ -108,8 +100,8 @@ def test_lidar_slam_in_one_pod_per_robot_reads_like_the_default_layout(
     assert _summary(one_pod) == _summary(default)
 
     (pod,) = rs.pods(view.core, view.namespace, "slam-one-pod")
-    sidecars = {s.name: _started(s) for s in pod.status.init_container_statuses}
-    mains = {s.name: _started(s) for s in pod.status.container_statuses}
+    sidecars = {s.name: started_at(s) for s in pod.status.init_container_statuses}
+    mains = {s.name: started_at(s) for s in pod.status.container_statuses}
     # Sidecars start in compose order, each once the previous one's startup probe passed; the
     # transient bag player runs beside the executor, so it starts after every skillset.
     assert sidecars["slam"] <= sidecars["snapshot"]

@@ -10,7 +10,6 @@ robot is gone, the tree drawn in its result's colour, and the finished executor 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 from coral import tree_picture
@@ -26,16 +25,11 @@ from fixtures import pictures
 from missions import realsystems as rs
 from missions.conftest import TEST_SCANS, wait_finished
 
+from .fleet import started_at
+
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(900)]
 
 SYSTEM = "lidar-slam"
-
-
-def _started(status: Any) -> Any:
-    state = status.state
-    ran = state.running or state.terminated
-    assert ran is not None and ran.started_at is not None, f"{status.name} never started"
-    return ran.started_at
 
 
 def test_slam_mission_runs_from_images_on_a_kind_robot(
@@ -69,7 +63,7 @@ def test_slam_mission_runs_from_images_on_a_kind_robot(
     # probe (the plugin marker) passed, and only then did the executor start.
     for skillset in ("slam", "snapshot"):
         assert pods[skillset].status.container_statuses[0].ready or pods[skillset].status.phase == "Running"
-        assert _started(pods[skillset].status.container_statuses[0]) <= _started(
+        assert started_at(pods[skillset].status.container_statuses[0]) <= started_at(
             pods["executor"].status.container_statuses[0]
         )
     executor = pods["executor"]
