@@ -138,6 +138,7 @@ def kind_namespace(kind_cluster: KindCluster, request: pytest.FixtureRequest) ->
     core.delete_namespace(name)
 
 
+@pytest.fixture(scope="package")
 def short_bag() -> Path:
     """The synthetic dataset (bag + ground truth) of TEST_SCANS scans, generated once and cached."""
     return generating.cached_dataset(generating.BagParams(scans=TEST_SCANS))
