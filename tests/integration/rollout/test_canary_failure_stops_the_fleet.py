@@ -67,8 +67,15 @@ def test_an_unhealthy_canary_pauses_the_rollout_and_no_other_robot_is_touched(
     holds_for(lambda: _others_untouched(fleet, names, first, pods), 8, message="the other robots untouched")
     assert fleet.revisions()[canary] == second
 
-    # The canary recovers; a human resumes: the failure is cleared and the canary hold starts again.
+    # The canary recovers; a human sees it healthy on the rollout and resumes: the failure is cleared
+    # and the canary hold starts again. (Resumed before the operator saw the recovery, the gate
+    # judges the failure it still sees and pauses again, as it should.)
     fleet.set_tree(canary, "SUCCESS")
+    wait_for(
+        lambda: fleet.rollout().get("canary", {}).get("healthy") == 1,
+        timeout=60,
+        message=lambda: f"the rollout to count the canary healthy: {fleet.rollout()}",
+    )
     runner = CliRunner(env={"KUBECONFIG": str(cluster.kubeconfig)})
     result = runner.invoke(rollout, ["resume", "patrol", "-n", namespace])
     assert result.exit_code == 0, result.output
