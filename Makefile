@@ -75,7 +75,7 @@ test: venv control-plane node-runtime verdict-tools test-images test-kind-setup
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
 	@echo "==> pytest"
-	@$(PY) -m pytest --durations=25
+	@$(PY) -m pytest -n 2 --durations=25
 
 lint: venv
 	@$(VENV)/bin/ruff check .

@@ -1,4 +1,18 @@
-"""Fixtures shared by every test folder; each lives in its own module under tests/fixtures/."""
+"""Fixtures shared by every test folder; each lives in its own module under tests/fixtures/.
+
+`make test` runs the suite in two lanes (`pytest -n 2`, pytest-xdist): the kind folder, whose tests
+share one kind cluster and run one after another on it, and everything else. Each lane keeps its
+tests in collection order, so package and module fixtures are made once, in one process. The lanes
+share only what is built to be shared between parallel runs: DDS domains claimed by lock,
+registries and control planes on free ports, the project's dockerd (kept running while any kind
+cluster uses it).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
 
 pytest_plugins = [
     "fixtures.ros",
@@ -9,3 +23,22 @@ pytest_plugins = [
     "fixtures.robots",
     "fixtures.prometheus",
 ]
+
+KIND_LANE_PREFIX = "tests/integration/kind/"
+
+
+def lane_of(nodeid: str) -> str:
+    """The lane a test (by its node id, relative to the repository) runs in under `make test`."""
+    return "kind" if nodeid.startswith(KIND_LANE_PREFIX) else "suite"
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    # xdist's scope scheduler hands each scope to one worker whole; the lanes are the scopes.
+    from xdist.scheduler import LoadScopeScheduling
+
+    class LaneScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return lane_of(nodeid)
+
+    return LaneScheduling(config, log)

@@ -382,6 +382,6 @@ def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None
 def stop_engine_unless_used(node_engine: engine.Engine) -> bool:
     """Stops the project's dockerd unless another kind cluster still runs on it (another user's or
     test's); True when it was stopped. A user's Docker (`$CORAL_DOCKER_HOST`) is never stopped."""
-    if not node_engine.owned or node_engine.containers(KIND_CLUSTER_LABEL):
+    if not node_engine.owned:
         return False
-    return engine.stop()
+    return engine.stop_unless(lambda: bool(node_engine.containers(KIND_CLUSTER_LABEL)))

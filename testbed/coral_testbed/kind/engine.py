@@ -18,11 +18,12 @@ then nothing here starts or stops an engine. Called by `nodeimage`, `clusters` a
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
 import shutil
 import subprocess
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -150,6 +151,11 @@ def start(progress: Callable[[str], None]) -> Engine:
         if not engine.is_serving():
             raise EngineError(f"${USER_DOCKER_ENV}={user_host} does not answer")
         return engine
+    with _serialized():
+        return _start_owned(progress)
+
+
+def _start_owned(progress: Callable[[str], None]) -> Engine:
     engine = Engine(f"unix://{_run_dir()}/docker.sock", owned=True)
     if _owned_process() is not None and engine.is_serving():
         return engine
@@ -168,15 +174,38 @@ def start(progress: Callable[[str], None]) -> Engine:
             message=f"dockerd on {engine.host}",
         )
     except Exception:
-        stop()
+        _stop_owned()
         raise
     if not processes.is_alive(process):
         raise EngineError(f"dockerd exited:\n{processes.log_tail(log)}")
     return engine
 
 
+@contextlib.contextmanager
+def _serialized() -> Iterator[None]:
+    """Held while the project's dockerd is started or stopped: two runs on one machine (a demo beside
+    the tests, two checkouts) would otherwise both start one on the same socket, or one would stop
+    it between the other's check and use."""
+    engine_dir().mkdir(parents=True, exist_ok=True)
+    with (engine_dir() / "engine.lock").open("a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
 def stop() -> bool:
     """Stops the project's dockerd (its containers stop with it); False if it was not running."""
+    with _serialized():
+        return _stop_owned()
+
+
+def stop_unless(in_use: Callable[[], bool]) -> bool:
+    """Stops the project's dockerd unless `in_use()`, asked while no other run may start it; True
+    when it was stopped."""
+    with _serialized():
+        return False if in_use() else _stop_owned()
+
+
+def _stop_owned() -> bool:
     process = _owned_process()
     _record().unlink(missing_ok=True)
     if process is None:
