@@ -16,17 +16,17 @@ $(STAMP): pyproject.toml setup.py constraints.txt
 
 venv: $(STAMP)
 
-# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok, helm, the
-# kubelet and crictl from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
+# Builds etcd, kube-apiserver, kube-controller-manager, kube-scheduler, kubectl, kwok, helm and the
+# kubelet from Go modules on first use; cached under ~/.cache/coral-on-kubernetes by version.
 control-plane:
 	@bash hack/build-control-plane.sh >/dev/null
 
-# containerd, runc, the CNI plugins and the rest real robots need, and buildah, mmdebstrap and
-# docker-registry for the images, from Debian (needs root; without root it only reports what is
-# missing, and the tests that need real robots or images are skipped).
+# containerd, runc and busybox-static for the kind node image and tests, and buildah, mmdebstrap
+# and docker-registry for the images, from Debian (needs root; without root it only reports what is
+# missing, and the tests that need kind or images are skipped).
 node-runtime:
 	@if [ "$$(id -u)" -eq 0 ]; then bash hack/setup-node-runtime.sh; \
-	else bash hack/setup-node-runtime.sh --check || echo "==> not root: real-robot and image tests will be skipped"; fi
+	else bash hack/setup-node-runtime.sh --check || echo "==> not root: kind and image tests will be skipped"; fi
 
 # What kind clusters need, installed where missing and cached (docs/kind.md): a Docker engine from
 # Debian, kind and the node binaries from Go modules, and the node image (built locally where
@@ -54,7 +54,7 @@ verdict-tools:
 # The SLAM mission on a kind cluster (docs/kind.md): images, a robot worker, the operator by Helm,
 # kubectl apply; the cluster and the project's dockerd are gone afterwards.
 demo: venv control-plane node-runtime kind
-	@$(VENV)/bin/coral demo --cluster kind
+	@$(VENV)/bin/coral demo
 
 # The same mission on one machine, no cluster: `coral run` with a live tree view.
 demo-local: venv

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the pinned control-plane binaries (etcd, kube-apiserver, kube-controller-manager,
-# kube-scheduler, kubectl, kwok, helm) and the node binaries of real robots (kubelet, crictl) with
-# the go tool from Go modules, and caches them outside the repository, keyed by version, so a
+# kube-scheduler, kubectl, kwok, helm) and the kubelet the kind node image carries with the go
+# tool from Go modules, and caches them outside the repository, keyed by version, so a
 # machine pays for the build once. Only missing binaries are built.
 #
 # Usage: hack/build-control-plane.sh            -> prints the bin directory when done
@@ -12,12 +12,11 @@ KUBE_VERSION="${KUBE_VERSION:-v1.34.4}"
 ETCD_VERSION="${ETCD_VERSION:-v3.6.4}"
 KWOK_VERSION="${KWOK_VERSION:-v0.7.0}"
 HELM_VERSION="${HELM_VERSION:-v3.19.0}"
-CRI_TOOLS_VERSION="${CRI_TOOLS_VERSION:-v1.34.0}"
 
 cache_root="${CORAL_CACHE_DIR:-$HOME/.cache/coral-on-kubernetes}"
 key="kube-${KUBE_VERSION}_etcd-${ETCD_VERSION}_kwok-${KWOK_VERSION}_helm-${HELM_VERSION}"
 bin_dir="$cache_root/control-plane/$key/bin"
-wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm kubelet crictl)
+wanted=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kwok helm kubelet)
 
 have_all() {
   for b in "${wanted[@]}"; do [[ -x "$bin_dir/$b" ]] || return 1; done
@@ -125,14 +124,6 @@ fi
 if ! staged helm; then
   log "building helm ${HELM_VERSION}"
   GOBIN="$bin_dir" go install -trimpath -ldflags "-s -w -X helm.sh/helm/v3/internal/version.version=${HELM_VERSION}" "helm.sh/helm/v3/cmd/helm@${HELM_VERSION}"
-fi
-
-# crictl, the CRI client node operators use, to reach a real robot's containerd as they would
-# (tests stop containers through it). The kind tools reuse this build.
-if ! staged crictl; then
-  log "building crictl ${CRI_TOOLS_VERSION}"
-  GOBIN="$bin_dir" go install -trimpath -ldflags "-s -w -X sigs.k8s.io/cri-tools/pkg/version.Version=${CRI_TOOLS_VERSION}" \
-    "sigs.k8s.io/cri-tools/cmd/crictl@${CRI_TOOLS_VERSION}"
 fi
 
 have_all || { echo "error: some control-plane binaries are missing in $bin_dir" >&2; exit 1; }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Installs, with apt, the Debian packages that real robots and the image pipeline need on this
-# machine. Idempotent: packages already installed are left alone and apt is not run at all.
+# Installs, with apt, the Debian packages that the kind node image and the image pipeline need on
+# this machine. Idempotent: packages already installed are left alone and apt is not run at all.
 # Needs root (apt-get install); says so and exits 1 when it is not root and something is missing.
 #
 # Usage: hack/setup-node-runtime.sh            -> installs what is missing
@@ -9,10 +9,10 @@ set -euo pipefail
 
 # One list per purpose, so each purpose's packages can change without touching the others.
 
-# Real robots: one containerd (with runc) per robot, CNI plugins for pod networking, `ip` for
-# network namespaces and links, nsenter/unshare (util-linux) for each robot's mount view,
-# iptables for the CNI bridge's masquerading, busybox-static for the locally built sandbox image.
-node_packages=(containerd runc containernetworking-plugins iproute2 util-linux iptables busybox-static)
+# The kind node image and tests: a throwaway containerd (with runc and ctr) preloads the node
+# image's images, iptables-save shows the kind tests left the host's rules alone, busybox-static is
+# the busybox test image the kind tests load into their nodes.
+node_packages=(containerd runc iptables busybox-static)
 
 # Images, built from the repository's Dockerfiles without a Docker engine: buildah (daemonless OCI
 # builder), mmdebstrap (the Debian base's root filesystem), docker-registry (the local registry the
@@ -41,7 +41,7 @@ if [[ "${1:-}" == "--check" ]]; then
   exit 1
 fi
 if [[ $(id -u) -ne 0 ]]; then
-  echo "error: real robots need the Debian packages ${missing[*]}; installing them needs root." >&2
+  echo "error: the Debian packages ${missing[*]} are missing; installing them needs root." >&2
   echo "       run: sudo bash hack/setup-node-runtime.sh" >&2
   exit 1
 fi

@@ -20,7 +20,6 @@ pytest_plugins = [
     "fixtures.operator",
     "fixtures.cluster",
     "fixtures.images",
-    "fixtures.robots",
     "fixtures.prometheus",
 ]
 

@@ -1,2 +1,2 @@
-"""Test and demo tooling: a local Kubernetes control plane with real robots (an upstream kubelet and
-containerd each) and kwok robots, images built from the repository's Dockerfiles, and missions on it."""
+"""Test and demo tooling: kind clusters whose workers are robots, a local Kubernetes control plane
+with kwok robots, images built from the repository's Dockerfiles, and missions on them."""

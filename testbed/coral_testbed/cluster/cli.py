@@ -15,13 +15,9 @@ from typing import Any
 import click
 from coral_core import terminal
 
-from coral_testbed import clierrors, clilines, images
-from coral_testbed.cluster import binaries, controlplane, demo, operatorchart, realrobots
+from coral_testbed import clierrors, clilines
+from coral_testbed.cluster import binaries, controlplane, demo
 from coral_testbed.cluster.client import Cluster
-from coral_testbed.images import registry
-
-OPERATOR_NODE = "operator-node"
-"""The real non-robot node `up --operator` schedules the operator onto."""
 
 
 def dir_option(command: Callable[..., Any]) -> Callable[..., Any]:
@@ -45,8 +41,6 @@ def dir_option(command: Callable[..., Any]) -> Callable[..., Any]:
 _fail_on_errors = clierrors.fail_on(
     controlplane.ControlPlaneError,
     binaries.BinariesMissing,
-    realrobots.RobotError,
-    operatorchart.ChartInstallError,
     ValueError,
 )
 
@@ -67,21 +61,11 @@ def on_running_cluster(command: Callable[..., Any]) -> Callable[..., Any]:
 @click.group("local")
 def local() -> None:
     """The suite's own control plane: etcd, kube-apiserver and controllers as processes of this host,
-    with kwok robots and network-namespace robots (testbed/coral_testbed/cluster/README.md)."""
+    with kwok robots (testbed/coral_testbed/cluster/README.md)."""
 
 
 @local.command()
 @dir_option
-@click.option(
-    "--robots",
-    "count",
-    type=click.IntRange(min=0),
-    default=0,
-    help="Real robots to start (a kubelet and a containerd each; needs root and the node runtime).",
-)
-@click.option(
-    "--robot-prefix", default="robot-", show_default=True, help="Real robots are named PREFIX1..PREFIXN."
-)
 @click.option(
     "--kwok-robots", "kwok_count", type=click.IntRange(min=0), default=0, help="kwok robot Nodes to create."
 )
@@ -89,23 +73,8 @@ def local() -> None:
     "--kwok-prefix", default="kwok-robot-", show_default=True, help="kwok robots are named PREFIX1..PREFIXN."
 )
 @clilines.labels_option("KEY=VALUE label for every robot.")
-@click.option(
-    "--operator",
-    "with_operator",
-    is_flag=True,
-    help="Install the operator by Helm from its image, on a real non-robot node "
-    f"({operatorchart.DEFAULT_NAMESPACE}/{operatorchart.DEFAULT_RELEASE}, serving every namespace).",
-)
 @_fail_on_errors
-def up(
-    state_dir: Path,
-    count: int,
-    robot_prefix: str,
-    kwok_count: int,
-    kwok_prefix: str,
-    labels: dict[str, str],
-    with_operator: bool,
-) -> None:
+def up(state_dir: Path, kwok_count: int, kwok_prefix: str, labels: dict[str, str]) -> None:
     """Start the control plane in the background; print the kubeconfig path once the API is healthy."""
     try:
         state = controlplane.start(state_dir, progress=clilines.say)
@@ -117,36 +86,7 @@ def up(
         names = [f"{kwok_prefix}{i}" for i in range(1, kwok_count + 1)]
         clilines.say(f"Creating {kwok_count} kwok robots {names[0]}..{names[-1]}")
         cluster.add_robots(names, labels)
-    if count:
-        names = [f"{robot_prefix}{i}" for i in range(1, count + 1)]
-        wanted = [name for name in names if name not in cluster.robots.names()]
-        if wanted:
-            cluster.robots.add(wanted, labels, progress=clilines.say)
-        clilines.say(f"Real robots {', '.join(names)} are Ready")
-    if with_operator:
-        install_operator(cluster)
     click.echo(str(state.kubeconfig))
-
-
-def install_operator(cluster: Cluster, release: operatorchart.Release | None = None) -> None:
-    """Publishes the operator image, starts the operator node if missing, and `helm install`s the
-    chart there (nothing when the release exists already)."""
-    release = release or operatorchart.Release()
-    assert cluster.bin_dir is not None
-    helm = cluster.bin_dir / "helm"
-    listed = cluster.kubectl("get", "deployments", "-n", release.namespace, "-o", "name", check=False)
-    if f"deployment.apps/{release.name}" in listed.stdout:
-        clilines.say(f"The operator is installed already ({release.namespace}/{release.name})")
-        return
-    address = registry.configured_address()
-    images.publish(address, ["operator"], progress=clilines.say)
-    if OPERATOR_NODE not in cluster.robots.names():
-        cluster.robots.add(
-            [OPERATOR_NODE], {operatorchart.OPERATOR_NODE_LABEL: "true"}, progress=clilines.say, robot=False
-        )
-    clilines.say(f"helm install {release.name} charts/coral-operator -n {release.namespace}")
-    pod = operatorchart.install(cluster.api_client, helm, cluster.env(), release)
-    clilines.say(f"The operator runs in pod {release.namespace}/{pod.metadata.name} on {pod.spec.node_name}")
 
 
 @local.command()
@@ -180,7 +120,7 @@ def status(state_dir: Path) -> None:
 
 @local.group()
 def robots() -> None:
-    """Create, remove and fail robots: kwok Nodes, and real robots (kubelet + containerd)."""
+    """Create, remove and fail robots (kwok Nodes)."""
 
 
 def _robot_names(command: Callable[..., Any]) -> Callable[..., Any]:
@@ -197,23 +137,12 @@ def add_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str])
     cluster.add_robots(list(names), labels)
 
 
-@robots.command("add-real")
-@on_running_cluster
-@_robot_names
-def add_real_robots(cluster: Cluster, names: tuple[str, ...], labels: dict[str, str]) -> None:
-    """Start real robots (kubelet + containerd each) and wait until they are Ready."""
-    cluster.robots.add(list(names), labels, progress=clilines.say)
-
-
 @robots.command("remove")
 @on_running_cluster
 @click.argument("names", nargs=-1, required=True)
 def remove_robots(cluster: Cluster, names: tuple[str, ...]) -> None:
-    """Delete robots' Nodes; real robots are torn down first (processes, mounts, network, cgroups)."""
-    real = [name for name in names if name in cluster.robots.names()]
-    if real:
-        cluster.robots.remove(real)
-    cluster.remove_robots([name for name in names if name not in real])
+    """Delete robots' Nodes."""
+    cluster.remove_robots(list(names))
 
 
 @robots.command("ready")
@@ -226,20 +155,12 @@ def robot_ready(cluster: Cluster, name: str, not_ready: bool) -> None:
 
 
 ONE_ROBOT_ACTIONS: dict[str, Callable[[Cluster, str], None]] = {
-    "stop": lambda cluster, name: cluster.robots.stop(name),
-    "start": lambda cluster, name: cluster.robots.start(name),
-    "cut": lambda cluster, name: cluster.robots.cut_link(name),
-    "restore": lambda cluster, name: cluster.robots.restore_link(name),
     "offline": lambda cluster, name: cluster.set_robot_reachable(name, False),
     "online": lambda cluster, name: cluster.set_robot_reachable(name, True),
 }
 """`robots VERB NAME`: what each verb does to robot NAME of the running cluster."""
 
 ONE_ROBOT_HELP = {
-    "stop": "Stop a real robot's kubelet: its containers keep running, its Node goes NotReady (~40 s).",
-    "start": "Start a stopped real robot's kubelet again and wait until its Node is Ready.",
-    "cut": "Cut a real robot's network link: no traffic to other robots, the API server or the registry.",
-    "restore": "Restore a cut real robot's network link.",
     "offline": "Take a robot off the network: its lease lapses and it turns Ready=Unknown (about 30 s).",
     "online": "Bring an offline robot back: kwok renews its lease and it reports Ready again.",
 }

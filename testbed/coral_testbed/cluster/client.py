@@ -15,7 +15,7 @@ from pathlib import Path
 from kubernetes import client as k8s
 from kubernetes import config as k8s_config
 
-from coral_testbed.cluster import binaries, realrobots, robots
+from coral_testbed.cluster import binaries, robots
 
 
 def parse_table(text: str) -> dict[str, dict[str, str]]:
@@ -48,24 +48,17 @@ class Cluster:
         kubeconfig: admin kubeconfig file.
         bin_dir: the pinned binaries that run the local control plane, None for external clusters.
         is_local: True for the control plane this project started itself.
-        state_dir: the local control plane's state folder (None for external clusters); real
-            robots need it.
-        die_with_parent: real robots started through `robots` stop when this process dies.
+        state_dir: the local control plane's state folder (its logs, the audit log), None for
+            external clusters.
     """
 
     def __init__(
-        self,
-        kubeconfig: Path,
-        bin_dir: Path | None,
-        is_local: bool,
-        state_dir: Path | None = None,
-        die_with_parent: bool = False,
+        self, kubeconfig: Path, bin_dir: Path | None, is_local: bool, state_dir: Path | None = None
     ) -> None:
         self.kubeconfig = Path(kubeconfig)
         self.bin_dir = bin_dir
         self.is_local = is_local
         self.state_dir = state_dir
-        self.die_with_parent = die_with_parent
         self._kubectl = binaries.find_kubectl(bin_dir)
 
     @classmethod
@@ -92,29 +85,6 @@ class Cluster:
     @cached_property
     def api_client(self) -> k8s.ApiClient:
         return k8s_config.new_client_from_config(config_file=str(self.kubeconfig))
-
-    @cached_property
-    def robots(self) -> realrobots.RealRobots:
-        """The cluster's real robots (kubelet + containerd each): add, stop, start, cut_link, cri...
-
-        Raises:
-            RobotError: the cluster is not a local control plane with a state folder.
-        """
-        from coral_testbed.cluster import controlplane
-
-        state = controlplane.load_state(self.state_dir) if self.state_dir is not None else None
-        if state is None or self.bin_dir is None:
-            raise realrobots.RobotError(
-                f"{self!r}: real robots run only on a local control plane (`coral dev-cluster local up`)"
-            )
-        return realrobots.RealRobots(
-            self.state_dir,
-            self.api_client,
-            api_port=state.layout.ports.apiserver,
-            pki_dir=state.layout.pki.dir,
-            bin_dir=self.bin_dir,
-            die_with_parent=self.die_with_parent,
-        )
 
     def close(self) -> None:
         if "api_client" in self.__dict__:

@@ -16,8 +16,6 @@ from coral_testbed.cluster import pki as pki_module
 from coral_testbed.cluster.paths import Under
 
 SERVICE_CIDR = "10.96.0.0/16"
-# The `kubernetes` Service's address (the first of SERVICE_CIDR), in the API server's certificate.
-KUBERNETES_SERVICE_IP = "10.96.0.1"
 # kwok hands out pod IPs from this CIDR starting at its address, so it starts at .1. It avoids
 # kind's pod subnet (10.244.0.0/16), where kwok also runs against a kind cluster given by KUBECONFIG.
 POD_CIDR = "10.250.0.1/16"
@@ -115,8 +113,8 @@ def build_apiserver(layout: Layout) -> list[str]:
         "--authorization-mode=Node,RBAC",
         f"--service-cluster-ip-range={SERVICE_CIDR}",
         "--allow-privileged=true",
-        # Kubelets of real robots: the API server calls them (logs, exec) at their InternalIP, the
-        # robot's own address, with a client certificate; each kubelet may touch only its own Node.
+        # As in a production cluster: the API server calls kubelets (logs, exec) at their InternalIP
+        # with a client certificate, and a kubelet may touch only its own Node.
         f"--kubelet-client-certificate={pki.client_cert('kubelet-client')}",
         f"--kubelet-client-key={pki.client_key('kubelet-client')}",
         "--kubelet-preferred-address-types=InternalIP,Hostname",

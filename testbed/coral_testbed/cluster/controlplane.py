@@ -27,7 +27,6 @@ from coral_testbed.cluster import (
     kubeconfigs,
     pki,
     processes,
-    realrobots,
     robots,
 )
 from coral_testbed.waiting import WaitTimeout, wait_for
@@ -300,10 +299,6 @@ def _default_service_account_exists(kubeconfig: Path) -> bool:
 def stop(state_dir: Path | None = None, progress: Progress = lambda _: None) -> list[processes.Recorded]:
     """Stops every recorded process (newest first) and returns them; a no-op if nothing runs."""
     state_dir = (state_dir or default_state_dir()).resolve()
-    # Real robots first: their kubelets talk to the API server, and their teardown needs no API.
-    left = realrobots.remove_all(state_dir, progress)
-    if left:
-        raise ControlPlaneError(f"real robots left behind: {left}")
     state = load_state(state_dir)
     if state is None:
         return []
@@ -334,10 +329,8 @@ def status(state_dir: Path | None = None) -> dict[str, Any]:
         "kube-scheduler": lambda: health.component_healthy(ports.scheduler),
         "kwok": lambda: health.kwok_healthy(ports.kwok),
     }
-    probes.update(realrobots.kubelet_probes(state_dir))
-    node_processes = [process for _, process in realrobots.node_processes(state_dir)]
     rows = []
-    for process in [*state.processes, *node_processes]:
+    for process in state.processes:
         alive = processes.is_alive(process)
         rows.append(
             {

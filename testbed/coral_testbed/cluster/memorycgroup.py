@@ -10,10 +10,11 @@ tests still applies. Needs root and a cgroup v1 memory hierarchy (`available` sa
 from __future__ import annotations
 
 import os
+import signal
 import uuid
 from pathlib import Path
 
-from coral_testbed.cluster import cgroups
+from coral_testbed.waiting import wait_for
 
 MEMORY_ROOT = Path("/sys/fs/cgroup/memory")
 
@@ -77,9 +78,27 @@ class MemoryCgroup:
     def pids(self) -> set[int]:
         return {int(pid) for pid in self._read("cgroup.procs").split()}
 
-    def remove(self) -> None:
-        """Kills what is left in the group and removes it."""
-        relative = str(self.path.relative_to(MEMORY_ROOT))
-        if self.pids():
-            cgroups.kill_all(relative)
+    def remove(self, timeout: float = 15.0) -> None:
+        """Kills what is left in the group and removes it.
+
+        Raises:
+            WaitTimeout: processes were still in the group after `timeout` seconds.
+        """
+
+        def none_left() -> bool:
+            # A process forking while it is killed leaves a child behind: each pass kills what is left.
+            left = self.pids()
+            for pid in left:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+            return not left
+
+        wait_for(
+            none_left,
+            timeout=timeout,
+            interval=0.1,
+            message=lambda: f"processes {sorted(self.pids())} in {self.path} to die of SIGKILL",
+        )
         os.rmdir(self.path)

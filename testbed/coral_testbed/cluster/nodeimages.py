@@ -1,11 +1,8 @@
-"""Images for real robots that need no registry: a busybox-static image made here, imported locally.
+"""The busybox test image, made here and loaded into nodes without a registry.
 
-`SANDBOX_IMAGE` is every robot's pause image; `TEST_IMAGE` is the same root filesystem under a
-name for test pods (sh, sleep, wget, httpd...). Both are one layer holding Debian's
-busybox-static, packed as a reproducible OCI archive (stored under its content digest) and
-imported with `ctr -n k8s.io images import`. `ensure_image` is the one place that decides how a
-robot gets an image: imported here, or (any other name) pulled by containerd from the local
-registry (docs/real-robots.md).
+`TEST_IMAGE` is one layer holding Debian's busybox-static (sh, sleep, wget, httpd...), packed as a
+reproducible OCI archive stored under its content digest; the kind tests load it into every node
+with `kind load image-archive` for their plain pods.
 """
 
 from __future__ import annotations
@@ -14,16 +11,14 @@ import gzip
 import hashlib
 import io
 import json
-import subprocess
 import tarfile
 from pathlib import Path
 
-SANDBOX_IMAGE = "coral.local/pause:busybox"
 TEST_IMAGE = "coral.local/busybox:local"
-LOCAL_IMAGES = (SANDBOX_IMAGE, TEST_IMAGE)
 BUSYBOX = Path("/bin/busybox")
 
-# The pause process: PID 1 ignores signals it has no handler for, so it traps them to stop at once.
+# The default command sleeps until stopped: PID 1 ignores signals it has no handler for, so it
+# traps them to stop at once.
 _PAUSE = ["/bin/sh", "-c", "trap 'exit 0' TERM INT; while :; do sleep 3600 & wait $!; done"]
 _APPLETS = (
     "sh",
@@ -50,7 +45,7 @@ _APPLETS = (
 
 
 class ImageError(RuntimeError):
-    """An image could not be made or imported; the message says why."""
+    """The image could not be made; the message says why."""
 
 
 def _add(layer: tarfile.TarFile, info: tarfile.TarInfo, data: bytes | None = None) -> None:
@@ -144,10 +139,10 @@ def build_archive(busybox: bytes, names: tuple[str, ...]) -> bytes:
 
 
 def local_archive(cache_dir: Path) -> Path:
-    """The archive of `LOCAL_IMAGES`, written once per content (named by its digest)."""
+    """The archive of `TEST_IMAGE`, written once per content (named by its digest)."""
     if not BUSYBOX.is_file():
         raise ImageError(f"{BUSYBOX} is missing: install busybox-static (hack/setup-node-runtime.sh)")
-    archive = build_archive(BUSYBOX.read_bytes(), LOCAL_IMAGES)
+    archive = build_archive(BUSYBOX.read_bytes(), (TEST_IMAGE,))
     path = cache_dir / f"busybox-{hashlib.sha256(archive).hexdigest()[:16]}.oci.tar"
     if not path.exists():
         cache_dir.mkdir(parents=True, exist_ok=True)
@@ -155,22 +150,3 @@ def local_archive(cache_dir: Path) -> Path:
         path.with_suffix(".tmp").replace(path)
     return path
 
-
-def import_local(ctr_prefix: list[str], cache_dir: Path) -> None:
-    """Imports `LOCAL_IMAGES` into one robot's containerd (`ctr_prefix` runs ctr inside the robot)."""
-    archive = local_archive(cache_dir)
-    result = subprocess.run(
-        [*ctr_prefix, "-n", "k8s.io", "images", "import", str(archive)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
-    if result.returncode != 0:
-        raise ImageError(f"importing {archive} failed ({result.returncode}): {result.stderr.strip()}")
-
-
-def ensure_image(ctr_prefix: list[str], cache_dir: Path, name: str) -> None:
-    """Makes `name` available to one robot: local images are imported, others are left to be pulled."""
-    if name in LOCAL_IMAGES:
-        import_local(ctr_prefix, cache_dir)

@@ -1,6 +1,6 @@
 """The operator installed in the cluster by `helm install` of charts/coral-operator, from its image.
 
-The operator's pod runs on a real node that is not a robot (`OPERATOR_NODE_LABEL`), pulls
+The operator's pod runs on a node that is not a robot (`OPERATOR_NODE_LABEL`), pulls
 `coral.local/<operator repository>:<tag>` from the local registry like any robot image, and acts only
 with the ServiceAccount and RBAC the chart creates. The image itself is built by
 `coral_testbed.images`; this module only installs, finds and removes the release.
@@ -19,10 +19,10 @@ from coral_testbed.images import catalog
 from coral_testbed.waiting import wait_for
 
 OPERATOR_NODE_LABEL = "coral.dev/operator-node"
-"""Label (value "true") of the real, non-robot nodes the operator's pod is scheduled onto."""
+"""Label (value "true") of the non-robot nodes the operator's pod is scheduled onto."""
 
 ROBOT_REGISTRY = "coral.local"
-"""The registry name robots' containerds map to the local registry (docs/real-robots.md)."""
+"""The registry name robots' containerds map to the local registry (docs/kind.md)."""
 
 DEFAULT_RELEASE = "coral-operator"
 DEFAULT_NAMESPACE = "coral-system"

@@ -9,7 +9,6 @@ machines.
 
 from __future__ import annotations
 
-import secrets
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -64,11 +63,6 @@ class Pki:
 
     def client_key(self, name: str) -> Path:
         return self.dir / f"{name}.key"
-
-
-def node_identity(node: str) -> tuple[str, str]:
-    """(common name, organization) of a kubelet: what the Node authorizer and NodeRestriction expect."""
-    return f"system:node:{node}", "system:nodes"
 
 
 def _openssl(*args: str, cwd: Path) -> None:
@@ -181,10 +175,3 @@ def create_pki(directory: Path) -> Pki:
     _openssl("pkey", "-in", str(pki.sa_key), "-pubout", "-out", str(pki.sa_pub), cwd=directory)
     return pki
 
-
-def sign_node_client(pki: Pki, node: str) -> tuple[Path, Path]:
-    """A kubelet's client certificate for `node`; returns (certificate, key)."""
-    name = f"node-{node}"
-    subject = build_subject(*node_identity(node))
-    _sign(pki, name, subject, build_extensions(server=False), secrets.randbits(62))
-    return pki.client_cert(name), pki.client_key(name)

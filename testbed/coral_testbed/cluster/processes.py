@@ -10,7 +10,6 @@ import ctypes
 import os
 import signal
 import subprocess
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -73,19 +72,8 @@ def spawn(
     log: Path,
     env: dict[str, str] | None = None,
     die_with_parent: bool = False,
-    before_exec: Callable[[], None] | None = None,
 ) -> Recorded:
-    """Starts `argv` in a new session with stdout and stderr appended to `log`.
-
-    `before_exec` runs in the child before it execs (e.g. to join a cgroup).
-    """
-
-    def prepare() -> None:
-        if die_with_parent:
-            _ask_for_sigterm_on_parent_death()
-        if before_exec is not None:
-            before_exec()
-
+    """Starts `argv` in a new session with stdout and stderr appended to `log`."""
     log.parent.mkdir(parents=True, exist_ok=True)
     with log.open("ab") as sink:
         child = subprocess.Popen(
@@ -95,7 +83,7 @@ def spawn(
             stderr=subprocess.STDOUT,
             env=env,
             start_new_session=True,
-            preexec_fn=prepare if die_with_parent or before_exec is not None else None,
+            preexec_fn=_ask_for_sigterm_on_parent_death if die_with_parent else None,
         )
     start_time = process_start_time(child.pid)
     # A child that already exited still has a start time until reaped; if not, it died instantly.

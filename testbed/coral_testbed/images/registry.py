@@ -1,8 +1,8 @@
 """The local image registry: Debian's docker-registry over plain HTTP, storage in the cache folder.
 
 Kubelets' containerd pulls from it by name, as from any registry: robots map `coral.local` and
-the registry's own address to it (docs/real-robots.md), so `coral.local/coral/executor:0.1.0`
-and `127.0.0.1:5000/coral/executor:0.1.0` name the same image. Several registry processes may
+the registry's own address to it (docs/kind.md), so `coral.local/coral/executor:0.1.0` and
+`127.0.0.1:5000/coral/executor:0.1.0` name the same image. Several registry processes may
 serve the same storage on different addresses. `start`/`stop` are for fixtures, which own their
 process; `up`/`down` keep one registry per address running across commands (`coral images
 registry up`). Also a small client for what the build needs: a tag's manifest and config.
@@ -26,7 +26,7 @@ from coral_testbed.waiting import wait_for
 
 DEFAULT_ADDRESS = "127.0.0.1:5000"
 ADDRESS_ENV = "CORAL_REGISTRY"
-"""Where robots look for the registry (read when a robot starts), and the CLI's default."""
+"""Where the image fixtures and `coral images` find the registry (default `DEFAULT_ADDRESS`)."""
 _MANIFEST_TYPES = ", ".join(
     (
         "application/vnd.oci.image.manifest.v1+json",

@@ -1,10 +1,11 @@
-"""Missions on the cluster end to end (test and demo tooling): the operator by Helm and real robots
-over a control plane, a mission applied with kubectl, its CoralInstances followed live.
+"""Missions on a cluster end to end (test and demo tooling): a mission applied with kubectl, its
+CoralInstances followed live.
 
-`MissionStack` (stack.py) is what `coral demo` (demo.py) runs; the mission tests read and feed
-their missions through `MissionView`.
+`coral demo` (demo.py) runs a mission on a kind cluster through
+`coral_testbed.kind.missions.KindMissionStack`; the mission tests read and feed their missions
+through `MissionView` (stack.py).
 """
 
-from coral_testbed.missions.stack import MissionStack, MissionView
+from coral_testbed.missions.stack import MissionView
 
-__all__ = ["MissionStack", "MissionView"]
+__all__ = ["MissionView"]

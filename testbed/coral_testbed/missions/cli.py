@@ -1,4 +1,4 @@
-"""The `coral demo` verb: a mission applied with kubectl on a local control plane (see demo.py)."""
+"""The `coral demo` verb: a mission applied with kubectl on a throwaway kind cluster (see demo.py)."""
 
 from __future__ import annotations
 
@@ -25,19 +25,13 @@ from coral.local.cli import TREE_PNG, output_option
     help="Bag length (default: 300 slam, 60 relay and site).",
 )
 @click.option("--timeout", type=float, default=600.0, show_default=True, help="Seconds the mission may take.")
-@click.option(
-    "--cluster",
-    type=click.Choice(["local", "kind"]),
-    default="local",
-    show_default=True,
-    help="local: the project's control plane with real robots; kind: a kind cluster (docs/kind.md).",
-)
 @TREE_PNG
 @output_option(Path("out/demo"), "Where the SLAM map, trajectory and picture are kept after the demo.")
 def demo_command(
-    mission: str, scans: int | None, timeout: float, cluster: str, tree_png: Path | None, output_dir: Path
+    mission: str, scans: int | None, timeout: float, tree_png: Path | None, output_dir: Path
 ) -> None:
-    """Start a control plane, real robots and the operator by Helm; kubectl apply a mission, follow it."""
+    """Start a kind cluster whose workers are the robots and the operator by Helm; kubectl apply a
+    mission, follow it; delete the cluster."""
     from coral_testbed.missions import demo
 
     try:
@@ -48,7 +42,6 @@ def demo_command(
             echo=click.echo,
             tree_png=tree_png,
             output_dir=output_dir,
-            on_kind=cluster == "kind",
         )
     except demo.DemoUnsupported as error:
         raise click.ClickException(str(error)) from error

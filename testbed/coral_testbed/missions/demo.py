@@ -1,10 +1,10 @@
-"""`coral demo` (what `make demo` runs): a mission on a real local control plane, end to end.
+"""`coral demo` (what `make demo` runs): a mission on a kind cluster, end to end.
 
-Starts a throwaway control plane, builds the mission's images into a local registry, starts real
-robots (a kubelet and a containerd each) and installs the operator with Helm, copies the synthetic
-LiDAR bag into the robot's files, `kubectl apply`s the committed example mission, prints every robot's tree
-as it moves until the mission ends, shows `kubectl get coralinstances`, scores the map and the
-trajectory against ground truth, and stops everything it started, also on error or Ctrl-C.
+Makes a throwaway kind cluster whose workers are the robots (docs/kind.md), builds the mission's
+images into its registry and installs the operator with Helm, copies the synthetic LiDAR bag into
+the robot's files, `kubectl apply`s the committed example mission, prints every robot's tree as it
+moves until the mission ends, shows `kubectl get coralinstances`, scores the map and the trajectory
+against ground truth, and deletes everything it made, also on error or Ctrl-C.
 """
 
 from __future__ import annotations
@@ -27,10 +27,11 @@ from coral_core import keys, names, terminal
 from coral_core.component_image import COMPONENT_UID
 from rich.live import Live
 
-from coral_testbed.cluster import binaries, controlplane, realrobots
 from coral_testbed.cluster.client import Cluster
+from coral_testbed.kind import missions as kind_missions
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.missions import domains, following, manifests
-from coral_testbed.missions.stack import OPERATOR_NODE, MissionStack, MissionView
+from coral_testbed.missions.stack import OPERATOR_NODE, MissionView
 from coral_testbed.waiting import wait_for
 
 NAMESPACE = "coral-demo"
@@ -56,7 +57,7 @@ def _kubectl(cluster: Cluster, echo: Echo, *args: str) -> None:
     echo((result.stdout + result.stderr).rstrip())
 
 
-def _apply(stack: MissionStack, mission: Path, domain: int, echo: Echo) -> None:
+def _apply(stack: KindMissionStack, mission: Path, domain: int, echo: Echo) -> None:
     shown = mission.relative_to(manifests.ROOT)
     echo(f"==> Applying {shown} on ROS domain {domain} (spec.ros.domainId; held by this demo, so no")
     echo("    other ROS process on this machine talks to its robots)")
@@ -64,7 +65,7 @@ def _apply(stack: MissionStack, mission: Path, domain: int, echo: Echo) -> None:
     echo(stack.apply(manifests.with_domain(mission.read_text(), domain)).rstrip())
 
 
-def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) -> dict[str, str]:
+def _follow(stack: KindMissionStack, robots: list[str], timeout: float, echo: Echo) -> dict[str, str]:
     echo(
         f"==> Following the CoralInstances' tree status (robot, root, ticks, active node),"
         f" up to {timeout:.0f} s"
@@ -89,7 +90,7 @@ def _follow(stack: MissionStack, robots: list[str], timeout: float, echo: Echo) 
     return {following.robot(i): str(following.tree(i).get(keys.TREE.root_status)) for i in instances}
 
 
-def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) -> None:
+def _await_executors_done(stack: KindMissionStack, echo: Echo, timeout: float = 30) -> None:
     """Waits (bounded) for the executor pods to exit, so the pod list shows the mission Completed."""
 
     def done() -> bool:
@@ -103,7 +104,7 @@ def _await_executors_done(stack: MissionStack, echo: Echo, timeout: float = 30) 
 
 
 def _slam(
-    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+    stack: KindMissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
 ) -> dict[str, str]:
     link = stack.place_bag(manifests.SLAM_ROBOT, dataset / "bag", manifests.SLAM_BAG)
     echo(f"==> The bag is on {manifests.SLAM_ROBOT} at hostPath {manifests.SLAM_BAG} ({link})")
@@ -167,7 +168,7 @@ def draw_trees(stack: MissionView, robots: list[str], target: Path, echo: Echo) 
 
 
 def _coordinated(
-    stack: MissionStack,
+    stack: KindMissionStack,
     mission: Path,
     robots: list[str],
     dataset: Path,
@@ -194,7 +195,7 @@ def _coordinated(
 
 
 def _relay(
-    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+    stack: KindMissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
 ) -> dict[str, str]:
     """The three-robot relay, one CoralSystem a robot."""
     return _coordinated(
@@ -203,7 +204,7 @@ def _relay(
 
 
 def _site(
-    stack: MissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
+    stack: KindMissionStack, dataset: Path, domain: int, timeout: float, echo: Echo, kept: Path
 ) -> dict[str, str]:
     """The mixed fleet: one CoralSystem whose overrides pick each robot's components and tree by the
     model label its Node carries, labelled here as an administrator would."""
@@ -224,62 +225,16 @@ def _site(
 
 
 class DemoUnsupported(RuntimeError):
-    """This machine cannot host the demo's real robots; the message says why and what to install."""
+    """This machine cannot host the demo's kind cluster; the message says why and what to install."""
 
 
-def real_robots_missing(bin_dir: Path | None) -> str | None:
-    """Why missions cannot run on real robots here, or None when they can."""
-    reason = realrobots.unsupported_reason(bin_dir)
-    if reason:
-        return reason
-    if os.geteuid() != 0 or shutil.which("buildah") is None:
-        return "building images needs root and buildah (sudo bash hack/setup-node-runtime.sh)"
-    return None
-
-
-def _check_machine() -> None:
-    """Raises DemoUnsupported before anything starts when this machine cannot host real robots."""
-    missing = real_robots_missing(binaries.optional_bin_dir((*binaries.REQUIRED, "kubelet", "crictl")))
-    if missing is not None:
-        raise DemoUnsupported(f"the demo runs on real robots, which this machine cannot host: {missing}")
-
-
-def _stack(cluster: Cluster, robots: list[str], root: Path, echo: Echo) -> MissionStack:
-    echo(f"==> The operator by Helm and real robots ({', '.join(robots)}), namespace {NAMESPACE}")
-    return MissionStack(cluster, NAMESPACE, robots, root, echo=echo)
-
-
-OnStack = Callable[[MissionStack], dict[str, str]]
+OnStack = Callable[[KindMissionStack], dict[str, str]]
 """Runs the mission on a started stack; returns each robot's final tree root status."""
-
-
-def _run_on_local(robots: list[str], folder: Path, echo: Echo, on_stack: OnStack) -> dict[str, str]:
-    state_dir = folder / "control-plane"
-    echo(
-        "==> Starting a local control plane: etcd, kube-apiserver, kube-controller-manager,"
-        " kube-scheduler, kwok"
-    )
-    try:
-        state = controlplane.start(state_dir, progress=lambda line: echo(f"    {line}"))
-        cluster = Cluster(
-            state.kubeconfig, state.layout.bin_dir, is_local=True, state_dir=state.layout.state_dir
-        )
-        with _stack(cluster, robots, folder / "mission", echo) as stack:
-            _kubectl(cluster, echo, "get", "nodes", "-L", "coral.dev/robot")
-            roots = on_stack(stack)
-            echo("==> Stopping the robots and the operator")
-        cluster.close()
-    finally:
-        stopped = controlplane.stop(state_dir)
-        echo(f"==> Stopped {len(stopped)} control-plane processes")
-    return roots
 
 
 def _run_on_kind(
     robots: list[str], folder: Path, echo: Echo, on_stack: OnStack, mission: str
 ) -> dict[str, str]:
-    from coral_testbed.kind import missions as kind_missions
-
     echo(f"==> A kind cluster: a control plane; robots {', '.join(robots)} and {OPERATOR_NODE} as workers")
     share = folder / "site-share"
     share.mkdir()
@@ -290,7 +245,7 @@ def _run_on_kind(
         cluster,
     ):
         _kubectl(cluster, echo, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot")
-        with kind_missions.KindMissionStack(
+        with KindMissionStack(
             running, cluster, NAMESPACE, robots, folder / "mission", echo, share
         ) as stack:
             roots = on_stack(stack)
@@ -306,7 +261,7 @@ def _check_kind() -> None:
         raise DemoUnsupported(f"the demo runs on a kind cluster, which this machine cannot host: {missing}")
 
 
-RunMission = Callable[[MissionStack, Path, int, float, Echo, Path], dict[str, str]]
+RunMission = Callable[[KindMissionStack, Path, int, float, Echo, Path], dict[str, str]]
 """Runs a mission on a started stack (dataset, ROS domain, timeout, echo, where outputs are kept)."""
 MISSIONS: dict[str, tuple[list[str], RunMission]] = {
     "slam": ([manifests.SLAM_ROBOT], _slam),
@@ -322,19 +277,13 @@ def run(
     echo: Echo = print,
     tree_png: Path | None = None,
     output_dir: Path = DEFAULT_OUTPUT,
-    on_kind: bool = False,
 ) -> Outcome:
     """Runs `mission` (a key of `MISSIONS`) from start to stop; see the module docstring.
 
-    `on_kind` runs it on a throwaway kind cluster (docs/kind.md) instead of the local control plane.
-
     Raises:
-        DemoUnsupported: this machine cannot host real robots (checked before anything starts).
+        DemoUnsupported: this machine cannot host a kind cluster (checked before anything starts).
     """
-    if on_kind:
-        _check_kind()
-    else:
-        _check_machine()
+    _check_kind()
     began = time.monotonic()
     params = generating.BagParams(scans=scans)
     echo(f"==> Synthetic LiDAR bag: {params.scans} scans (generated once, then cached)")
@@ -345,7 +294,7 @@ def run(
     roots: dict[str, str] = {}
     domain, lock = domains.claim_domain()
 
-    def on_stack(stack: MissionStack) -> dict[str, str]:
+    def on_stack(stack: KindMissionStack) -> dict[str, str]:
         roots = run_mission(stack, dataset, domain, timeout, echo, output_dir.resolve())
         if tree_png is not None:
             draw_trees(stack, robots, tree_png.resolve(), echo)
@@ -353,10 +302,7 @@ def run(
 
     try:
         with tempfile.TemporaryDirectory(prefix="coral-demo-") as folder:
-            if on_kind:
-                roots = _run_on_kind(robots, Path(folder), echo, on_stack, mission)
-            else:
-                roots = _run_on_local(robots, Path(folder), echo, on_stack)
+            roots = _run_on_kind(robots, Path(folder), echo, on_stack, mission)
     finally:
         os.close(lock)
     outcome = Outcome(roots=roots, duration_s=time.monotonic() - began)

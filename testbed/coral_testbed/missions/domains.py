@@ -1,8 +1,8 @@
 """A ROS domain no other process on this machine uses: for the demo's robots, each test, a benchmark.
 
-Real robots reach the host through their bridge, so a ROS process on the host on the same domain
-(a `coral run` on the default domain 0, say) would hear and talk to them. Domains are
-claimed with an exclusive file lock in one folder, so the demo, the tests (the `ros_env` fixture),
+Robots' pods reach the host through the cluster's network bridge, so a ROS process on the host on
+the same domain (a `coral run` on the default domain 0, say) would hear and talk to them. Domains
+are claimed with an exclusive file lock in one folder, so the demo, the tests (the `ros_env` fixture),
 the benchmarks and parallel runs on the same machine never share one. The lock lasts while the
 returned fd is open.
 """

@@ -5,15 +5,13 @@ These start control planes of their own (not the session's), in temporary folder
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from coral_testbed.cluster import binaries, controlplane, processes, realrobots
-from coral_testbed.cluster.client import parse_table
+from coral_testbed.cluster import binaries, controlplane, processes
 
 pytestmark = [pytest.mark.cluster, pytest.mark.slow]
 
@@ -111,44 +109,6 @@ def test_up_robots_status_and_down_leave_no_process_behind(tmp_path: Path) -> No
     assert not [p.name for p in recorded.processes if processes.is_alive(p)]
     assert _processes_mentioning(str(state_dir.resolve())) == []
     assert _coral("status", "--dir", str(state_dir)).returncode == 1
-
-
-def test_real_and_kwok_robots_side_by_side_and_down_leaves_nothing(tmp_path: Path) -> None:
-    reason = realrobots.unsupported_reason(binaries.optional_bin_dir(("kubelet",)))
-    if reason:
-        pytest.skip(reason)
-    state_dir = tmp_path / "dev"
-    up = _coral(
-        "up", "--dir", str(state_dir), "--robots", "1", "--kwok-robots", "1", "--label", "coral.dev/model=tb4"
-    )
-    robots_state = (
-        json.loads((state_dir / "robots" / "robots.json").read_text()) if up.returncode == 0 else {}
-    )
-    try:
-        assert up.returncode == 0, up.stderr
-        kubeconfig = Path(up.stdout.strip())
-        wide = _kubectl(kubeconfig, "get", "nodes", "-o", "wide", "-L", "coral.dev/robot,coral.dev/model")
-        rows = parse_table(wide)
-        assert set(rows) == {"robot-1", "kwok-robot-1"}, wide
-        assert rows["robot-1"]["VERSION"] == binaries.KUBE_VERSION
-        assert rows["robot-1"]["CONTAINER-RUNTIME"].startswith("containerd://"), wide
-        assert rows["kwok-robot-1"]["CONTAINER-RUNTIME"] != rows["robot-1"]["CONTAINER-RUNTIME"]
-        for row in rows.values():
-            assert row["STATUS"] == "Ready" and row["MODEL"] == "tb4", wide
-
-        status = _coral("status", "--dir", str(state_dir))
-        assert status.returncode == 0, status.stdout
-        rows = _status_rows(status.stdout)
-        assert {"robot-1/uplink", "robot-1/containerd", "robot-1/kubelet"} <= {row[0] for row in rows}
-        assert {row[2] for row in rows} == {"healthy"}, status.stdout
-        assert _coral("robots", "cut", "robot-1", "--dir", str(state_dir)).returncode == 0
-        assert _coral("robots", "restore", "robot-1", "--dir", str(state_dir)).returncode == 0
-    finally:
-        down = _coral("down", "--dir", str(state_dir))
-    assert down.returncode == 0, down.stderr
-    assert "Removing real robot robot-1" in down.stderr
-    assert realrobots.leftovers(state_dir, robots_state.get("slot")) == []
-    assert _processes_mentioning(str(state_dir.resolve())) == []
 
 
 def test_demo_shows_a_pod_running_on_a_robot_and_stops_everything() -> None:

@@ -1,4 +1,4 @@
-"""`coral demo --mission site --cluster kind`: the mixed fleet of examples/site on its own kind cluster.
+"""`coral demo --mission site`: the mixed fleet of examples/site on its own kind cluster.
 
 Four robots of different models run one CoralSystem; its overrides give each model its components
 and tree. The demo labels the robots' Nodes, applies the example, follows every robot's tree to
@@ -31,7 +31,7 @@ def test_the_site_demo_ends_in_success_on_four_robots_of_their_own_models(tmp_pa
         lines.append(line)
         print(line, flush=True)
 
-    outcome = demo.run("site", 40, timeout=600, echo=echo, tree_png=tmp_path / "site.png", on_kind=True)
+    outcome = demo.run("site", 40, timeout=600, echo=echo, tree_png=tmp_path / "site.png")
     output = "\n".join(lines)
     assert outcome.roots == dict.fromkeys(manifests.SITE_ROBOTS, "SUCCESS"), output
     assert lines[-1].startswith("==> Demo finished in ") and lines[-1].endswith(": SUCCESS"), output

@@ -1,6 +1,6 @@
 """The `scenario` fixture: what most operator tests start from, as one fixture instead of six.
 
-Tests that need something else (the chart, real robots, one operator for many namespaces) keep
+Tests that need something else (the chart, one operator for many namespaces) keep
 asking for the single fixtures of tests/fixtures/operator.py.
 """
 

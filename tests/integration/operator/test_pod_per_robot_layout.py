@@ -3,7 +3,7 @@ default layout, and a namespace enforcing Pod Security `baseline` accepts it.
 
 kwok marks pods and their containers Running and Ready without running anything, so these tests
 carry the operator's side (the pod it builds, how it reads the pod back, the status); the kubelet's
-side (start order, probes, a crashing container) is in tests/integration/missions on real robots.
+side (start order, probes, a crashing container) is in tests/integration/kind, on kind robots.
 """
 
 from __future__ import annotations
