@@ -9,14 +9,11 @@ from __future__ import annotations
 
 from typing import Any
 
-import pytest
 from coral_testbed.images import catalog
 from coral_testbed.missions import following
 from kubernetes import client as k8s
 
 GROUP, VERSION = "coral.dev", "v1alpha1"
-REAL_ROBOT_MARKS = [pytest.mark.cluster, pytest.mark.slow, pytest.mark.ros, pytest.mark.real_robots]
-"""The markers of a test module that runs systems on real robots (add its own timeout)."""
 SKILLSET = "examples"
 
 

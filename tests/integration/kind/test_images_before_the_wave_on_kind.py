@@ -1,18 +1,19 @@
-"""Images before the wave (`spec.rollout.prePull`) on the session's two real robots, with a slowed registry.
+"""Images before the wave (`spec.rollout.prePull`) on two kind robots, with a slowed registry.
 
-Revision 1 runs the example skillset and the executor from the session's registry. Revision 2 names
-the same images at a port of each robot's loopback: on the first robot that port leads, through a
-proxy of this test that sends at most `RATE` bytes a second, to the registry; on the second nothing
-listens there (its containerd's connection is refused). With `prePull: BeforeRollout`, no component
-pod of revision 2 may exist anywhere while the first robot still pulls; `coral rollout status` shows
-the pull; once the first robot has its images and the second failed, the first moves and the second
-stays on revision 1 with the kubelet's message on its CoralInstance.
+Revision 1 runs the example skillset and the executor from the cluster's registry under their usual
+names. Revision 2 names the same images at the registry's own address (the network's gateway, which
+every robot's containerd knows as plain HTTP): names no robot has, so both pull. Inside the first
+robot's network namespace its connections to that address are diverted to a proxy of this test on
+the gateway, which sends at most `RATE` bytes a second from the registry; inside the second's they
+are refused. With `prePull: BeforeRollout`, no component pod of revision 2 may exist anywhere while
+the first robot still pulls; `coral rollout status` shows the pull; once the first robot has its
+images and the second failed, the first moves and the second stays on revision 1 with the
+kubelet's message on its CoralInstance.
 """
 
 from __future__ import annotations
 
 import contextlib
-import shutil
 import socket
 import subprocess
 import sys
@@ -22,17 +23,19 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from coral_testbed.cluster import Cluster, realrobots, uplink
+from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
-from fixtures.operator import OperatorProcess
-from fixtures.robots import REAL_ROBOT_MARKS, REAL_ROBOTS
 from kubernetes import client as k8s
+from missions import realsystems as rs
 
-from . import realsystems as rs
+from . import pullfailures
+from .fleet import on_robot
 
-pytestmark = [*REAL_ROBOT_MARKS, pytest.mark.timeout(480)]
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(600)]
 
 SYSTEM = "prepulled"
+SLOWED, REFUSED = "relay-survey", "relay-server"
+"""The robot that pulls through the slowed proxy, and the one whose registry refuses it."""
 RATE = 512
 """Bytes a second the slowed registry sends on each connection: a manifest takes seconds."""
 PROXY_LIFETIME_S = 300.0
@@ -45,6 +48,7 @@ def _throttled(source: socket.socket, sink: socket.socket, rate: int, until: flo
     try:
         while time.monotonic() < until and (data := source.recv(rate // 4 or 1)):
             sink.sendall(data)
+            # The pace of the slowed link itself, not a wait for another party.
             time.sleep(len(data) / rate)
     except OSError:
         pass
@@ -55,10 +59,12 @@ def _throttled(source: socket.socket, sink: socket.socket, rate: int, until: flo
 
 
 @contextlib.contextmanager
-def slowed_registry(registry_port: int, rate: int) -> Iterator[int]:
-    """A port of 127.0.0.1 that forwards to the registry, its answers at `rate` bytes a second."""
+def slowed_registry(registry_address: str, rate: int) -> Iterator[int]:
+    """A port of the registry's host (the cluster network's gateway) that forwards to the registry,
+    its answers at `rate` bytes a second."""
+    host, _, port = registry_address.rpartition(":")
     server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    server.bind(("127.0.0.1", 0))
+    server.bind((host, 0))
     server.listen(16)
     until = time.monotonic() + PROXY_LIFETIME_S
 
@@ -66,7 +72,7 @@ def slowed_registry(registry_port: int, rate: int) -> Iterator[int]:
         while True:
             try:
                 client, _ = server.accept()
-                upstream = socket.create_connection(("127.0.0.1", registry_port), timeout=10)
+                upstream = socket.create_connection((host, int(port)), timeout=10)
             except OSError:
                 return
             upstream.settimeout(None)
@@ -82,29 +88,11 @@ def slowed_registry(registry_port: int, rate: int) -> Iterator[int]:
         server.close()
 
 
-@pytest.fixture
-def loopback_port(real_robots: realrobots.RealRobots) -> Iterator[int]:
-    """A port free on both robots' loopback, known to both containerds as a plain-HTTP registry."""
-    layouts = [real_robots.layout(robot) for robot in REAL_ROBOTS]
-    probe = uplink.listen_inside(str(layouts[0].link.netns_path), 0)
-    port = probe.getsockname()[1]
-    probe.close()
-    folders = []
-    for layout in layouts:
-        folder = layout.registry_hosts_dir / f"127.0.0.1:{port}"
-        folder.mkdir(parents=True)
-        (folder / "hosts.toml").write_text(f'server = "http://127.0.0.1:{port}"\n')
-        folders.append(folder)
-    yield port
-    for folder in folders:
-        shutil.rmtree(folder)
-
-
 def _system(domain: int, rollout: dict[str, Any], registry: str | None = None) -> dict[str, Any]:
-    manifest = rs.system(SYSTEM, REAL_ROBOTS[0], domain, TREE)
+    manifest = rs.system(SYSTEM, SLOWED, domain, TREE)
     spec = manifest["spec"]
     spec["robots"] = {
-        "matchExpressions": [{"key": "coral.dev/robot", "operator": "In", "values": list(REAL_ROBOTS)}]
+        "matchExpressions": [{"key": "coral.dev/robot", "operator": "In", "values": [SLOWED, REFUSED]}]
     }
     spec["rollout"] = rollout
     if registry is not None:
@@ -132,17 +120,28 @@ def _pre_pull_pod(core: k8s.CoreV1Api, namespace: str, robot: str) -> Any:
     return next(iter(core.list_namespaced_pod(namespace, label_selector=selector).items), None)
 
 
+def _system_now(custom: k8s.CustomObjectsApi, namespace: str) -> dict[str, Any]:
+    return custom.get_namespaced_custom_object(rs.GROUP, rs.VERSION, namespace, "coralsystems", SYSTEM)
+
+
+@pytest.fixture
+def renamed_images(kind_operator: KindMissionStack) -> Iterator[str]:
+    """The registry's own address, under which revision 2 names its images; those names are taken
+    off both robots afterwards, so the next test finds them as this one did."""
+    registry = kind_operator.running.registry_address
+    yield registry
+    kind_operator.delete_systems()
+    spec = _system(0, {}, registry)["spec"]
+    for robot in (SLOWED, REFUSED):
+        for component in [*spec["skillsets"], *spec["executors"]]:
+            on_robot(kind_operator.running, robot, "crictl", "rmi", component["image"], check=False)
+
+
 def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
-    cluster: Cluster,
-    namespace: str,
-    built_images: dict[str, Any],
-    real_robots: realrobots.RealRobots,
-    coral_operator: OperatorProcess,
-    loopback_port: int,
-    image_registry: str,
-    ros_env: dict[str, str],
+    kind_operator: KindMissionStack, renamed_images: str, ros_env: dict[str, str]
 ) -> None:
-    core, custom = k8s.CoreV1Api(cluster.api_client), k8s.CustomObjectsApi(cluster.api_client)
+    core, custom, namespace = kind_operator.core, kind_operator.custom, kind_operator.namespace
+    running = kind_operator.running
     domain = int(ros_env["ROS_DOMAIN_ID"])
     rollout = {"maxUnavailable": "100%", "prePull": {"when": "BeforeRollout", "deadlineSeconds": 240}}
     rs.create(custom, namespace, _system(domain, rollout))
@@ -158,16 +157,18 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
         message=lambda: f"revision 1 runs on both robots: {_instances(custom, namespace)}",
     )
     old = {robot: item["spec"]["revision"] for robot, item in first.items()}
-    netns = str(real_robots.layout(REAL_ROBOTS[0]).link.netns_path)
-    registry_port = int(image_registry.rpartition(":")[2])
-    with slowed_registry(registry_port, RATE) as slow, uplink.offered_inside(netns, loopback_port, slow):
-        body = custom.get_namespaced_custom_object(rs.GROUP, rs.VERSION, namespace, "coralsystems", SYSTEM)
-        body["spec"] = _system(domain, rollout, f"127.0.0.1:{loopback_port}")["spec"]
+    with (
+        slowed_registry(running.registry_address, RATE) as slow,
+        pullfailures.registry_diverted(running, SLOWED, slow),
+        pullfailures.registry_refused(running, REFUSED),
+    ):
+        body = _system_now(custom, namespace)
+        body["spec"] = _system(domain, rollout, renamed_images)["spec"]
         custom.replace_namespaced_custom_object(rs.GROUP, rs.VERSION, namespace, "coralsystems", SYSTEM, body)
         changed = time.monotonic()
         new = wait_for(
             lambda: (
-                (status := rs_system(custom, namespace).get("status", {}).get("rollout", {}))
+                (status := _system_now(custom, namespace).get("status", {}).get("rollout", {}))
                 and status.get("revision") not in old.values()
                 and status.get("revision")
             ),
@@ -179,8 +180,8 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
         samples = 0
         pull_pod = ""
         while True:
-            pod = _pre_pull_pod(core, namespace, REAL_ROBOTS[0])
-            pull_pod = pod.metadata.name if pod is not None else pull_pod
+            pod = _pre_pull_pod(core, namespace, SLOWED)
+            pull_pod = pod.metadata.uid if pod is not None else pull_pod
             moved = _component_pods_of(core, namespace, new)
             pulled = pod is not None and pod.status.phase in ("Succeeded", "Failed")
             if pulled or (pod is None and moved):
@@ -189,10 +190,12 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
             samples += 1
             if not shown and pod is not None:
                 argv = [sys.executable, "-m", "coral", "rollout", "status", SYSTEM, "-n", namespace]
-                said = subprocess.run(argv, env=cluster.env(), capture_output=True, text=True, timeout=60)
+                env = kind_operator.cluster.env()
+                said = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=60)
                 if "pulling" in said.stdout:
                     shown = said.stdout
             assert time.monotonic() - changed < 240, "the first robot's pull to end"
+            # Sampling pace: every sample checks that nothing moved while the pull runs.
             time.sleep(0.5)
         pull_s = time.monotonic() - changed
         print(f"first robot's images present {pull_s:.1f} s after the change ({samples} samples, none moved)")
@@ -200,30 +203,30 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
         assert f"pre-pull of revision {new}: images on" in shown and "pulling" in shown, shown
         print(shown)
         wait_for(
-            lambda: _instances(custom, namespace)[REAL_ROBOTS[0]]["spec"]["revision"] == new,
+            lambda: _instances(custom, namespace)[SLOWED]["spec"]["revision"] == new,
             timeout=60,
             message="the first robot moves once its images are there",
         )
         wait_for(
             lambda: (
-                rs.tree(_instances(custom, namespace)[REAL_ROBOTS[0]]).get("rootStatus") == "SUCCESS"
-                and _instances(custom, namespace)[REAL_ROBOTS[0]]["status"].get("revision") == new
+                rs.tree(_instances(custom, namespace)[SLOWED]).get("rootStatus") == "SUCCESS"
+                and _instances(custom, namespace)[SLOWED]["status"].get("revision") == new
             ),
             timeout=180,
             interval=1,
             message=lambda: f"revision 2 runs on the first robot: {_instances(custom, namespace)}",
         )
-        second = _instances(custom, namespace)[REAL_ROBOTS[1]]
-        assert second["spec"]["revision"] == old[REAL_ROBOTS[1]], "the robot whose pull failed stays"
+        second = _instances(custom, namespace)[REFUSED]
+        assert second["spec"]["revision"] == old[REFUSED], "the robot whose pull failed stays"
         told = rs.condition(second, "ImagesPrePulled")
         assert told.get("status") == "False" and told.get("reason") == "ImagePullFailed", told
-        assert f"127.0.0.1:{loopback_port}" in told["message"], told
+        assert renamed_images in told["message"], told
         # The kubelet's own record: every image of the first robot was pulled before its first pod
         # of revision 2 was created (both to the second, as the API server stamps them).
         pulled_at = [
             e.last_timestamp or e.event_time
             for e in core.list_namespaced_event(
-                namespace, field_selector=f"involvedObject.name={pull_pod}"
+                namespace, field_selector=f"involvedObject.uid={pull_pod}"
             ).items
             if e.reason == "Pulled"
         ]
@@ -235,16 +238,12 @@ def test_a_rollout_with_pre_pull_moves_no_robot_before_its_images_are_there(
             and p.metadata.labels.get("coral.dev/role") != PREPULL_ROLE
         ]
         assert created and min(created) >= max(pulled_at), (pulled_at, created)
-        node = first[REAL_ROBOTS[0]]["spec"]["nodeName"]
+        node = first[SLOWED]["spec"]["nodeName"]
         elsewhere = [p for p in _component_pods_of(core, namespace, new) if not p.startswith(f"{node}/")]
         assert not elsewhere, f"revision 2 runs only where its images were pulled: {elsewhere}"
-        rollout_status = rs_system(custom, namespace)["status"]["rollout"]
+        rollout_status = _system_now(custom, namespace)["status"]["rollout"]
         pre_pull = rollout_status["prePull"]
-        assert pre_pull["failed"] == 1 and pre_pull["failures"][0]["robot"] == REAL_ROBOTS[1], pre_pull
+        assert pre_pull["failed"] == 1 and pre_pull["failures"][0]["robot"] == REFUSED, pre_pull
         print(f"second robot: {told['message']}")
         print(f"status.rollout.message: {rollout_status['message']}")
     rs.delete(custom, namespace, SYSTEM)
-
-
-def rs_system(custom: k8s.CustomObjectsApi, namespace: str) -> dict[str, Any]:
-    return custom.get_namespaced_custom_object(rs.GROUP, rs.VERSION, namespace, "coralsystems", SYSTEM)
