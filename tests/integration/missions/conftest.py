@@ -24,4 +24,3 @@ def wait_finished(
         logs = "\n".join(f"--- {r} executor:\n{view.log_tail(r, 'executor')}" for r in robots)
         raise AssertionError(f"{error}\n--- operator:\n{operator_log()[-3000:]}\n{logs}") from error
     return {following.robot(i): i for i in items}
-
