@@ -36,8 +36,9 @@ pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(600)]
 SYSTEM = "prepulled"
 SLOWED, REFUSED = "relay-survey", "relay-server"
 """The robot that pulls through the slowed proxy, and the one whose registry refuses it."""
-RATE = 512
-"""Bytes a second the slowed registry sends on each connection: a manifest takes seconds."""
+RATE = 256
+"""Bytes a second the slowed registry sends on each connection: the first robot's pull of the two
+images' manifests and configs takes about 12 s, the time `coral rollout status` has to show it."""
 PROXY_LIFETIME_S = 300.0
 """The proxy stops serving after this long whatever happens (every fault here is bounded)."""
 TREE = rs.mission_tree('<Count count="{count}"/>')
