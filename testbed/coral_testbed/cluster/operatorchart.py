@@ -54,6 +54,8 @@ class Release:
     """Empty: every namespace (the chart's cluster-wide RBAC)."""
     policy: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """Chart `policy.*` values to set, e.g. {"hostNetworkNamespaces": ("robots",)}."""
+    helper_image: str = ""
+    """The chart's `helperImage`; empty: the operator's own image."""
 
     def helm_values(self) -> list[str]:
         repository, tag = operator_image()
@@ -62,6 +64,8 @@ class Release:
             values.append(f"watchNamespaces={{{','.join(self.watch_namespaces)}}}")
         for key, items in sorted(self.policy.items()):
             values.append(f"policy.{key}={{{','.join(items)}}}")
+        if self.helper_image:
+            values.append(f"helperImage={self.helper_image}")
         # Helm reads dots in a --set key as nesting (the label's own are escaped), and "true" as a
         # boolean unless set as a string.
         selector = "nodeSelector." + OPERATOR_NODE_LABEL.replace(".", "\\.") + "=true"

@@ -1,5 +1,5 @@
-"""What the kind tests' missions share: the short bag's length and a bounded wait for every robot's
-tree to end."""
+"""What the mission tests on kind robots share: the short bag's length and a bounded wait for every
+robot's tree to end."""
 
 from __future__ import annotations
 
@@ -24,4 +24,3 @@ def wait_finished(
         logs = "\n".join(f"--- {r} executor:\n{view.log_tail(r, 'executor')}" for r in robots)
         raise AssertionError(f"{error}\n--- operator:\n{operator_log()[-3000:]}\n{logs}") from error
     return {following.robot(i): i for i in items}
-
