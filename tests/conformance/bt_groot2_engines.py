@@ -179,7 +179,9 @@ class EngineHost:
         self.process.start()
         child.close()
 
-    def _call(self, command: str, argument: Any = None, timeout_s: float = 30.0) -> tuple[str, Any]:
+    # Bounds against a hung host, not a speed limit: a host just spawned imports its engine first,
+    # which takes far longer on a machine busy with a kind cluster.
+    def _call(self, command: str, argument: Any = None, timeout_s: float = 90.0) -> tuple[str, Any]:
         self.conn.send((command, argument))
         return self.receive(timeout_s)
 
@@ -201,7 +203,7 @@ class EngineHost:
                 self.next_port = 20000
         return verdict, value
 
-    def tick(self, timeout_s: float = 30.0) -> tuple[str, Any]:
+    def tick(self, timeout_s: float = 90.0) -> tuple[str, Any]:
         return self._call("tick", timeout_s=timeout_s)
 
     def start_tick(self) -> None:
