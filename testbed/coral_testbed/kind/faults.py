@@ -61,19 +61,27 @@ def cut_link(running: clusters.Running, robot: str) -> None:
     )
 
 
-def restore_link(running: clusters.Running, robot: str) -> None:
-    """Reconnects the robot's node at its Node's InternalIP, the address its kubelet serves on."""
-    container = node_of(running, robot)
-    address = _kubectl(
+def robot_address(running: clusters.Running, robot: str) -> str:
+    """The robot's Node's InternalIP: the address its kubelet serves on and the cluster reaches it at
+    (kept while its link is cut)."""
+    done = _kubectl(
         running,
         "get",
         "node",
-        container,
+        node_of(running, robot),
         "-o",
         'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}',
-    ).stdout.strip()
+    )
+    if done.returncode != 0 or not done.stdout.strip():
+        raise FaultError(f"no InternalIP for robot {robot!r}: {done.stderr.strip()}")
+    return done.stdout.strip()
+
+
+def restore_link(running: clusters.Running, robot: str) -> None:
+    """Reconnects the robot's node at its Node's InternalIP, the address its kubelet serves on."""
+    address = robot_address(running, robot)
     running.engine.docker(
-        "network", "connect", f"--ip={address}", clusters.network_name(running.name), container
+        "network", "connect", f"--ip={address}", clusters.network_name(running.name), node_of(running, robot)
     )
 
 

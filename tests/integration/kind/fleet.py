@@ -153,8 +153,9 @@ def scale_operator(missions: KindMissionStack, replicas: int) -> None:
     )
 
 
-def robot_address(running: clusters.Running, robot: str) -> str:
-    """The robot's address on the cluster's network, as Docker gave it to the robot's node."""
+def container_address(running: clusters.Running, robot: str) -> str:
+    """The address Docker gave the robot's node container on the cluster's network: what its Node
+    must report as InternalIP (`faults.robot_address` reads that)."""
     network = clusters.network_name(running.name)
     template = f'{{{{(index .NetworkSettings.Networks "{network}").IPAddress}}}}'
     return running.engine.docker(

@@ -133,9 +133,7 @@ def test_a_robot_whose_link_is_cut_is_isolated_not_ready_and_back_once_restored(
     being Ready; once the link is restored, all three come back."""
     running, cluster = kind_cluster.running, kind_cluster.cluster
     node = faults.node_of(running, "relay-survey")
-    address = cluster.kubectl(
-        "get", "node", node, "-o", 'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}'
-    ).stdout
+    address = faults.robot_address(running, "relay-survey")
     for name, robot in (("server", "relay-survey"), ("prober", "relay-worker")):
         pod = _python_pod(name, robot, SERVE_PING, "Always", host_network=True)
         cluster.kubectl("apply", "-f", "-", input=pod)

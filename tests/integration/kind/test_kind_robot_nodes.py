@@ -15,7 +15,7 @@ from coral_testbed.cluster.client import parse_table
 from coral_testbed.kind import faults
 from kubernetes import client as k8s
 
-from .fleet import ROBOTS, KindCluster, robot_address
+from .fleet import ROBOTS, KindCluster, container_address
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 
@@ -31,7 +31,7 @@ def test_kind_robots_show_the_pinned_kubelet_and_containerd(kind_cluster: KindCl
         row = rows[faults.node_of(running, robot)]
         assert row["STATUS"] == "Ready", wide
         assert row["VERSION"] == binaries.KUBE_VERSION, wide
-        assert row["INTERNAL-IP"] == robot_address(running, robot), wide
+        assert row["INTERNAL-IP"] == container_address(running, robot), wide
         assert row["CONTAINER-RUNTIME"].startswith("containerd://"), wide
         assert row["OS-IMAGE"] != "<unknown>", wide
 
@@ -48,7 +48,7 @@ def test_kind_robots_carry_the_robot_label_contract_and_their_own_address(
         assert node.metadata.labels["coral.dev/robot"] == robot
         assert node.metadata.labels["kubernetes.io/hostname"] == name
         internal = [a.address for a in node.status.addresses if a.type == "InternalIP"]
-        assert internal == [robot_address(running, robot)]
+        assert internal == [container_address(running, robot)]
         addresses.add(internal[0])
         assert node.status.node_info.kubelet_version == binaries.KUBE_VERSION
     assert len(addresses) == len(ROBOTS)

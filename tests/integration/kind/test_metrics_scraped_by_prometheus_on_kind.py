@@ -79,12 +79,6 @@ def _system(domain: int) -> dict[str, Any]:
     return manifest
 
 
-def _address(kind_operator: KindMissionStack, robot: str) -> str:
-    """The robot's InternalIP: its node container's address on the cluster's network."""
-    node = kind_operator.core.read_node(faults.node_of(kind_operator.running, robot))
-    return next(a.address for a in node.status.addresses if a.type == "InternalIP")
-
-
 def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachable_alert(
     kind_cluster: KindCluster,
     kind_operator: KindMissionStack,
@@ -94,7 +88,7 @@ def test_prometheus_sees_reconciles_robots_and_tick_rate_and_fires_the_unreachab
 ) -> None:
     custom, namespace = kind_operator.custom, kind_operator.namespace
     began = time.time()
-    executor = f"{_address(kind_operator, ROBOT)}:{METRICS_PORT}"
+    executor = f"{faults.robot_address(kind_operator.running, ROBOT)}:{METRICS_PORT}"
     prometheus.start(
         {"coral-operator": [operator_metrics], "coral-executor": [executor]},
         alert_for={"CoralRobotsUnreachable": "15s"},

@@ -16,7 +16,7 @@ from coral_testbed.kind import faults
 from coral_testbed.waiting import wait_for
 from kubernetes import client as k8s
 
-from .fleet import KindCluster, crictl, on_robot, robot_address
+from .fleet import KindCluster, container_address, crictl, on_robot
 from .pods import apply_robot_pod, condition, events_for, robot_pod, wait_pod
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
@@ -62,7 +62,7 @@ def test_host_network_pod_shares_a_host_path_with_a_bridged_pod(
     running, cluster, namespace = kind_cluster.running, kind_cluster.cluster, kind_namespace
     robot, other = ROBOTS
     core = k8s.CoreV1Api(cluster.api_client)
-    address = robot_address(running, robot)
+    address = container_address(running, robot)
     folder = f"/var/lib/coral/tests/{namespace}"
     writer = robot_pod(
         "writer",
@@ -191,10 +191,10 @@ def test_host_network_pods_of_two_robots_are_isolated_and_reach_each_other(
     for robot in ROBOTS:
         apply_robot_pod(cluster, namespace, f"web-{robot}", robot, serve, host_network=True)
     for robot in ROBOTS:
-        assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == robot_address(running, robot)
+        assert wait_pod(core, namespace, f"web-{robot}").status.pod_ip == container_address(running, robot)
     first, second = ROBOTS
     for source, target in ((first, second), (second, first)):
-        url = f"http://{robot_address(running, target)}:8766/name"
+        url = f"http://{container_address(running, target)}:8766/name"
         answer = cluster.kubectl(
             "exec", "-n", namespace, f"web-{source}", "--", "timeout", "5", "wget", "-qO-", url
         )
