@@ -74,8 +74,10 @@ test-kind-setup: venv node-runtime control-plane
 test: venv control-plane node-runtime verdict-tools test-images test-kind-setup
 	@echo "==> ruff"
 	@$(VENV)/bin/ruff check .
-	@echo "==> pytest"
-	@$(PY) -m pytest -n 2 --durations=25
+	@echo "==> pytest, in two lanes: the kind folder beside the rest (tests/conftest.py)"
+	@$(PY) -m pytest -n 2 -m "not quiet" --durations=25
+	@echo "==> pytest: the tests that measure speed, on a machine left to them"
+	@$(PY) -m pytest -m quiet
 
 lint: venv
 	@$(VENV)/bin/ruff check .

@@ -5,7 +5,8 @@ share one kind cluster and run one after another on it, and everything else. Eac
 tests in collection order, so package and module fixtures are made once, in one process. The lanes
 share only what is built to be shared between parallel runs: DDS domains claimed by lock,
 registries and control planes on free ports, the project's dockerd (kept running while any kind
-cluster uses it).
+cluster uses it). Tests marked `quiet` measure speed against a reference within a few percent,
+which a busy neighbour lane would swamp: `make test` runs them after the lanes, alone.
 """
 
 from __future__ import annotations

@@ -192,7 +192,10 @@ def _compare_floods(tree: object, publisher: Any, responder_port: int) -> tuple[
     return ratio, server_share, served
 
 
+# Within 10 % on two shared cores: with a kind cluster starting beside it, the load's own swings
+# are larger than that.
 @pytest.mark.slow
+@pytest.mark.quiet
 def test_a_request_flood_costs_the_tick_rate_less_than_ten_percent_and_memory_stays_bounded() -> None:
     """A flooding client and ZeroMQ's traffic take CPU from the tick on two shared cores whoever
     answers them: so the tick rate while the flood hits the publisher in the tree's process is
