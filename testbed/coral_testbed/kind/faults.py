@@ -64,24 +64,24 @@ def cut_link(running: clusters.Running, robot: str) -> None:
 def robot_address(running: clusters.Running, robot: str) -> str:
     """The robot's Node's InternalIP: the address its kubelet serves on and the cluster reaches it at
     (kept while its link is cut)."""
+    return _internal_ip(running, node_of(running, robot))
+
+
+def _internal_ip(running: clusters.Running, node: str) -> str:
     done = _kubectl(
-        running,
-        "get",
-        "node",
-        node_of(running, robot),
-        "-o",
-        'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}',
+        running, "get", "node", node, "-o", 'jsonpath={.status.addresses[?(@.type=="InternalIP")].address}'
     )
     if done.returncode != 0 or not done.stdout.strip():
-        raise FaultError(f"no InternalIP for robot {robot!r}: {done.stderr.strip()}")
+        raise FaultError(f"no InternalIP for node {node!r}: {done.stderr.strip()}")
     return done.stdout.strip()
 
 
 def restore_link(running: clusters.Running, robot: str) -> None:
     """Reconnects the robot's node at its Node's InternalIP, the address its kubelet serves on."""
-    address = robot_address(running, robot)
+    container = node_of(running, robot)
+    address = _internal_ip(running, container)
     running.engine.docker(
-        "network", "connect", f"--ip={address}", clusters.network_name(running.name), node_of(running, robot)
+        "network", "connect", f"--ip={address}", clusters.network_name(running.name), container
     )
 
 
