@@ -185,7 +185,8 @@ def _start_owned(progress: Callable[[str], None]) -> Engine:
 def _serialized() -> Iterator[None]:
     """Held while the project's dockerd is started or stopped: two runs on one machine (a demo beside
     the tests, two checkouts) would otherwise both start one on the same socket, or one would stop
-    it between the other's check and use."""
+    it while the other starts it. It does not cover the seconds between a run's `start` and its
+    first node container: a run stopping the engine then still finds no cluster on it."""
     engine_dir().mkdir(parents=True, exist_ok=True)
     with (engine_dir() / "engine.lock").open("a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
