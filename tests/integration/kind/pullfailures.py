@@ -60,10 +60,8 @@ def _pull_failed(custom: k8s.CustomObjectsApi, namespace: str) -> dict[str, Any]
 
 
 def named_then_recovered(
+    missions: KindMissionStack,
     *,
-    core: k8s.CoreV1Api,
-    custom: k8s.CustomObjectsApi,
-    namespace: str,
     robot: str,
     domain: int,
     image: str,
@@ -75,6 +73,7 @@ def named_then_recovered(
     and `cause`), without being Stalled, and a Warning Event says it; after `cure()` the kubelet's
     back-off pulls the image, the mission succeeds, `ComponentsReady` turns True and a Normal Event
     tells the recovery."""
+    core, custom, namespace = missions.core, missions.custom, missions.namespace
     rs.create(custom, namespace, rs.system(SYSTEM, robot, domain, TREE))
     wait_for(lambda: rs.pods(core, namespace, SYSTEM), timeout=60, message="the first component pod")
     created = time.monotonic()

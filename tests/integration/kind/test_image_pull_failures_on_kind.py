@@ -49,9 +49,7 @@ def test_an_unreachable_registry_for_the_plugin_folder_step_is_named_and_its_rec
     ros_env: dict[str, str],
 ) -> None:
     pullfailures.named_then_recovered(
-        core=kind_operator.core,
-        custom=kind_operator.custom,
-        namespace=kind_operator.namespace,
+        kind_operator,
         robot=pullfailures.ROBOT,
         domain=int(ros_env["ROS_DOMAIN_ID"]),
         image=helper_image,

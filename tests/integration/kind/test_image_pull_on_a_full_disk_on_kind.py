@@ -141,9 +141,7 @@ def test_a_full_disk_during_the_pull_of_the_plugin_folder_step_is_named_and_its_
     ros_env: dict[str, str],
 ) -> None:
     pullfailures.named_then_recovered(
-        core=kind_operator.core,
-        custom=kind_operator.custom,
-        namespace=kind_operator.namespace,
+        kind_operator,
         robot=ROBOT,
         domain=int(ros_env["ROS_DOMAIN_ID"]),
         image=helper_image,
