@@ -137,6 +137,9 @@ def build_config(spec: ClusterSpec) -> str:
     return json.dumps(config, indent=2)
 
 
+_NETWORK_ATTEMPTS = 5
+
+
 def free_subnet(taken: list[str]) -> ipaddress.IPv4Network:
     """The first /24 of 10.89.0.0/16 overlapping none of `taken` (CIDRs in use on the host). Pure."""
     used = [ipaddress.ip_network(cidr, strict=False) for cidr in taken]
@@ -184,17 +187,27 @@ def create_network(node_engine: engine.Engine, name: str) -> ipaddress.IPv4Netwo
     existing = node_engine.docker("network", "inspect", network, check=False)
     if existing.returncode == 0:
         return ipaddress.ip_network(json.loads(existing.stdout)[0]["IPAM"]["Config"][0]["Subnet"])  # type: ignore[return-value]
-    subnet = free_subnet(_host_cidrs(node_engine))
-    node_engine.docker(
-        "network",
-        "create",
-        "--driver=bridge",
-        f"--subnet={subnet}",
-        f"--gateway={subnet[1]}",
-        "--opt=com.docker.network.driver.mtu=1500",
-        network,
-    )
-    return subnet
+    refused: list[str] = []
+    # Two clusters made at once (the tests' two lanes) may both find the same /24 free: the second
+    # `network create` is refused, and the next free one is tried.
+    for _ in range(_NETWORK_ATTEMPTS):
+        subnet = free_subnet(_host_cidrs(node_engine) + refused)
+        made = node_engine.docker(
+            "network",
+            "create",
+            "--driver=bridge",
+            f"--subnet={subnet}",
+            f"--gateway={subnet[1]}",
+            "--opt=com.docker.network.driver.mtu=1500",
+            network,
+            check=False,
+        )
+        if made.returncode == 0:
+            return subnet
+        if "overlaps" not in made.stderr:
+            raise engine.EngineError(f"docker network create {network} failed: {made.stderr.strip()}")
+        refused.append(str(subnet))
+    raise ClusterError(f"docker network create {network}: every subnet tried overlapped another ({refused})")
 
 
 @dataclass(frozen=True)
@@ -252,6 +265,31 @@ def create(
     Raises:
         ClusterError, engine.EngineError: naming the step and the log to read.
     """
+    with engine.kept_running(node_engine, progress):
+        return _create(
+            name,
+            robots,
+            node_engine,
+            node_image,
+            progress,
+            extra_workers,
+            robot_mounts,
+            control_plane_args,
+            apiserver_folders,
+        )
+
+
+def _create(
+    name: str,
+    robots: dict[str, dict[str, str]],
+    node_engine: engine.Engine,
+    node_image: str,
+    progress: Callable[[str], None],
+    extra_workers: dict[str, dict[str, str]] | None,
+    robot_mounts: dict[str, str] | None,
+    control_plane_args: Mapping[str, Sequence[str]] | None,
+    apiserver_folders: Sequence[str],
+) -> Running:
     folder = state_dir(name)
     folder.mkdir(parents=True, exist_ok=True)
     log = folder / "kind.log"

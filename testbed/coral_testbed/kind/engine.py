@@ -185,8 +185,8 @@ def _start_owned(progress: Callable[[str], None]) -> Engine:
 def _serialized() -> Iterator[None]:
     """Held while the project's dockerd is started or stopped: two runs on one machine (a demo beside
     the tests, two checkouts) would otherwise both start one on the same socket, or one would stop
-    it while the other starts it. It does not cover the seconds between a run's `start` and its
-    first node container: a run stopping the engine then still finds no cluster on it."""
+    it while the other starts it. The seconds before a run's first node container exists are
+    covered by `kept_running`."""
     engine_dir().mkdir(parents=True, exist_ok=True)
     with (engine_dir() / "engine.lock").open("a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -199,10 +199,38 @@ def stop() -> bool:
         return _stop_owned()
 
 
+def _users_lock() -> Path:
+    return engine_dir() / "users.lock"
+
+
+@contextlib.contextmanager
+def kept_running(node_engine: Engine, progress: Callable[[str], None]) -> Iterator[None]:
+    """The project's dockerd runs, and `stop_unless` leaves it running, until the block ends.
+
+    For a cluster's creation: until its first node container exists nothing on the engine shows
+    that a run needs it, and another run ending then (the demo's cluster deleted in one lane while
+    the kind folder's is made in the other) would stop it. An engine stopped between the caller's
+    `start` and this block is started again. A user's Docker is left alone."""
+    if not node_engine.owned:
+        yield
+        return
+    engine_dir().mkdir(parents=True, exist_ok=True)
+    # A shared lock per run: any number of runs may hold it; a stop needs it alone.
+    with _users_lock().open("a") as users:
+        with _serialized():
+            _start_owned(progress)
+            fcntl.flock(users, fcntl.LOCK_SH)
+        yield
+
+
 def stop_unless(in_use: Callable[[], bool]) -> bool:
-    """Stops the project's dockerd unless `in_use()`, asked while no other run may start it; True
-    when it was stopped."""
-    with _serialized():
+    """Stops the project's dockerd unless `in_use()` or another run is inside `kept_running`, asked
+    while no other run may start it; True when it was stopped."""
+    with _serialized(), _users_lock().open("a") as users:
+        try:
+            fcntl.flock(users, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
         return False if in_use() else _stop_owned()
 
 
