@@ -265,93 +265,83 @@ def create(
     Raises:
         ClusterError, engine.EngineError: naming the step and the log to read.
     """
+    # Until its first node container exists nothing on the engine shows that this run needs it.
     with engine.kept_running(node_engine, progress):
-        return _create(
+        folder = state_dir(name)
+        folder.mkdir(parents=True, exist_ok=True)
+        log = folder / "kind.log"
+        subnet = create_network(node_engine, name)
+        address = start_registry(name, subnet)
+        progress(
+            f"registry for the cluster's nodes on {address} (the network {network_name(name)}'s gateway)"
+        )
+        spec = ClusterSpec(
             name,
             robots,
-            node_engine,
             node_image,
-            progress,
-            extra_workers,
-            robot_mounts,
-            control_plane_args,
-            apiserver_folders,
+            address,
+            extra_workers or {},
+            robot_mounts or {},
+            control_plane_args or {},
+            tuple(apiserver_folders),
         )
-
-
-def _create(
-    name: str,
-    robots: dict[str, dict[str, str]],
-    node_engine: engine.Engine,
-    node_image: str,
-    progress: Callable[[str], None],
-    extra_workers: dict[str, dict[str, str]] | None,
-    robot_mounts: dict[str, str] | None,
-    control_plane_args: Mapping[str, Sequence[str]] | None,
-    apiserver_folders: Sequence[str],
-) -> Running:
-    folder = state_dir(name)
-    folder.mkdir(parents=True, exist_ok=True)
-    log = folder / "kind.log"
-    subnet = create_network(node_engine, name)
-    address = start_registry(name, subnet)
-    progress(f"registry for the cluster's nodes on {address} (the network {network_name(name)}'s gateway)")
-    spec = ClusterSpec(
-        name,
-        robots,
-        node_image,
-        address,
-        extra_workers or {},
-        robot_mounts or {},
-        control_plane_args or {},
-        tuple(apiserver_folders),
-    )
-    config = folder / "kind-config.json"
-    config.write_text(build_config(spec))
-    kubeconfig = folder / "kubeconfig"
-    workers = len(robots) + len(extra_workers or {})
-    progress(f"kind create cluster --name {name}: a control plane, {workers} workers ({len(robots)} robots)")
-    progress(f"  (log {log})")
-    argv = [
-        str(kind_binary()),
-        "create",
-        "cluster",
-        "--name",
-        name,
-        "--image",
-        node_image,
-        "--config",
-        str(config),
-        "--kubeconfig",
-        str(kubeconfig),
-        "--wait",
-        "5m",
-    ]
-    # kind joins the nodes to the network named here rather than making its own `kind` network.
-    env = {
-        **node_engine.env(),
-        "KIND_EXPERIMENTAL_DOCKER_NETWORK": network_name(name),
-        "KIND_EXPERIMENTAL_PROVIDER": "docker",
-    }
-    with log.open("a") as sink:
-        done = subprocess.run(argv, env=env, stdout=sink, stderr=subprocess.STDOUT)
-    if done.returncode != 0:
-        raise ClusterError(f"kind create cluster failed (exit {done.returncode}); see {log}")
-    _record(name).write_text(json.dumps({"kubeconfig": str(kubeconfig), "registry": address}))
-    # kind's --wait covers the control plane; robots are Ready once their pod network is written.
-    waited = subprocess.run(
-        [binaries.find_kubectl(None), "wait", "--for=condition=Ready", "nodes", "--all", "--timeout=180s"],
-        env={**env, "KUBECONFIG": str(kubeconfig)},
-        capture_output=True,
-        text=True,
-    )
-    if waited.returncode != 0:
-        raise ClusterError(f"the nodes of kind cluster {name} did not become Ready: {waited.stderr.strip()}")
-    running = Running(name, kubeconfig, node_engine, address)
-    if robots:
-        progress("  the offline agent on every robot (deploy/robot/, docs/offline.md)")
-        offlineagent.install(node_engine, robot_nodes(running))
-    return running
+        config = folder / "kind-config.json"
+        config.write_text(build_config(spec))
+        kubeconfig = folder / "kubeconfig"
+        workers = len(robots) + len(extra_workers or {})
+        progress(
+            f"kind create cluster --name {name}: a control plane, {workers} workers ({len(robots)} robots)"
+        )
+        progress(f"  (log {log})")
+        argv = [
+            str(kind_binary()),
+            "create",
+            "cluster",
+            "--name",
+            name,
+            "--image",
+            node_image,
+            "--config",
+            str(config),
+            "--kubeconfig",
+            str(kubeconfig),
+            "--wait",
+            "5m",
+        ]
+        # kind joins the nodes to the network named here rather than making its own `kind` network.
+        env = {
+            **node_engine.env(),
+            "KIND_EXPERIMENTAL_DOCKER_NETWORK": network_name(name),
+            "KIND_EXPERIMENTAL_PROVIDER": "docker",
+        }
+        with log.open("a") as sink:
+            done = subprocess.run(argv, env=env, stdout=sink, stderr=subprocess.STDOUT)
+        if done.returncode != 0:
+            raise ClusterError(f"kind create cluster failed (exit {done.returncode}); see {log}")
+        _record(name).write_text(json.dumps({"kubeconfig": str(kubeconfig), "registry": address}))
+        # kind's --wait covers the control plane; robots are Ready once their pod network is written.
+        waited = subprocess.run(
+            [
+                binaries.find_kubectl(None),
+                "wait",
+                "--for=condition=Ready",
+                "nodes",
+                "--all",
+                "--timeout=180s",
+            ],
+            env={**env, "KUBECONFIG": str(kubeconfig)},
+            capture_output=True,
+            text=True,
+        )
+        if waited.returncode != 0:
+            raise ClusterError(
+                f"the nodes of kind cluster {name} did not become Ready: {waited.stderr.strip()}"
+            )
+        running = Running(name, kubeconfig, node_engine, address)
+        if robots:
+            progress("  the offline agent on every robot (deploy/robot/, docs/offline.md)")
+            offlineagent.install(node_engine, robot_nodes(running))
+        return running
 
 
 def robot_nodes(running: Running) -> list[str]:
