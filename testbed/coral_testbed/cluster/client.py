@@ -133,7 +133,7 @@ class Cluster:
     def set_robot_reachable(self, name: str, reachable: bool) -> None:
         """Takes a robot off the network (its lease lapses, Ready becomes Unknown) or back, and waits.
 
-        Going offline takes the controller manager's node-monitor grace period (30 s on the local
-        control plane, 50 s by default elsewhere).
+        Going offline takes the controller manager's node-monitor grace period (30 s on a developer's
+        local control plane, 12 s on a test session's, 50 s by default elsewhere).
         """
         robots.apply_robot_reachable(self.api_client, name, reachable)

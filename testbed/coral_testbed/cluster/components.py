@@ -29,6 +29,34 @@ KWOK_OFFLINE = "offline"
 
 
 @dataclass(frozen=True)
+class Heartbeats:
+    """How robots heartbeat and how soon a silent one is declared unreachable (Ready=Unknown).
+
+    kwok renews a robot's Lease every quarter of `lease_s`, as a kubelet does; the node-lifecycle
+    controller checks every `monitor_period_s` for Leases unrenewed for `grace_s`. An offline robot
+    so turns Unknown between `grace_s - lease_s / 4` and `grace_s + monitor_period_s` after it went.
+    It is tainted unreachable (NoExecute) at once, unless another robot was tainted less than
+    `1 / taints_per_s` seconds before: the controller's guard against evicting a whole fleet at once.
+    """
+
+    lease_s: int = 40
+    grace_s: int = 30
+    monitor_period_s: int = 5
+    taints_per_s: float = 0.1
+
+
+DEV_HEARTBEATS = Heartbeats()
+"""A developer's cluster: a kubelet's 40 s Lease (renewed every 10 s), offline robots noticed in
+about 30 s."""
+
+TEST_HEARTBEATS = Heartbeats(lease_s=12, grace_s=12, monitor_period_s=1, taints_per_s=1.0)
+"""A test session's cluster: renewals every 3 s, four per grace period (one more than a developer's
+cluster allows), so a robot is not lost to a busy moment, while tests that take one offline wait
+about 12 s instead of 30, and up to 1 s more, not 10, when the robot of the test before was just
+tainted. What the tests check does not depend on these lengths."""
+
+
+@dataclass(frozen=True)
 class Ports:
     etcd_client: int
     etcd_peer: int
@@ -147,7 +175,7 @@ rules:
 from `Layout.audit_log` instead of inferring it from its logs."""
 
 
-def build_controller_manager(layout: Layout) -> list[str]:
+def build_controller_manager(layout: Layout, heartbeats: Heartbeats = DEV_HEARTBEATS) -> list[str]:
     pki = layout.pki
     return [
         str(layout.bin_dir / "kube-controller-manager"),
@@ -157,9 +185,10 @@ def build_controller_manager(layout: Layout) -> list[str]:
         f"--cert-dir={layout.state_dir / 'controller-manager-certs'}",
         "--controllers=*",
         "--leader-elect=false",
-        # An offline robot (lease unrenewed) turns Ready=Unknown after this; kwok renews every 10 s,
-        # so 30 s leaves two missed renewals of slack while keeping offline tests short.
-        "--node-monitor-grace-period=30s",
+        # An offline robot (Lease unrenewed) turns Ready=Unknown after the grace period.
+        f"--node-monitor-grace-period={heartbeats.grace_s}s",
+        f"--node-monitor-period={heartbeats.monitor_period_s}s",
+        f"--node-eviction-rate={heartbeats.taints_per_s}",
         # Each controller acts as its own ServiceAccount, as in production clusters.
         "--use-service-account-credentials=true",
         f"--service-account-private-key-file={pki.sa_key}",
@@ -185,7 +214,12 @@ def build_scheduler(layout: Layout) -> list[str]:
     ]
 
 
-def build_kwok(layout: Layout, kubeconfig: Path | None = None, extra: Sequence[str] = ()) -> list[str]:
+def build_kwok(
+    layout: Layout,
+    kubeconfig: Path | None = None,
+    extra: Sequence[str] = (),
+    heartbeats: Heartbeats = DEV_HEARTBEATS,
+) -> list[str]:
     """kwok as the controller of robot Nodes; `kubeconfig` points it at another cluster if given,
     `extra` flags follow (a benchmark's `--config` of more workers, say)."""
     return [
@@ -194,7 +228,7 @@ def build_kwok(layout: Layout, kubeconfig: Path | None = None, extra: Sequence[s
         f"--kubeconfig={kubeconfig or layout.admin_kubeconfig}",
         "--manage-all-nodes=false",
         f"--manage-nodes-with-label-selector={KWOK_LABEL}={KWOK_ONLINE}",
-        "--node-lease-duration-seconds=40",
+        f"--node-lease-duration-seconds={heartbeats.lease_s}",
         f"--server-address=127.0.0.1:{layout.ports.kwok}",
         "--node-ip=127.0.0.1",
         f"--node-port={layout.ports.kwok}",

@@ -163,6 +163,7 @@ def start(
     die_with_parent: bool = False,
     timeout: float = 180.0,
     extra_args: Mapping[str, Sequence[str]] | None = None,
+    heartbeats: components.Heartbeats = components.DEV_HEARTBEATS,
 ) -> State:
     """Starts every component and returns once the API is ready and the controllers work.
 
@@ -174,6 +175,7 @@ def start(
         timeout: seconds allowed per component (generous: busy 2-core machines are slow).
         extra_args: more flags per component name (e.g. {"kube-controller-manager": ["--kube-api-qps=100"]}),
             for benchmarks that need a differently tuned control plane.
+        heartbeats: how often robots renew their Leases and how soon a silent one turns Unknown.
 
     Raises:
         AlreadyRunning: the folder's control plane is still running.
@@ -197,7 +199,9 @@ def start(
         before_sleep=lambda _state: progress("A port was taken meanwhile; starting again on other ports"),
         reraise=True,
     )
-    state = retrying(_start_once, state_dir, bin_dir, progress, die_with_parent, timeout, extra_args or {})
+    state = retrying(
+        _start_once, state_dir, bin_dir, progress, die_with_parent, timeout, extra_args or {}, heartbeats
+    )
     progress(f"Control plane ready in {time.monotonic() - began:.1f} s; kubeconfig: {state.kubeconfig}")
     return state
 
@@ -212,6 +216,7 @@ def _start_once(
     die_with_parent: bool,
     timeout: float,
     extra_args: Mapping[str, Sequence[str]],
+    heartbeats: components.Heartbeats,
 ) -> State:
     progress(f"Preparing certificates and kubeconfigs in {state_dir}")
     layout = _prepare(state_dir, bin_dir)
@@ -233,9 +238,9 @@ def _start_once(
         _await(state, apiserver, lambda: health.apiserver_ready(ports.apiserver, *admin), timeout)
 
         progress("Starting kube-controller-manager, kube-scheduler and kwok")
-        manager = launch("kube-controller-manager", components.build_controller_manager(layout))
+        manager = launch("kube-controller-manager", components.build_controller_manager(layout, heartbeats))
         scheduler = launch("kube-scheduler", components.build_scheduler(layout))
-        kwok = launch("kwok", components.build_kwok(layout))
+        kwok = launch("kwok", components.build_kwok(layout, heartbeats=heartbeats))
         _await(state, manager, lambda: health.component_healthy(ports.controller_manager), timeout)
         _await(state, scheduler, lambda: health.component_healthy(ports.scheduler), timeout)
         _await(state, kwok, lambda: health.kwok_healthy(ports.kwok), timeout)
