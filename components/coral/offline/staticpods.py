@@ -20,6 +20,8 @@ EXECUTOR_MODULE = ["python", "-m", "coral.executor"]
 DROPPED_LABELS = (names.LABEL_MANAGED_BY, names.LABEL_INSTANCE)
 DROPPED_SPEC = ("nodeName", "serviceAccountName", "serviceAccount", "schedulerName", "priority")
 RUN_VOLUME = "offline-run"
+HOLDER_SCRIPT = "trap 'exit 0' TERM; flock \"$0\" sleep infinity & wait"
+"""Holds the lock file given as `$0` until SIGTERM."""
 
 
 @dataclass(frozen=True)
@@ -81,7 +83,10 @@ def _holder(lock: str, image: str) -> dict[str, Any]:
         # A native sidecar: started first, stopped last, so the lock is free only once the
         # component's containers are gone.
         "restartPolicy": "Always",
-        "command": ["flock", path, "sleep", "infinity"],
+        # The shell is the container's first process, which the kernel spares signals it does not
+        # catch: a bare `flock` would sit out the kubelet's grace period (30 s) at every hand-over.
+        # On SIGTERM the shell exits, and with it every process of the container, lock and all.
+        "command": ["sh", "-c", HOLDER_SCRIPT, path],
         # Started once the lock is taken (another process cannot take it then).
         "startupProbe": {
             "exec": {"command": ["sh", "-c", f"! flock -n {path} true"]},
