@@ -53,10 +53,16 @@ def _run_dir() -> Path:
 
 
 def _runtime_wrapper() -> Path:
+    """The wrapper as the engine runs it: a copy in the engine's own folder, since one dockerd
+    serves every checkout on the machine and must not depend on the one that started it."""
     for folder in Path(__file__).resolve().parents:
         candidate = folder / "hack" / _RUNTIME_WRAPPER
         if candidate.is_file():
-            return candidate
+            installed = _run_dir() / _RUNTIME_WRAPPER
+            staged = installed.with_suffix(".new")
+            shutil.copy2(candidate, staged)
+            staged.replace(installed)
+            return installed
     raise EngineError(f"hack/{_RUNTIME_WRAPPER} is not next to this installation (install with `make venv`)")
 
 
