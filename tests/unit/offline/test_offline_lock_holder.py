@@ -4,14 +4,14 @@ the kubelet stops the copy rather than after its grace period (30 s by default).
 
 from __future__ import annotations
 
-import fcntl
-import shutil
 import signal
 import subprocess
 from pathlib import Path
 
 import pytest
+from coral.offline.agent import lock_held
 from coral.offline.staticpods import static_copy
+from coral_testbed import pidns
 from coral_testbed.waiting import wait_for
 from offline_pods import CONFIG_MAPS, robot_pods, system
 
@@ -19,30 +19,7 @@ from offline_pods import CONFIG_MAPS, robot_pods, system
 FREED_WITHIN_S = 5.0
 
 
-def _can_make_a_pid_namespace() -> bool:
-    unshare = shutil.which("unshare")
-    return unshare is not None and subprocess.run([unshare, "--pid", "--fork", "true"]).returncode == 0
-
-
-def _held(lock: Path) -> bool:
-    with lock.open("a") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            return True
-        fcntl.flock(handle, fcntl.LOCK_UN)
-        return False
-
-
-def _first_process_of(parent: int) -> int | None:
-    try:
-        children = Path(f"/proc/{parent}/task/{parent}/children").read_text().split()
-    except OSError:
-        return None
-    return int(children[0]) if children else None
-
-
-@pytest.mark.skipif(not _can_make_a_pid_namespace(), reason="needs unshare and a new PID namespace")
+@pytest.mark.skipif(not pidns.can_make_one(), reason="needs unshare and a new PID namespace")
 def test_the_holder_keeps_the_lock_and_frees_it_at_once_on_sigterm(tmp_path: Path) -> None:
     (pod, *_) = robot_pods(system(offline={"mode": "LastRevision"}))
     copy = static_copy(pod, config_maps=CONFIG_MAPS, files_dir="/f", run_dir="/r")
@@ -51,16 +28,16 @@ def test_the_holder_keeps_the_lock_and_frees_it_at_once_on_sigterm(tmp_path: Pat
     lock.touch()
     # The holder's own command, its lock path pointed at this test's file.
     command = [*holder["command"][:-1], str(lock)]
-    launcher = subprocess.Popen(["unshare", "--pid", "--fork", "--kill-child", *command])
+    launcher = pidns.first_process(command)
     try:
         first = wait_for(
-            lambda: _first_process_of(launcher.pid), timeout=30, interval=0.01, message="its process"
+            lambda: pidns.first_process_of(launcher), timeout=30, interval=0.01, message="its process"
         )
-        wait_for(lambda: _held(lock), timeout=30, interval=0.05, message="the holder to take the lock")
+        wait_for(lambda: lock_held(lock), timeout=30, interval=0.05, message="the holder to take the lock")
         # Its handler is set before the lock is taken (the script's first statement).
         subprocess.run(["kill", "-TERM", str(first)], check=True)
         wait_for(
-            lambda: not _held(lock),
+            lambda: not lock_held(lock),
             timeout=FREED_WITHIN_S,
             interval=0.05,
             message="the lock to be free after SIGTERM",

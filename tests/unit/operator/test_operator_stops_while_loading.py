@@ -9,23 +9,14 @@ the next operator of the chart's `Recreate` waiting behind it.
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from coral_testbed import pidns
 from coral_testbed.waiting import wait_for
-
-
-def _first_process_of(parent: int) -> int | None:
-    """The child `unshare --fork` started: PID 1 of its new namespace, seen by its host PID."""
-    try:
-        children = Path(f"/proc/{parent}/task/{parent}/children").read_text().split()
-    except OSError:
-        return None
-    return int(children[0]) if children else None
 
 
 def _catches_sigterm(pid: int) -> bool:
@@ -36,19 +27,12 @@ def _catches_sigterm(pid: int) -> bool:
     return False
 
 
-def _can_make_a_pid_namespace() -> bool:
-    unshare = shutil.which("unshare")
-    if unshare is None:
-        return False
-    return subprocess.run([unshare, "--pid", "--fork", "true"], capture_output=True).returncode == 0
-
-
-@pytest.mark.skipif(not _can_make_a_pid_namespace(), reason="needs unshare and a new PID namespace")
+@pytest.mark.skipif(not pidns.can_make_one(), reason="needs unshare and a new PID namespace")
 def test_sigterm_while_the_operator_loads_ends_it_at_once(tmp_path: Path) -> None:
     env = {**os.environ, "KUBECONFIG": str(tmp_path / "no-cluster"), "PYTHONDONTWRITEBYTECODE": "1"}
     env.pop("KUBERNETES_SERVICE_HOST", None)
-    launcher = subprocess.Popen(
-        ["unshare", "--pid", "--fork", "--kill-child", sys.executable, "-m", "coral_operator"],
+    launcher = pidns.first_process(
+        [sys.executable, "-m", "coral_operator"],
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -56,7 +40,7 @@ def test_sigterm_while_the_operator_loads_ends_it_at_once(tmp_path: Path) -> Non
     )
     try:
         operator = wait_for(
-            lambda: _first_process_of(launcher.pid),
+            lambda: pidns.first_process_of(launcher),
             timeout=30,
             interval=0.01,
             message="the operator's process",
