@@ -44,6 +44,15 @@ class Heartbeats:
     monitor_period_s: int = 5
     taints_per_s: float = 0.1
 
+    def controller_manager_flags(self) -> list[str]:
+        """The node-lifecycle controller's flags: a robot whose Lease went unrenewed for the grace
+        period turns Ready=Unknown."""
+        return [
+            f"--node-monitor-grace-period={self.grace_s}s",
+            f"--node-monitor-period={self.monitor_period_s}s",
+            f"--node-eviction-rate={self.taints_per_s}",
+        ]
+
 
 DEV_HEARTBEATS = Heartbeats()
 """A developer's cluster: a kubelet's 40 s Lease (renewed every 10 s), offline robots noticed in
@@ -185,10 +194,7 @@ def build_controller_manager(layout: Layout, heartbeats: Heartbeats = DEV_HEARTB
         f"--cert-dir={layout.state_dir / 'controller-manager-certs'}",
         "--controllers=*",
         "--leader-elect=false",
-        # An offline robot (Lease unrenewed) turns Ready=Unknown after the grace period.
-        f"--node-monitor-grace-period={heartbeats.grace_s}s",
-        f"--node-monitor-period={heartbeats.monitor_period_s}s",
-        f"--node-eviction-rate={heartbeats.taints_per_s}",
+        *heartbeats.controller_manager_flags(),
         # Each controller acts as its own ServiceAccount, as in production clusters.
         "--use-service-account-credentials=true",
         f"--service-account-private-key-file={pki.sa_key}",

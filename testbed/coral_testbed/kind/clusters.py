@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from coral_testbed import images
-from coral_testbed.cluster import binaries, controlplane
+from coral_testbed.cluster import binaries, components, controlplane
 from coral_testbed.images import registry
 from coral_testbed.kind import engine, offlineagent
 
@@ -74,12 +74,35 @@ class ClusterSpec:
     """More flags per control-plane component (`kube-apiserver`: ["--audit-log-path=..."], ...)."""
     apiserver_folders: tuple[str, ...] = ()
     """Host folders the API server sees at the same path (its audit policy and log, say)."""
+    heartbeats: components.Heartbeats | None = None
+    """The robots' Lease length and how soon a silent one turns Unknown; None leaves kind's."""
+
+
+def _control_plane_args(spec: ClusterSpec) -> dict[str, list[str]]:
+    """`spec`'s control-plane flags with those of its heartbeats. Pure."""
+    args = {component: list(flags) for component, flags in spec.control_plane_args.items()}
+    if spec.heartbeats:
+        manager = args.setdefault("kube-controller-manager", [])
+        manager += spec.heartbeats.controller_manager_flags()
+    return args
 
 
 def _kubeadm_patches(spec: ClusterSpec) -> list[dict[str, str]]:
-    """JSON 6902 patches of kubeadm's ClusterConfiguration adding `spec`'s flags and folders. Pure."""
+    """JSON 6902 patches of kubeadm's ClusterConfiguration adding `spec`'s flags and folders, and of
+    the KubeletConfiguration every node's kubelet reads its Lease length from. Pure."""
+    patches: list[dict[str, str]] = []
+    if spec.heartbeats:
+        lease = [{"op": "add", "path": "/nodeLeaseDurationSeconds", "value": spec.heartbeats.lease_s}]
+        patches.append(
+            {
+                "group": "kubelet.config.k8s.io",
+                "version": "v1beta1",
+                "kind": "KubeletConfiguration",
+                "patch": json.dumps(lease),
+            }
+        )
     ops: list[dict[str, object]] = []
-    for component, flags in sorted(spec.control_plane_args.items()):
+    for component, flags in sorted(_control_plane_args(spec).items()):
         section = _KUBEADM_FIELDS[component]
         # v1beta3's extraArgs is a map of flag name to value.
         args = {name: value for name, _, value in (f.removeprefix("--").partition("=") for f in flags)}
@@ -93,16 +116,16 @@ def _kubeadm_patches(spec: ClusterSpec) -> list[dict[str, str]]:
             for i, folder in enumerate(spec.apiserver_folders)
         ]
         ops.append({"op": "add", "path": "/apiServer/extraVolumes", "value": volumes})
-    if not ops:
-        return []
-    return [
-        {
-            "group": "kubeadm.k8s.io",
-            "version": KUBEADM_API,
-            "kind": "ClusterConfiguration",
-            "patch": json.dumps(ops),
-        }
-    ]
+    if ops:
+        patches.append(
+            {
+                "group": "kubeadm.k8s.io",
+                "version": KUBEADM_API,
+                "kind": "ClusterConfiguration",
+                "patch": json.dumps(ops),
+            }
+        )
+    return patches
 
 
 def build_config(spec: ClusterSpec) -> str:
@@ -257,10 +280,11 @@ def create(
     robot_mounts: dict[str, str] | None = None,
     control_plane_args: Mapping[str, Sequence[str]] | None = None,
     apiserver_folders: Sequence[str] = (),
+    heartbeats: components.Heartbeats | None = None,
 ) -> Running:
     """Creates the kind cluster `name` with one worker per robot and waits until every node is Ready.
     `robot_mounts` (path in the node -> host folder) are bound into every robot's node;
-    `control_plane_args` and `apiserver_folders` as `ClusterSpec`'s (a benchmark's tuning).
+    `control_plane_args`, `apiserver_folders` and `heartbeats` as `ClusterSpec`'s.
 
     Raises:
         ClusterError, engine.EngineError: naming the step and the log to read.
@@ -284,6 +308,7 @@ def create(
             robot_mounts or {},
             control_plane_args or {},
             tuple(apiserver_folders),
+            heartbeats,
         )
         config = folder / "kind-config.json"
         config.write_text(build_config(spec))

@@ -1,6 +1,8 @@
 """One kind cluster for every test of this folder: three robot workers and the operator's node.
 
-`kind_cluster` creates it once, the way `coral dev-cluster up` does, and deletes it after the
+`kind_cluster` creates it once, the way `coral dev-cluster up` does but with the test heartbeats
+(`components.TEST_HEARTBEATS`: a robot cut off turns Unknown in about 12 s, not kind's 50), and
+deletes it after the
 folder's last test; then nothing of it may be left (no container, network or registry; the
 project's dockerd, its mounts and cgroups too unless another kind cluster still runs on it; the
 host's ip_forward and iptables as before). `kind_missions` is the
@@ -21,7 +23,7 @@ import pytest
 from coral.lidar import generating
 from coral_core.component_image import COMPONENT_UID
 from coral_testbed import images
-from coral_testbed.cluster import binaries, nodeimages, operatorchart
+from coral_testbed.cluster import binaries, components, nodeimages, operatorchart
 from coral_testbed.cluster.client import Cluster
 from coral_testbed.images import registry
 from coral_testbed.kind import clusters, engine, provisioning
@@ -80,6 +82,7 @@ def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindClust
             print,
             extra_workers={stack.OPERATOR_NODE: {operatorchart.OPERATOR_NODE_LABEL: "true"}},
             robot_mounts={manifests.SITE_SHARE: str(share)},
+            heartbeats=components.TEST_HEARTBEATS,
         )
         images.build(["python"], registry_address=running.registry_address)
         cluster = Cluster(running.kubeconfig, binaries.find_bin_dir(("kubectl", "helm")), is_local=False)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 import yaml
 from coral_testbed.cluster.client import Cluster
-from coral_testbed.kind import faults
+from coral_testbed.kind import clusters, faults
 from coral_testbed.waiting import wait_for
 
 from .fleet import ROBOTS, KindCluster
@@ -71,16 +71,31 @@ def _coredns_ready(cluster: Cluster) -> bool:
     return len(replicas) == 2 and replicas[0] == replicas[1]
 
 
+def _dns_routed(running: clusters.Running, cluster: Cluster, node: str) -> bool:
+    """Whether `node`'s kube-proxy has written a route to every Ready CoreDNS pod: a node booted
+    again starts with empty tables, and its pods cannot resolve names before that."""
+    dns_pods = ("pods", "-n", "kube-system", "-l", "k8s-app=kube-dns")
+    addresses = cluster.kubectl("get", *dns_pods, "-o", "jsonpath={.items[*].status.podIP}").stdout.split()
+    rules = running.engine.docker("exec", node, "iptables-save", "-t", "nat", check=False).stdout
+    return bool(addresses) and all(f"kube-system/kube-dns:dns -> {ip}:53" in rules for ip in addresses)
+
+
 def _run_pod(cluster: Cluster, name: str, robot: str) -> str:
     """Runs the hello pod on `robot` to completion; its logs."""
     cluster.kubectl("apply", "-f", "-", input=_python_pod(name, robot, HELLO, "Never"))
-    wait_for(
-        lambda: cluster.kubectl("get", "pod", name, "-o", "jsonpath={.status.phase}").stdout == "Succeeded",
-        timeout=180,
-        message=lambda: (
-            f"pod {name} to succeed: " + cluster.kubectl("describe", "pod", name, check=False).stdout[-1500:]
-        ),
-    )
+
+    def phase() -> str:
+        return cluster.kubectl("get", "pod", name, "-o", "jsonpath={.status.phase}").stdout
+
+    def outcome() -> str:
+        state = cluster.kubectl(
+            "get", "pod", name, "-o", "jsonpath={.status.containerStatuses[0].state}", check=False
+        ).stdout
+        logs = cluster.kubectl("logs", name, check=False)
+        return f"pod {name} to succeed: phase {phase()}, state {state}, logs:\n{logs.stdout}{logs.stderr}"
+
+    wait_for(lambda: phase() in ("Succeeded", "Failed"), timeout=180, message=outcome)
+    assert phase() == "Succeeded", outcome()
     return cluster.kubectl("logs", name).stdout
 
 
@@ -208,6 +223,12 @@ def test_a_power_cycled_robot_with_a_killed_containerd_runs_pods_again(
         message=lambda: (
             "CoreDNS Ready: " + cluster.kubectl("get", "pods", "-n", "kube-system", "-o", "wide").stdout
         ),
+    )
+    wait_for(
+        lambda: _dns_routed(running, cluster, node),
+        timeout=120,
+        interval=2,
+        message=f"kube-proxy of {node} routing to CoreDNS after the boot",
     )
     logs = _run_pod(cluster, "after-power-cycle", "relay-survey")
     assert "kubernetes.default.svc is 10.96.0.1" in logs, logs

@@ -14,6 +14,7 @@ from pathlib import Path
 import jsonpatch
 import pytest
 import yaml
+from coral_testbed.cluster import components
 from coral_testbed.kind import clusters, imagearchives, kindnet, offlineagent
 
 REPOSITORY = Path(__file__).resolve().parents[3]
@@ -94,6 +95,29 @@ def test_control_plane_flags_and_folders_reach_kubeadm_beside_kinds_own() -> Non
     assert (volume["hostPath"], volume["mountPath"]) == ("/tmp/audit", "/tmp/audit")
     assert config["nodes"][0]["extraMounts"] == [{"hostPath": "/tmp/audit", "containerPath": "/tmp/audit"}]
     assert all("extraMounts" not in node for node in config["nodes"][1:])
+
+
+def test_heartbeats_set_every_kubelets_lease_and_the_controllers_grace_beside_other_flags() -> None:
+    beats = components.Heartbeats(lease_s=12, grace_s=14, monitor_period_s=1, taints_per_s=1.0)
+    spec = _spec(heartbeats=beats, control_plane_args={"kube-controller-manager": ["--kube-api-qps=500"]})
+    patches = yaml.safe_load(clusters.build_config(spec))["kubeadmConfigPatchesJSON6902"]
+    by_kind = {(f"{p['group']}/{p['version']}", p["kind"]): yaml.safe_load(p["patch"]) for p in patches}
+    # kind's template writes this KubeletConfiguration, which kubeadm uploads for every node's kubelet.
+    kubelet = jsonpatch.apply_patch(
+        {"cgroupDriver": "systemd"}, by_kind[("kubelet.config.k8s.io/v1beta1", "KubeletConfiguration")]
+    )
+    assert kubelet == {"cgroupDriver": "systemd", "nodeLeaseDurationSeconds": 12}
+    cluster = jsonpatch.apply_patch(
+        _KIND_CLUSTER_CONFIGURATION,
+        by_kind[(_KIND_CLUSTER_CONFIGURATION["apiVersion"], _KIND_CLUSTER_CONFIGURATION["kind"])],
+    )
+    assert cluster["controllerManager"]["extraArgs"] == {
+        "enable-hostpath-provisioner": "true",
+        "kube-api-qps": "500",
+        "node-monitor-grace-period": "14s",
+        "node-monitor-period": "1s",
+        "node-eviction-rate": "1.0",
+    }
 
 
 def test_without_control_plane_settings_kubeadm_is_left_as_kind_makes_it() -> None:
