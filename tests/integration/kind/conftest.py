@@ -2,13 +2,12 @@
 
 `kind_cluster` creates it once, the way `coral dev-cluster up` does but with the test heartbeats
 (`components.TEST_HEARTBEATS`: a robot cut off turns Unknown in about 12 s, not kind's 50), and
-deletes it after the
-folder's last test; then nothing of it may be left (no container, network or registry; the
-project's dockerd, its mounts and cgroups too unless another kind cluster still runs on it; the
-host's ip_forward and iptables as before). `kind_missions` is the
-operator installed on it by its Helm chart, serving one namespace, with the mission images in the
-cluster's registry; `kind_operator` is that for one test, its CoralSystems deleted after it. They
-skip, with the reason, where kind cannot run. `short_bag` is the missions' short synthetic bag and
+deletes it after the folder's last test; then nothing of it may be left (no container, network or
+registry; the project's dockerd, its mounts and cgroups too unless another kind cluster still runs
+on it; the host's ip_forward and iptables as before). `kind_missions` is the operator installed
+on it by its Helm chart, serving one namespace, with the mission images in the cluster's registry;
+`kind_operator` is that for one test, its CoralSystems deleted after it. They skip, with the
+reason, where kind cannot run. `short_bag` is the missions' short synthetic bag and
 `slam_robot` the robot that has it where the SLAM example's bag player reads it.
 """
 

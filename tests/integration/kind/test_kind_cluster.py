@@ -72,7 +72,7 @@ def _coredns_ready(cluster: Cluster) -> bool:
 
 
 def _dns_routed(running: clusters.Running, cluster: Cluster, node: str) -> bool:
-    """Whether `node`'s kube-proxy has written a route to every Ready CoreDNS pod: a node booted
+    """Whether `node`'s kube-proxy has written a route to every CoreDNS pod: a node booted
     again starts with empty tables, and its pods cannot resolve names before that."""
     dns_pods = ("pods", "-n", "kube-system", "-l", "k8s-app=kube-dns")
     addresses = cluster.kubectl("get", *dns_pods, "-o", "jsonpath={.items[*].status.podIP}").stdout.split()
