@@ -4,7 +4,8 @@
    (`engine`: its own socket, leaves the host's forwarding and firewall alone);
 2. kind and the node binaries from Go modules (`hack/build-kind-tools.sh`, cached by version);
 3. the control-plane binaries (`hack/build-control-plane.sh`, cached by version);
-4. the node image (`nodeimage`: pulled where possible, else built here, cached by content).
+4. the host's inotify limits, raised where too low for several nodes (`hostlimits`);
+5. the node image (`nodeimage`: pulled where possible, else built here, cached by content).
 
 Installers' output goes to one log whose path is printed. Called by `coral dev-cluster setup`
 (`make kind`) and before every cluster is created.
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coral_testbed.cluster import binaries
-from coral_testbed.kind import engine, nodeimage
+from coral_testbed.kind import engine, hostlimits, nodeimage
 
 
 class SetupError(RuntimeError):
@@ -91,6 +92,9 @@ def ensure(progress: Callable[[str], None]) -> Ready:
         _script("setup-docker.sh", log, "installing docker.io")
     with timed("control-plane binaries (kubelet, kubectl, kube-apiserver, ...; cached by version)"):
         _script("build-control-plane.sh", log, "hack/build-control-plane.sh")
+    with timed("the host's inotify limits (kind's nodes each take some)"):
+        for line in hostlimits.ensure():
+            progress(f"  {line}")
     with timed("the project's dockerd"):
         node_engine = engine.start(lambda line: progress(f"  {line}"))
     with timed("node image"):
