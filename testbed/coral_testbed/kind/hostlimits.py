@@ -19,8 +19,9 @@ WANTED = {"max_user_instances": 512, "max_user_watches": 524288}
 
 
 def raises(current: Mapping[str, int]) -> dict[str, int]:
-    """Of `WANTED`, the settings `current` holds less of, with their wanted values. Pure."""
-    return {name: least for name, least in WANTED.items() if current.get(name, 0) < least}
+    """Of `WANTED`, the settings `current` holds less of, with their wanted values; one the host
+    lacks is not asked for. Pure."""
+    return {name: least for name, least in WANTED.items() if name in current and current[name] < least}
 
 
 def ensure(folder: Path = INOTIFY) -> list[str]:
@@ -32,10 +33,10 @@ def ensure(folder: Path = INOTIFY) -> list[str]:
             (folder / name).write_text(f"{value}\n")
         except OSError as error:
             lines.append(
-                f"fs.inotify.{name} stays {current.get(name)} ({error.strerror}): kind nodes may fail "
+                f"fs.inotify.{name} stays {current[name]} ({error.strerror}): kind nodes may fail "
                 f"to boot with 'Too many open files'; raise it to {value} (sysctl)"
             )
         else:
-            was = current.get(name)
+            was = current[name]
             lines.append(f"fs.inotify.{name} raised from {was} to {value} (kind's nodes need it)")
     return lines

@@ -55,3 +55,10 @@ def test_a_limit_that_cannot_be_written_is_named_with_what_to_do(
     (line,) = hostlimits.ensure(folder)
     assert line.startswith("fs.inotify.max_user_instances stays 128 (Permission denied)")
     assert "raise it to 512" in line
+
+
+def test_a_setting_the_host_lacks_is_left_alone(tmp_path: Path) -> None:
+    folder = _limits(tmp_path, max_user_instances=128)
+    (line,) = hostlimits.ensure(folder)
+    assert "max_user_instances raised" in line
+    assert _read(folder) == {"max_user_instances": 512}
