@@ -15,7 +15,7 @@ from coral_core import names
 
 from coral_operator import config
 from coral_operator.handlers.filters import watch_selectors
-from coral_operator.kube import applying, client
+from coral_operator.kube import applying, client, watchlist
 from coral_operator.metrics.fleet import FleetCollector
 from coral_operator.metrics.instruments import OperatorMetrics
 from coral_operator.planning import pods, rbac
@@ -54,9 +54,10 @@ def configure_operator(settings: kopf.OperatorSettings, **_: Any) -> None:
     settings.posting.level = logging.WARNING
     settings.execution.max_workers = 16
     settings.watching.server_timeout = 300
-    # A listing comes in pages: a namespace's CoralSystems may each be a megabyte, and one
-    # response with all of them (its text and its decoded objects at once) would be the operator's
-    # largest moment (docs/architecture.md, "The operator's memory").
+    # Where the API server cannot stream a watch's initial objects (`wait_for_the_coral_api`), a
+    # listing comes in pages: a namespace's CoralSystems may each be a megabyte, and one response
+    # with all of them (its text and its decoded objects at once) would be the operator's largest
+    # moment (docs/architecture.md, "The operator's memory").
     settings.watching.chunk_size = LIST_CHUNK_SIZE
     for resource, selector in watch_selectors().items():
         settings.watching.label_selectors[resource] = selector
@@ -64,12 +65,23 @@ def configure_operator(settings: kopf.OperatorSettings, **_: Any) -> None:
 
 
 @kopf.on.startup()
-def wait_for_the_coral_api(settings: kopf.OperatorSettings, memo: kopf.Memo, **_: Any) -> None:
+def wait_for_the_coral_api(
+    settings: kopf.OperatorSettings, memo: kopf.Memo, logger: logging.Logger, **_: Any
+) -> None:
     # Watching a CRD whose storage is still initializing can leave an index unfilled for good,
     # which holds every handler back; start watching only once both kinds are served.
-    problem = applying.coral_api_served(list(memo.get("namespaces", [])))
+    namespaces = list(memo.get("namespaces", []))
+    problem = applying.coral_api_served(namespaces)
     if problem is not None:
         raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
+    streamed = watchlist.initial_events_streamed(namespaces[0] if namespaces else None)
+    settings.watching.initial_streaming = streamed
+    logger.info(
+        "The API server streams each watch's objects one at a time (sendInitialEvents)."
+        if streamed
+        else f"The API server does not stream a watch's objects (WatchList off): listing them "
+        f"in pages of {LIST_CHUNK_SIZE}."
+    )
 
 
 def _post(reference: dict[str, Any], kind: str, reason: str, message: str) -> None:
