@@ -299,6 +299,17 @@ NOT_EXERCISED: dict[Permission, str] = {
     ("coral.dev", "coralinstances", "get"): "an instance name that answers 409 is read to tell whose it is",
     ("", "configmaps", "delete"): "a revision's files go when it leaves the history (after 10 changes)",
     ("apps", "controllerrevisions", "delete"): "a revision leaves the history after 10 changes",
+    # Where the API server streams a watch's objects (WatchList), kopf starts its watches without
+    # listing: these are asked only by a server without it (test_operator_without_watchlist.py).
+    **{
+        (group, resource, "list"): "a watch's first listing, where the API server cannot stream it"
+        for group, resource in [
+            ("", "configmaps"),
+            ("", "nodes"),
+            ("", "pods"),
+            ("apiextensions.k8s.io", "customresourcedefinitions"),
+        ]
+    },
 }
 """Grants of the chart that the scenario below does not reach, each with the only case that needs it."""
 
