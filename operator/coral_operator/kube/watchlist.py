@@ -59,6 +59,9 @@ def initial_events_streamed(namespace: str | None) -> bool:
             return False
         return ends_initial_events(raw)
     finally:
+        # The watch is still open after its bookmark: the connection is closed, not handed back
+        # to the pool with the rest of the stream unread.
+        raw.close()
         raw.release_conn()
 
 
