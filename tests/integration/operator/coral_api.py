@@ -98,6 +98,14 @@ class Coral:
                 return None
             raise
 
+    def served(self, name: str) -> bool:
+        """Whether the operator wrote the system's first status for its current spec."""
+        system = self.system(name)
+        return (
+            bool(system)
+            and (system.get("status") or {}).get("observedGeneration") == system["metadata"]["generation"]
+        )
+
     def instances(self) -> dict[str, dict[str, Any]]:
         items = self.custom.list_namespaced_custom_object(GROUP, VERSION, self.namespace, "coralinstances")[
             "items"

@@ -54,14 +54,6 @@ def load_namespaces(cluster: Any) -> Iterator[list[str]]:
         core.delete_namespace(name)
 
 
-def _served(coral: Coral, name: str) -> bool:
-    system = coral.system(name)
-    return (
-        bool(system)
-        and (system.get("status") or {}).get("observedGeneration") == system["metadata"]["generation"]
-    )
-
-
 def _cpu_share(pid: int, window_s: float = 2.0) -> float:
     """The share of one CPU the process used over the next `window_s` seconds."""
 
@@ -157,7 +149,7 @@ def test_two_hundred_maximal_systems_leave_room_and_time_for_a_new_one(
         asked = time.monotonic()
         coral.create_system(fleet_mission("newcomer", fleet))
         wait_for(
-            lambda: _served(coral, "newcomer"),
+            lambda: coral.served("newcomer"),
             timeout=60,
             interval=0.1,
             message=lambda: (

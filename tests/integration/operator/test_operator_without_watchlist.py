@@ -41,14 +41,6 @@ def cluster_without_watchlist(tmp_path_factory: pytest.TempPathFactory) -> Itera
         controlplane.stop(state_dir)
 
 
-def _served(coral: Coral, name: str) -> bool:
-    system = coral.system(name)
-    return (
-        bool(system)
-        and (system.get("status") or {}).get("observedGeneration") == system["metadata"]["generation"]
-    )
-
-
 def test_the_operator_lists_in_pages_and_serves_where_the_server_cannot_stream(
     cluster_without_watchlist: Cluster, tmp_path: Path
 ) -> None:
@@ -61,7 +53,7 @@ def test_the_operator_lists_in_pages_and_serves_where_the_server_cannot_stream(
     operator.start()
     try:
         wait_for(
-            lambda: _served(coral, "before"),
+            lambda: coral.served("before"),
             timeout=90,
             message=lambda: (
                 f"the system made before the operator started; its log:\n{operator.logs()[-3000:]}"
@@ -69,7 +61,7 @@ def test_the_operator_lists_in_pages_and_serves_where_the_server_cannot_stream(
         )
         coral.create_system(fleet_mission("after", "nowhere"))
         wait_for(
-            lambda: _served(coral, "after"),
+            lambda: coral.served("after"),
             timeout=30,
             message=lambda: (
                 f"the system made after the operator started; its log:\n{operator.logs()[-3000:]}"
