@@ -42,3 +42,41 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
             return lane_of(nodeid)
 
     return LaneScheduling(config, log)
+
+
+_ENGINE_RUNNING_AT_START = pytest.StashKey[bool]()
+
+
+def _is_controller(config: pytest.Config) -> bool:
+    # Under xdist the lanes are workers; the session's start and end belong to the process above them.
+    return not hasattr(config, "workerinput")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if _is_controller(config):
+        from coral_testbed.kind import engine
+
+        config.stash[_ENGINE_RUNNING_AT_START] = engine.project_engine_running()
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Fails the run when it leaves the project's dockerd running with no kind cluster on it: each
+    lane stops it after its own cluster only if no other cluster is left, so a dockerd running now
+    is one no run will stop (a dockerd that ran before the session is left alone)."""
+    config = session.config
+    if not _is_controller(config) or config.stash.get(_ENGINE_RUNNING_AT_START, True):
+        return
+    from coral_testbed.kind import clusters, engine
+
+    if not engine.project_engine_running():
+        return
+    node_engine = engine.Engine(engine.project_socket(), owned=True)
+    if node_engine.is_serving() and node_engine.containers(clusters.KIND_CLUSTER_LABEL):
+        return
+    session.config.get_terminal_writer().line(
+        "the project's dockerd started by this run is still running with no kind cluster on it "
+        "(`coral dev-cluster down` stops it)",
+        red=True,
+    )
+    session.exitstatus = pytest.ExitCode.TESTS_FAILED

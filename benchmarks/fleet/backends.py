@@ -76,7 +76,6 @@ def _start_kind(
     reason = provisioning.unsupported_reason()
     if reason is not None:
         raise RuntimeError(f"{reason}; `--cluster local` runs on the testbed's own control plane")
-    engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(_say)
     if clusters.load(name, ready.engine) is not None:
         _say(f"kind cluster {name} is left from an earlier run; deleting it first")
@@ -84,7 +83,7 @@ def _start_kind(
 
     def stop() -> None:
         clusters.delete(name, ready.engine, _say)
-        if not engine_was_running and clusters.stop_engine_unless_used(ready.engine):
+        if clusters.stop_engine_unless_used(ready.engine):
             _say("stopped the project's dockerd")
 
     try:

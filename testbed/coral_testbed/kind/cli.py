@@ -40,12 +40,10 @@ def _name_option(command: Callable[..., Any]) -> Callable[..., Any]:
 @_fail_on_errors
 def setup() -> None:
     """Install what kind needs where missing: Docker engine, kind, node binaries, node image."""
-    engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(clilines.say)
     clilines.say(f"kind is ready: node image {ready.node_image}")
-    if ready.engine.owned and not engine_was_running:
-        # Setup caches; it leaves nothing running. `up` starts the engine again (a few seconds).
-        engine.stop()
+    # Setup caches; it leaves no engine running without a cluster. `up` starts it again (seconds).
+    clusters.stop_engine_unless_used(ready.engine)
 
 
 @click.command()

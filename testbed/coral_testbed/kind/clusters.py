@@ -434,7 +434,10 @@ def delete(name: str, node_engine: engine.Engine, progress: Callable[[str], None
 
 def stop_engine_unless_used(node_engine: engine.Engine) -> bool:
     """Stops the project's dockerd unless another kind cluster still runs on it (another user's or
-    test's); True when it was stopped. A user's Docker (`$CORAL_DOCKER_HOST`) is never stopped."""
+    test's); True when it was stopped. Called after each cluster is deleted, whichever run started
+    the engine: of two runs that overlap, the one started first may end first, and the engine must
+    stop with the last cluster, not with the run that happened to start it. A user's Docker
+    (`$CORAL_DOCKER_HOST`) is never stopped."""
     if not node_engine.owned:
         return False
     return engine.stop_unless(lambda: bool(node_engine.containers(KIND_CLUSTER_LABEL)))

@@ -131,7 +131,7 @@ def dockerd_argv(dockerd: str, wrapper: Path) -> list[str]:
     run = _run_dir()
     return [
         dockerd,
-        f"--host=unix://{run}/docker.sock",
+        f"--host={project_socket()}",
         f"--pidfile={run}/docker.pid",
         f"--exec-root={run}/exec",
         f"--data-root={engine_dir()}/data",
@@ -161,8 +161,13 @@ def start(progress: Callable[[str], None]) -> Engine:
         return _start_owned(progress)
 
 
+def project_socket() -> str:
+    """The address of the project's dockerd (serving or not)."""
+    return f"unix://{_run_dir()}/docker.sock"
+
+
 def _start_owned(progress: Callable[[str], None]) -> Engine:
-    engine = Engine(f"unix://{_run_dir()}/docker.sock", owned=True)
+    engine = Engine(project_socket(), owned=True)
     if _owned_process() is not None and engine.is_serving():
         return engine
     dockerd = shutil.which("dockerd")
@@ -242,10 +247,12 @@ def stop_unless(in_use: Callable[[], bool]) -> bool:
 
 def _stop_owned() -> bool:
     process = _owned_process()
-    _record().unlink(missing_ok=True)
     if process is None:
+        _record().unlink(missing_ok=True)
         return False
     processes.stop(process, timeout=60)
+    # Only now: a stop that failed half way leaves the record, so the next stop finds the dockerd.
+    _record().unlink(missing_ok=True)
     for folder in leftover_cgroups():
         # Empty once its containers are gone; rmdir refuses a cgroup that still has any.
         with contextlib.suppress(OSError):

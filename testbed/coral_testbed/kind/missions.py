@@ -1,7 +1,7 @@
 """Missions on a kind cluster: `coral demo` (what `make demo` runs) and the kind tests.
 
 `demo_cluster` makes a throwaway kind cluster (one worker per robot and one for the operator) and
-deletes it again, with the project's dockerd when this call started it. `KindMissionStack` brings
+deletes it again, with the project's dockerd when no other kind cluster runs on it. `KindMissionStack` brings
 up everything a mission needs on such a cluster, in this order, and stops it in reverse (also when
 a start fails half way): the mission's images built into the cluster's registry (a cache hit when
 the tree is unchanged), the CRDs and the namespace, and the operator `helm install`ed on the
@@ -20,7 +20,7 @@ from kubernetes.client.exceptions import ApiException
 from coral_testbed import images
 from coral_testbed.cluster import binaries, operatorchart
 from coral_testbed.cluster.client import Cluster
-from coral_testbed.kind import clusters, engine, faults, provisioning
+from coral_testbed.kind import clusters, faults, provisioning
 from coral_testbed.missions import manifests, stack
 from coral_testbed.waiting import wait_for
 
@@ -37,7 +37,6 @@ def demo_cluster(
     """A kind cluster `name` for the mission's robots and the operator's node, with the host folder
     `share` bound at the site share's path into every robot (an NFS mount on a site); deleted on
     the way out."""
-    engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(lambda line: echo(f"    {line}"))
     try:
         running = clusters.create(
@@ -57,7 +56,7 @@ def demo_cluster(
     finally:
         echo(f"==> Deleting kind cluster {name}")
         clusters.delete(name, ready.engine, lambda line: echo(f"    {line}"))
-        if not engine_was_running and clusters.stop_engine_unless_used(ready.engine):
+        if clusters.stop_engine_unless_used(ready.engine):
             echo("==> Stopped the project's dockerd")
 
 

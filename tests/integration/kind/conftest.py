@@ -66,9 +66,7 @@ def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindClust
     if reason:
         pytest.skip(reason)
     host_before = _host_network_state()
-    engine_was_running = engine.project_engine_running()
     ready = provisioning.ensure(print)
-    started_here = ready.engine.owned and not engine_was_running
     share = tmp_path_factory.mktemp("site-share")
     # The components run as their own user and write the share, as on a site's NFS export.
     os.chown(share, COMPONENT_UID, COMPONENT_UID)
@@ -91,8 +89,9 @@ def kind_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KindClust
             cluster.close()
     finally:
         clusters.delete(NAME, ready.engine, print)
-        # Another kind cluster on the project's dockerd (another checkout's tests) keeps it running.
-        stopped = started_here and clusters.stop_engine_unless_used(ready.engine)
+        # Another kind cluster on the project's dockerd (another checkout's tests, the other lane's
+        # demo) keeps it running; the last cluster's run stops it.
+        stopped = clusters.stop_engine_unless_used(ready.engine)
     _assert_nothing_left(ready.engine, stopped)
     assert _host_network_state() == host_before, "the host's ip_forward or iptables changed"
 
