@@ -74,9 +74,12 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
     node_engine = engine.Engine(engine.project_socket(), owned=True)
     if node_engine.is_serving() and node_engine.containers(clusters.KIND_CLUSTER_LABEL):
         return
-    session.config.get_terminal_writer().line(
-        "the project's dockerd started by this run is still running with no kind cluster on it "
-        "(`coral dev-cluster down` stops it)",
-        red=True,
-    )
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write("\n")  # xdist's progress line does not end with one
+        reporter.write_line(
+            "the project's dockerd started by this run is still running with no kind cluster on it "
+            "(`coral dev-cluster down` stops it)",
+            red=True,
+        )
     session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -100,6 +100,13 @@ def crictl(running: clusters.Running, robot: str, *args: str) -> str:
     return on_robot(running, robot, "crictl", "--timeout", "60s", *args)
 
 
+def stops_on_sigterm(script: str) -> str:
+    """`script` for `sh -c` in a container that ends when the kubelet stops it, as a component
+    would: the shell is the container's first process, which the kernel lets ignore SIGTERM, and
+    each deletion of a system would wait out its pods' grace period (30 s) before a kill."""
+    return f"trap 'exit 0' TERM; {{ {script}; }} & wait"
+
+
 def fleet_system(name: str, domain: int, tree: str, **spec: Any) -> dict[str, Any]:
     """A CoralSystem over every robot of the cluster: one executor ticking `tree` at 10 Hz, and
     `spec`'s other fields (drivers, skillsets)."""

@@ -22,7 +22,7 @@ from coral_testbed.kind.missions import KindMissionStack
 from coral_testbed.waiting import wait_for
 from missions import realsystems as rs
 
-from .fleet import ROBOTS, fleet_system, pull_for
+from .fleet import ROBOTS, fleet_system, pull_for, stops_on_sigterm
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
@@ -86,7 +86,7 @@ def test_coral_logs_follows_three_robots_live_in_order_and_stops_cleanly_on_ctrl
     counter = {
         "name": "counter",
         "image": catalog.by_name()["examples-skillset"].reference,
-        "command": ["sh", "-c", COUNTER],
+        "command": ["sh", "-c", stops_on_sigterm(COUNTER)],
     }
     manifest = fleet_system(SYSTEM, int(ros_env["ROS_DOMAIN_ID"]), TREE, drivers=[counter])
     pull_for(kind_operator, robots, manifest)

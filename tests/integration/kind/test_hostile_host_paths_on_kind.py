@@ -36,6 +36,8 @@ from fixtures.cluster import create_test_namespace
 from fixtures.conditions import condition, is_current_and_true
 from missions import realsystems as rs
 
+from .fleet import stops_on_sigterm
+
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 
 ROBOT = "relay-worker"
@@ -95,7 +97,7 @@ class Stage:
         driver = {
             "name": "driver",
             "image": runtime,
-            "command": ["sh", "-c", _stops_on_sigterm(script)],
+            "command": ["sh", "-c", stops_on_sigterm(script)],
             "hostPaths": host_paths,
         }
         rs.create(
@@ -115,7 +117,7 @@ class Stage:
                         {
                             "name": "executor",
                             "image": runtime,
-                            "command": ["sh", "-c", _stops_on_sigterm("sleep infinity")],
+                            "command": ["sh", "-c", stops_on_sigterm("sleep infinity")],
                         }
                     ],
                 },
@@ -132,13 +134,6 @@ class Stage:
         assert status.restart_count == 0 and killed is None, (status, self.logs())
         assert "Traceback" not in self.logs(), self.logs()
         assert is_current_and_true(self.system(self.b, "healthy"), "Ready")
-
-
-def _stops_on_sigterm(script: str) -> str:
-    """`script` for `sh -c` in a container that ends when the kubelet stops it, as a component
-    would: the shell is the container's first process, which the kernel lets ignore SIGTERM, and
-    each deletion of a system would wait out its pods' grace period (30 s) before a kill."""
-    return f"trap 'exit 0' TERM; {{ {script}; }} & wait"
 
 
 def _upgrade(missions: KindMissionStack, release: operatorchart.Release) -> str:

@@ -21,7 +21,7 @@ from kubernetes import client as k8s
 from missions import realsystems as rs
 from rollout import verdict_clients
 
-from .fleet import pull_for
+from .fleet import pull_for, stops_on_sigterm
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
@@ -43,7 +43,7 @@ def _system(domain: int) -> dict[str, Any]:
         {
             "name": "player",
             "image": catalog.by_name()["examples-skillset"].reference,
-            "command": ["sh", "-c", f"sleep {DRIVER_RUNS_S}"],
+            "command": ["sh", "-c", stops_on_sigterm(f"sleep {DRIVER_RUNS_S}")],
             "transient": True,
         }
     ]
