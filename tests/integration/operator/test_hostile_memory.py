@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from coral_api import Coral, condition, fleet_mission
+from coral_api import condition, fleet_mission
 from coral_testbed.waiting import wait_for
 from fixtures.cluster import create_test_namespace
 from fixtures.yaml_bombs import merge_bomb
@@ -51,14 +51,6 @@ def stage(cluster: Any, coral_crds: None, tmp_path_factory: pytest.TempPathFacto
     log = tmp_path_factory.mktemp("memory") / "operator.log"
     with Stage.serving(cluster, [hostile, healthy], healthy, log, hostile=hostile) as stage:
         yield stage
-
-
-def _served(coral: Coral, name: str) -> dict[str, Any] | None:
-    """The system once the operator wrote its first status for its current generation."""
-    system = coral.system(name)
-    if system and (system.get("status") or {}).get("observedGeneration") == system["metadata"]["generation"]:
-        return system
-    return None
 
 
 def _with_env(manifest: dict[str, Any], count: int, size: int = 4096) -> dict[str, Any]:
@@ -94,7 +86,7 @@ def test_forty_systems_with_maximal_parameters_leave_the_operator_under_its_limi
         manifest["spec"]["parameters"] = {"inline": parameters(name)}
         coral.create_system(manifest)
     wait_for(
-        lambda: all(_served(coral, name) for name in names),
+        lambda: all(coral.served(name) for name in names),
         timeout=180,
         interval=1,
         message=lambda: f"40 systems served; operator log:\n{stage.operator.logs()[-3000:]}",
