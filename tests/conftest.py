@@ -71,8 +71,8 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 
     if not engine.project_engine_running():
         return
-    node_engine = engine.Engine(engine.project_socket(), owned=True)
-    if node_engine.is_serving() and node_engine.containers(clusters.KIND_CLUSTER_LABEL):
+    node_engine = engine.project_engine()
+    if node_engine.is_serving() and clusters.runs_a_cluster(node_engine):
         return
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:

@@ -440,4 +440,9 @@ def stop_engine_unless_used(node_engine: engine.Engine) -> bool:
     (`$CORAL_DOCKER_HOST`) is never stopped."""
     if not node_engine.owned:
         return False
-    return engine.stop_unless(lambda: bool(node_engine.containers(KIND_CLUSTER_LABEL)))
+    return engine.stop_unless(lambda: runs_a_cluster(node_engine))
+
+
+def runs_a_cluster(node_engine: engine.Engine) -> bool:
+    """Whether any kind cluster (any name, running or stopped) has node containers on the engine."""
+    return bool(node_engine.containers(KIND_CLUSTER_LABEL))

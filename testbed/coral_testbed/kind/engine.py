@@ -131,7 +131,7 @@ def dockerd_argv(dockerd: str, wrapper: Path) -> list[str]:
     run = _run_dir()
     return [
         dockerd,
-        f"--host={project_socket()}",
+        f"--host={project_engine().host}",
         f"--pidfile={run}/docker.pid",
         f"--exec-root={run}/exec",
         f"--data-root={engine_dir()}/data",
@@ -161,13 +161,13 @@ def start(progress: Callable[[str], None]) -> Engine:
         return _start_owned(progress)
 
 
-def project_socket() -> str:
-    """The address of the project's dockerd (serving or not)."""
-    return f"unix://{_run_dir()}/docker.sock"
+def project_engine() -> Engine:
+    """The project's dockerd on its own socket, whether it serves or not (`start` starts it)."""
+    return Engine(f"unix://{_run_dir()}/docker.sock", owned=True)
 
 
 def _start_owned(progress: Callable[[str], None]) -> Engine:
-    engine = Engine(project_socket(), owned=True)
+    engine = project_engine()
     if _owned_process() is not None and engine.is_serving():
         return engine
     dockerd = shutil.which("dockerd")
