@@ -11,7 +11,9 @@ import logging
 from typing import Any
 
 import kopf
+import urllib3
 from coral_core import names
+from kubernetes.client.exceptions import ApiException
 
 from coral_operator import config
 from coral_operator.handlers.filters import watch_selectors
@@ -71,10 +73,15 @@ def wait_for_the_coral_api(
     # Watching a CRD whose storage is still initializing can leave an index unfilled for good,
     # which holds every handler back; start watching only once both kinds are served.
     namespaces = list(memo.get("namespaces", []))
-    problem = applying.coral_api_served(namespaces)
-    if problem is not None:
-        raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
-    streamed = watchlist.initial_events_streamed(namespaces[0] if namespaces else None)
+    # An API server that is slow or restarting is asked again a second later: kopf would wait a
+    # minute after any other error before this operator serves anything.
+    try:
+        problem = applying.coral_api_served(namespaces)
+        if problem is not None:
+            raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
+        streamed = watchlist.initial_events_streamed(namespaces[0] if namespaces else None)
+    except (ApiException, urllib3.exceptions.HTTPError, OSError) as error:
+        raise kopf.TemporaryError(f"Waiting for the API server: {error}", delay=1) from error
     settings.watching.initial_streaming = streamed
     logger.info(
         "The API server streams each watch's objects one at a time (sendInitialEvents)."

@@ -97,13 +97,18 @@ class Robot:
     def runtime_view(self) -> str:
         """What a person at the robot would look at when a copy does not start: every container
         of the namespace in any state with its attempts, the executor's last output, the
-        kubelet's last words on the offline copies and the agent's report."""
+        kubelet's words on the offline copies, the static pod files and pod sandboxes, and the
+        agent's report."""
         return self.sh(
             f"crictl ps -a --label io.kubernetes.pod.namespace={self.namespace}; "
             f"last=$(crictl ps -a -q --name executor --label io.kubernetes.pod.namespace={self.namespace}"
             " | head -n 1); "
             '[ -n "$last" ] && crictl logs --tail 20 "$last" 2>&1; '
-            f"journalctl -u kubelet --no-pager -n 2000 | grep -i '{offline.STATIC_POD_PREFIX}' | tail -n 25; "
+            # Since the boot, not the journal's last lines: a kubelet cut off from its API server
+            # logs hundreds of lines a minute, which would hide how the copies started.
+            "journalctl -u kubelet --no-pager --since=-5min"
+            f" | grep -i '{offline.STATIC_POD_PREFIX}' | tail -n 40; "
+            f"ls -l {offlineagent.STATIC_POD_DIR}; crictl pods --namespace {self.namespace}; "
             f"cat {offline.REPORT_FILE}",
             check=False,
         )

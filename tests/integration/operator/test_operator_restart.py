@@ -26,7 +26,10 @@ def test_a_restarted_operator_picks_up_where_it_stopped(scenario: Scenario) -> N
             coral.system("fleet")["status"]["robots"]["ready"] == 3
             and is_current_and_true(coral.system("fleet"), "Ready")
         ),
-        "the new operator to bring the third robot up",
+        lambda: (
+            f"the new operator to bring the third robot up: {coral.system('fleet').get('status')}\n"
+            f"the operator's last words:\n{coral_operator.logs()[-4000:]}"
+        ),
     )
 
     after = coral.pods()
