@@ -11,9 +11,7 @@ import logging
 from typing import Any
 
 import kopf
-import urllib3
 from coral_core import names
-from kubernetes.client.exceptions import ApiException
 
 from coral_operator import config
 from coral_operator.handlers.filters import watch_selectors
@@ -80,7 +78,7 @@ def wait_for_the_coral_api(
         if problem is not None:
             raise kopf.TemporaryError(f"Waiting for the coral.dev API: {problem}", delay=1)
         streamed = watchlist.initial_events_streamed(namespaces[0] if namespaces else None)
-    except (ApiException, urllib3.exceptions.HTTPError, OSError) as error:
+    except client.NO_ANSWER as error:
         raise kopf.TemporaryError(f"Waiting for the API server: {error}", delay=1) from error
     settings.watching.initial_streaming = streamed
     logger.info(

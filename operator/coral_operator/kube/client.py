@@ -9,6 +9,7 @@ import functools
 from collections.abc import Callable
 from typing import Any
 
+import urllib3
 from coral_core import names
 from kubernetes import client, config
 from kubernetes.client.exceptions import ApiException
@@ -16,6 +17,11 @@ from kubernetes.config.config_exception import ConfigException
 
 CONNECTIONS = 64
 """Pooled connections to the API server: more than the handler threads plus the parallel writers."""
+
+NO_ANSWER: tuple[type[Exception], ...] = (ApiException, urllib3.exceptions.HTTPError, OSError)
+"""What a call raises when the API server gave no usable answer: an error status, a timeout, a
+refused or dropped connection."""
+
 
 
 @functools.cache
