@@ -216,6 +216,13 @@ class EngineHost:
     def drop(self) -> None:
         self._call("drop")
 
+    def restart(self) -> None:
+        """A new host process in place of a hung one, which answers nothing more, not even `exit`."""
+        self.process.kill()
+        self.process.join(timeout=10)
+        self._start()
+        self.served = 0
+
     def close(self) -> None:
         try:
             self._call("exit", timeout_s=10)
