@@ -192,9 +192,7 @@ class EngineHost:
 
     def load(self, request: LoadRequest) -> tuple[str, Any]:
         if self.engine == BTCPP and self.served >= BTCPP_BATCH:
-            self.close()
-            self._start()
-            self.served = 0
+            self.restart()
         self.served += 1
         verdict, value = self._call("load", (request, self.next_port))
         if verdict == "LOADED":
@@ -217,9 +215,8 @@ class EngineHost:
         self._call("drop")
 
     def restart(self) -> None:
-        """A new host process in place of a hung one, which answers nothing more, not even `exit`."""
-        self.process.kill()
-        self.process.join(timeout=10)
+        """A new host process in place of this one, also of a hung one (`close` kills it)."""
+        self.close()
         self._start()
         self.served = 0
 

@@ -108,12 +108,12 @@ def run_script(host: EngineHost, request: LoadRequest, script: HookScript) -> li
                 # A request's round trip goes through the engine's process after the notifications it
                 # sent during the tick: how long it takes says how slow delivery is right now.
                 asked = time.monotonic()
-                client.status()
+                statuses = client.status()
                 quiet_s = max(QUIET_S, QUIET_ROUND_TRIPS * (time.monotonic() - asked))
                 hits += [("passed", uid) for uid in _drain(client, quiet_s)]
                 kind, result = done
                 trace.append(("tick", result if kind == "status" else "ERROR", hits))
-                trace.append(("status", client.status()))
+                trace.append(("status", statuses))
                 trace.append(("transitions", [(uid, st) for _t, uid, st in client.transitions()]))
                 if script.silent_heartbeat:
                     time.sleep(0.1)  # the requests above brought the heartbeat back: let both see it

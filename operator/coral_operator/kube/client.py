@@ -23,7 +23,6 @@ NO_ANSWER: tuple[type[Exception], ...] = (ApiException, urllib3.exceptions.HTTPE
 refused or dropped connection."""
 
 
-
 @functools.cache
 def api_client() -> client.ApiClient:
     """The process-wide API client; in-cluster configuration first, then KUBECONFIG."""
