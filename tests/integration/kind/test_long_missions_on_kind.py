@@ -29,9 +29,9 @@ ROBOT = "relay-server"
 SYSTEM = "long-mission"
 # The robot has the images before the system starts (`pull_for`): a short timeout then holds a
 # startup on a busy machine, and a real startup timeout would fail the test for a good reason.
-TIMEOUT_S = 30
-DRIVER_RUNS_S = TIMEOUT_S + 20
-MISSION_MS = (DRIVER_RUNS_S + 15) * 1000
+TIMEOUT_S = 20
+DRIVER_RUNS_S = TIMEOUT_S + 15
+MISSION_MS = (DRIVER_RUNS_S + 10) * 1000
 TREE = rs.mission_tree('<Count count="{count}"/>', f'<Sleep msec="{MISSION_MS}"/>')
 
 

@@ -34,7 +34,7 @@ ROBOT = "relay-server"
 SYSTEM = "roamer"
 TREE = rs.LONG_WAIT_TREE
 COMPONENTS = {rs.SKILLSET, "executor"}
-QUIET_SAMPLES = 20
+QUIET_SAMPLES = 5
 MIN_SAMPLES = 30
 SETTLED_S = 10
 # Steps of the pods, not copies of a component.
@@ -184,9 +184,16 @@ def _run_until_recorded(missions: KindMissionStack, robot: Robot, domain: int) -
     return item
 
 
-def _assert_nothing_runs(robot: Robot, what: str) -> None:
-    """For 20 s after the robot booted, its runtime runs no container of the namespace (sampled
-    once a second; the kubelet would have started a static pod within a few seconds)."""
+def _assert_nothing_runs(robot: Robot, action: offline.BootAction, what: str) -> None:
+    """The boot's decision, then its effect: the agent's report says `action` for every system it
+    knows (the boot step runs before the kubelet starts), it handed the kubelet no static pod, and
+    the robot's runtime runs no container of the namespace (sampled once a second for a few
+    seconds, as the kubelet starts what its folder holds within a second or two)."""
+    report = json.loads(robot.read(offline.REPORT_FILE) or "{}")
+    assert report.get("apiReachable") is False, (what, report)
+    actions = {name: entry.get("action") for name, entry in (report.get("systems") or {}).items()}
+    assert actions and set(actions.values()) == {action.value}, (what, report)
+    assert _static_pods(robot) == [], what
     ticks = threading.Event()
     for _ in range(QUIET_SAMPLES):
         assert robot.running_components() == Counter(), what
@@ -316,8 +323,7 @@ def test_a_robot_never_given_a_revision_runs_nothing_offline_and_says_so(
     mission = _offline_mission(kind_operator, int(ros_env["ROS_DOMAIN_ID"]))
     wait_for(lambda: mission.pods(), timeout=60, message="the operator to create the system's pods")
     faults.reboot_in_place(running, ROBOT)
-    _assert_nothing_runs(robot, "a robot never given a revision ran something")
-    assert _static_pods(robot) == [], "static pods written for a robot with nothing stored"
+    _assert_nothing_runs(robot, offline.BootAction.NOTHING, "a robot never given a revision ran something")
     faults.restore_link(running, ROBOT)
 
     def reported() -> dict[str, Any]:
@@ -353,7 +359,7 @@ def test_a_tampered_cache_is_refused_with_the_reason(
     # Someone on the robot swaps the mission for another one.
     robot.sh(f"cat > {trees[0]}", stdin=TREE.replace('threshold="1000"', 'threshold="1"'))
     faults.reboot_in_place(running, ROBOT)
-    _assert_nothing_runs(robot, "a tampered cache ran")
+    _assert_nothing_runs(robot, offline.BootAction.REFUSE, "a tampered cache ran")
     faults.restore_link(running, ROBOT)
     (event,) = wait_for(
         lambda: _events(core, namespace, "OfflineCacheRefused"),

@@ -31,7 +31,7 @@ from .fleet import KindCluster, Mission, crictl, ready
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
 ROBOT = "relay-worker"
-ASLEEP_S = 30
+ASLEEP_S = 20
 # Long enough to cut the power while the tree sleeps; a restarted executor runs it all again.
 SLEEP_THEN_WAIT = rs.mission_tree(
     '<Count count="{count}"/>',
