@@ -91,12 +91,12 @@ bench: bench-bt bench-calls bench-slam bench-fleet bench-writes
 
 # `make bench PLOT=figures` also writes the fleet and SLAM figures as PNGs into figures/;
 # `make bench-fleet SIZES=100` runs the fleet benchmark at 100 robots only (default 100 500 1000);
-# `LAYOUT=PodPerRobot` measures that layout alone against its reference; `CLUSTER=kind` runs the
-# fleet on a kind cluster (default: the testbed's own control plane), named `KIND_NAME` (default
-# fleet-bench); `BASELINE=DIR` also measures the operator of the checkout DIR (with its own .venv)
-# against this one (docs/performance.md);
+# `LAYOUT=PodPerRobot` measures that layout alone against its reference; the fleet runs on a kind
+# cluster named `KIND_NAME` (default fleet-bench), or with `CLUSTER=local` on the testbed's own
+# control plane (no root or Docker engine needed); `BASELINE=DIR` also measures the operator of
+# the checkout DIR (with its own .venv) against this one (docs/performance.md);
 # `PAIRS=1` one pair of runs at the largest size instead of three.
 bench-fleet bench-writes: control-plane
-bench-fleet: $(if $(filter kind,$(CLUSTER)),node-runtime)
+bench-fleet: $(if $(filter local,$(CLUSTER)),,node-runtime)
 bench-bt bench-calls bench-slam bench-fleet bench-writes: venv
 	@f=benchmarks/bench_$(subst bench-,,$@).py; if [ -f $$f ]; then $(PY) $$f $(if $(and $(PLOT),$(filter bench-fleet bench-slam,$@)),--plot $(PLOT)) $(if $(filter bench-fleet,$@),$(SIZES) $(if $(LAYOUT),--layout $(LAYOUT)) $(if $(CLUSTER),--cluster $(CLUSTER)) $(if $(KIND_NAME),--kind-name $(KIND_NAME)) $(if $(BASELINE),--baseline $(BASELINE)) $(if $(PAIRS),--pairs $(PAIRS))); else echo "$$f: not written yet"; fi

@@ -5,9 +5,9 @@ size (`make bench-fleet SIZES=100` likewise); `--plot DIR` also draws the times 
 count into DIR/fleet.png, and `--logs DIR` keeps the operator's log of each size in DIR (its work
 queue says every 10 s how many passes ran, how long they took and how late they started).
 
-For each size, on a fresh cluster with that many kwok robots (`--cluster local`, the default: the
-testbed's own control plane of etcd, kube-apiserver, controller manager, scheduler and kwok;
-`--cluster kind`: a kind cluster, kwok against its API server; `fleet.backends`), in the same run,
+For each size, on a fresh cluster with that many kwok robots (`--cluster kind`, the default: a kind
+cluster, kwok against its API server; `--cluster local`: the testbed's own control plane of etcd,
+kube-apiserver, controller manager, scheduler and kwok; `fleet.backends`), in the same run,
 pairs of runs, each Coral run next to its reference (a cluster that has already created and
 deleted thousands of pods is slower than a fresh one, and that drift must not land in a ratio),
 and each run once the control plane is quiet
@@ -603,7 +603,7 @@ def parse_arguments(argv: list[str]) -> tuple[argparse.Namespace, Options]:
         "--cluster",
         choices=backends.BACKENDS,
         default=backends.BACKENDS[0],
-        help="local (default): the testbed's own control plane; kind: a kind cluster with kwok robots",
+        help="kind (default): a kind cluster with kwok robots; local: the testbed's own control plane",
     )
     parser.add_argument(
         "--kind-name",

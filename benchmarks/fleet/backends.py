@@ -5,14 +5,14 @@ counts (host pids: kind's components run in the node container but are processes
 kwok with the benchmark's options, the API server's audit log in the benchmark's folder, and the
 same flags for the controller manager and the scheduler.
 
-- `kind`: `coral_testbed.kind` makes the cluster (one control-plane node, no worker)
+- `kind` (default): `coral_testbed.kind` makes the cluster (one control-plane node, no worker)
   and runs kwok against its API server; the flags reach kubeadm as configuration patches and the
   audit folder is bound into the node at the same path. The benchmark talks to the API server at
   the node's address on the cluster's network, not through Docker's port forward, whose proxy
   process would carry every request and whose CPU no figure would show.
-- `local` (default): the testbed's own control plane (etcd and the control-plane binaries as
-  processes). It stays the default until kind has been measured beside it at 1000 robots on the
-  reference host (docs/performance.md has both at 100).
+- `local`: the testbed's own control plane (etcd and the control-plane binaries as processes),
+  for a host without root or a Docker engine, and to compare with the figures measured on it
+  (docs/performance.md has both).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from coral_testbed.kind import clusters, engine, provisioning
 KIND_NAME = "fleet-bench"
 """The kind cluster's default name (`--kind-name`: another, for runs side by side on one engine)."""
 CONTROL_PLANE = ("etcd", "kube-apiserver", "kube-controller-manager", "kube-scheduler")
-BACKENDS = ("local", "kind")
+BACKENDS = ("kind", "local")
 """The first is the default."""
 
 
@@ -75,7 +75,10 @@ def _start_kind(
 ) -> BenchCluster:
     reason = provisioning.unsupported_reason()
     if reason is not None:
-        raise RuntimeError(f"{reason}; `--cluster local` runs on the testbed's own control plane")
+        raise RuntimeError(
+            f"{reason}; `--cluster local` (`make bench-fleet CLUSTER=local`) runs on the testbed's own "
+            "control plane"
+        )
     ready = provisioning.ensure(_say)
     if clusters.load(name, ready.engine) is not None:
         _say(f"kind cluster {name} is left from an earlier run; deleting it first")

@@ -43,8 +43,12 @@ def test_without_a_name_a_kind_run_uses_the_benchmarks_own(bench_fleet: ModuleTy
     assert options.kind_name == "fleet-bench" and args.sizes == []
 
 
-def test_the_local_control_plane_stays_the_default(bench_fleet: ModuleType) -> None:
+def test_kind_is_the_default_and_the_local_control_plane_is_asked_for_by_name(
+    bench_fleet: ModuleType,
+) -> None:
     _, options = bench_fleet.parse_arguments(["100"])
+    assert options.backend == "kind"
+    _, options = bench_fleet.parse_arguments(["100", "--cluster", "local"])
     assert options.backend == "local"
 
 
