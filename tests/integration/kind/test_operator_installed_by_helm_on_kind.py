@@ -93,7 +93,8 @@ def test_the_operator_pod_serves_a_system_with_only_the_charts_rbac(
     # the kubelet) show it authenticated with the projected token and was never refused.
     logs = missions.operator_log_tail(10**7)
     assert "Initial authentication has finished" in logs, logs[-3000:]
-    assert not _refusals(logs), _refusals(logs)[:5]
+    refused = _refusals(logs)
+    assert not refused, refused[:5]
     # The same pod, never restarted: the liveness probe passes against the real kubelet.
     again = missions.core.read_namespaced_pod(pod.metadata.name, release.namespace)
     assert again.status.container_statuses[0].restart_count == 0
@@ -122,5 +123,5 @@ def test_a_system_grows_from_one_robot_to_three_under_the_charts_rbac(
     )
     stalled = condition(system, "Stalled")
     assert stalled.get("status") == "False", stalled
-    everything = missions.operator_log_tail(10**7)
-    assert not _refusals(everything), _refusals(everything)[:5]
+    refused = _refusals(missions.operator_log_tail(10**7))
+    assert not refused, refused[:5]
